@@ -1,0 +1,144 @@
+"""The `fleet-sim` command.
+
+Bad input (a layout, scenario or trace file) ends in one line naming the file, the element, the
+value and what was expected, and exit status 2; never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from fleet_sim.errors import FleetSimError
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="fleet-sim", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    run = sub.add_parser("run", help="run one scenario and write its run directory")
+    run.add_argument("scenario", type=Path, help="scenario YAML file")
+    run.add_argument("--agvs", type=int, help="fleet size (overrides fleet.size)")
+    run.add_argument("--hours", type=float, help="run length in hours (overrides duration_h)")
+    run.add_argument("--seed", type=int, help="random seed (overrides seed)")
+    run.add_argument("--out", type=Path, help="run directory (default: results/<scenario name>)")
+    run.add_argument("--quiet", action="store_true", help="no progress display")
+
+    lay = sub.add_parser("layout", help="check a layout file and draw it to PNG")
+    lay.add_argument("layout", type=Path, help="layout YAML file")
+    lay.add_argument("--png", type=Path, help="where to draw it (default: results/<name>.png)")
+    lay.add_argument("--max-speed", type=float, default=None,
+                     help="vehicle top speed in m/s to check speed limits against")
+
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "run":
+            return _run(args)
+        return _layout(args)
+    except FleetSimError as exc:
+        print(f"fleet-sim: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("fleet-sim: interrupted", file=sys.stderr)
+        return 130
+
+
+def _run(args: argparse.Namespace) -> int:
+    from fleet_sim.engine import simulate
+    from fleet_sim.errors import InputError
+    from fleet_sim.results import summary, write_run
+    from fleet_sim.scenario import load_layout_for, load_scenario
+    from fleet_sim.trace import load_trace
+
+    overrides: dict[str, object] = {}
+    if args.agvs is not None:
+        overrides["fleet.size"] = args.agvs
+    if args.hours is not None:
+        overrides["duration_h"] = args.hours
+    if args.seed is not None:
+        overrides["seed"] = args.seed
+    scenario = load_scenario(args.scenario, overrides)
+    if args.hours is not None and scenario.warmup_h >= scenario.duration_h:
+        raise InputError("--hours", "duration_h", args.hours,
+                         f"a run longer than the warm-up ({scenario.warmup_h} h)")
+    layout = load_layout_for(scenario, str(args.scenario))
+    trace = []
+    if scenario.demand.kind == "trace":
+        assert scenario.demand.trace_csv is not None
+        trace = load_trace(scenario.path(scenario.demand.trace_csv), layout)
+    out = args.out or _fresh_dir(Path("results") / scenario.name)
+    progress = None if args.quiet else _Progress()
+    run = simulate(scenario, layout, trace, progress=progress)
+    if progress is not None:
+        progress.done()
+    figures = write_run(run, out)
+    print(summary(figures))
+    print(f"  run directory               {out}  ({run.wall_s:.1f} s wall, "
+          f"{run.sim_events:,} events)")
+    return 0
+
+
+def _fresh_dir(base: Path) -> Path:
+    """`base`, or `base-2`, `base-3`... so that a default run never overwrites an earlier one."""
+    if not base.exists():
+        return base
+    n = 2
+    while Path(f"{base}-{n}").exists():
+        n += 1
+    return Path(f"{base}-{n}")
+
+
+class _Progress:
+    """Progress of a run on stderr: a live line on a terminal, a line per quarter otherwise."""
+
+    def __init__(self) -> None:
+        self.start = time.perf_counter()
+        self.tty = sys.stderr.isatty()
+        self.last_quarter = 0
+
+    def __call__(self, now_s: float, end_s: float) -> None:
+        share = now_s / end_s
+        wall = time.perf_counter() - self.start
+        left = wall * (1 - share) / share if share > 0 else 0.0
+        text = (f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h ({share:.0%}), "
+                f"{wall:.1f} s elapsed, ~{left:.0f} s left")
+        if self.tty:
+            sys.stderr.write("\r  " + text.ljust(70))
+            sys.stderr.flush()
+        elif int(share * 4) > self.last_quarter:
+            self.last_quarter = int(share * 4)
+            sys.stderr.write("  " + text + "\n")
+
+    def done(self) -> None:
+        if self.tty:
+            sys.stderr.write("\n")
+
+
+def _layout(args: argparse.Namespace) -> int:
+    from fleet_sim.layout import load_layout
+    from fleet_sim.layout_plot import draw_layout
+
+    layout = load_layout(args.layout, max_speed_mps=args.max_speed)
+    kinds: dict[str, int] = {}
+    for _, data in layout.graph.nodes(data=True):
+        kinds[data["kind"]] = kinds.get(data["kind"], 0) + 1
+    print(f"{args.layout}: layout {layout.name!r} is valid")
+    print(f"  nodes        {layout.graph.number_of_nodes()} "
+          f"({', '.join(f'{n} {k}' for k, n in sorted(kinds.items()))})")
+    print(f"  segments     {layout.graph.number_of_edges()} directed, "
+          f"{layout.total_length_m:.0f} m of track, {len(layout.corridors)} two-way corridors")
+    print(f"  stations     {len(layout.pickups)} pickup, {len(layout.dropoffs)} drop-off")
+    print(f"  chargers     {len(layout.chargers)}")
+    print(f"  parking      {len(layout.parking)} areas, "
+          f"{sum(p.capacity for p in layout.parking)} AGVs")
+    png = args.png or Path("results") / f"{layout.name}.png"
+    draw_layout(layout, png)
+    print(f"  drawing      {png}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
