@@ -139,6 +139,8 @@ class Vehicle:
             access = place.nodes[0]
             yield from self.drive(access, stop_for_order=True)
             if self.order is None and self.node == access:
+                # drive off the tape into a bay, at turn speed, before letting go of the track
+                yield self.env.timeout(self.clear_m / self.profile.turn_speed_mps)
                 self._enter_parking(place)
                 self.set_state(State.IDLE, "Event_Arrived_Parking", place.id)
             else:
@@ -240,8 +242,7 @@ class Vehicle:
         length = self.traffic.graph.edges[u, nxt]["length_m"]
         self.recorder.drove(start, self.env.now, length)
         if self.recorder.trace_occupancy:
-            key = "|".join(sorted((u, nxt)))
-            self.recorder.occupied("segment", key, self.id, start, self.env.now)
+            self.recorder.occupied("segment", f"{u}>{nxt}", self.id, start, self.env.now)
         self.prev, self.node, self.speed_mps = u, nxt, v_end
         arrived = self.ahead.pop(0)
         for held in self.held:
