@@ -141,11 +141,14 @@ class TrafficConfig:
     """How often an AGV that is still blocked looks again for a wait-for cycle."""
     replan_after_s: float = 30.0
     """Blocked this long, an AGV takes another route if one exists."""
+    give_way_after_s: float = 10.0
+    """Blocked this long with another AGV queued behind it, an AGV drives on and comes back
+    round rather than block the way (assumed; see fleet_sim.traffic)."""
     backoff_s: float = 5.0
     """Mean wait before a deadlocked AGV that cannot move tries again."""
 
     def check(self, file: str, element: str) -> None:
-        for name in ("deadlock_check_s", "replan_after_s", "backoff_s"):
+        for name in ("deadlock_check_s", "replan_after_s", "give_way_after_s", "backoff_s"):
             if getattr(self, name) <= 0:
                 raise InputError(file, f"{element}.{name}", getattr(self, name), "a time > 0 s")
 

@@ -13,6 +13,9 @@ Rules (see docs/engine.md for why):
 * A wait-for cycle (AGV a waits for a lock that b holds, b for one that c holds, ..., back to a)
   is looked for whenever an AGV starts waiting and every `deadlock_check_s` while it still waits.
   A cycle is recorded and resolved: one member takes another route or backs off to a free node.
+* Giving way: an AGV that has waited `give_way_after_s` for a corridor or a side track while
+  another AGV queues behind it drives on and comes back round (circulates) instead of blocking
+  the main loop. This keeps loops flowing, which avoids most deadlocks by construction.
 """
 
 from __future__ import annotations
@@ -66,10 +69,10 @@ class Lock(simpy.Resource):
 class Escape:
     """How a deadlocked AGV gets out: another route, or a step back to a free node."""
 
-    kind: Literal["yield", "reroute", "backoff"]
+    kind: Literal["yield", "reroute", "circulate", "backoff"]
     path: tuple[str, ...]
-    """Nodes from the AGV's node onwards (reroute: to its goal; backoff: one hop; yield: none,
-    the AGV gives up a corridor it reserved and tries again a little later)."""
+    """Nodes from the AGV's node onwards (reroute, circulate: to its goal; backoff: one hop;
+    yield: none, the AGV gives up a corridor it reserved and tries again a little later)."""
 
 
 class Traffic:
@@ -89,6 +92,8 @@ class Traffic:
         self._to_dest: dict[str, tuple[dict[str, float], dict[str, str]]] = {}
         self._pieces: dict[tuple[str | None, str, str], tuple[Piece, ...]] = {}
         self._stop_entry: dict[tuple[str, str, str], float] = {}
+        self._detours: dict[tuple[str, str, frozenset[str], frozenset[tuple[str, str]]],
+                            list[str] | None] = {}
 
     # ---- routes ---------------------------------------------------------------------------
     def _table(self, dest: str) -> tuple[dict[str, float], dict[str, str]]:
@@ -121,11 +126,16 @@ class Traffic:
         blocked)."""
         if dest in avoid or src in avoid:
             return None
+        key = (src, dest, frozenset(avoid), frozenset(avoid_edges or ()))
+        if key in self._detours:
+            return self._detours[key]
         view = nx.restricted_view(self.graph, list(avoid), list(avoid_edges or ()))
         try:
-            return list(nx.shortest_path(view, src, dest, weight="free_time_s"))
+            path: list[str] | None = list(nx.shortest_path(view, src, dest, weight="free_time_s"))
         except nx.NetworkXNoPath:
-            return None
+            path = None
+        self._detours[key] = path
+        return path
 
     # ---- kinematics per hop ---------------------------------------------------------------
     def pieces(self, prev: str | None, u: str, v: str) -> tuple[Piece, ...]:
@@ -237,6 +247,10 @@ class Traffic:
             if path is not None and len(path) > 1 and self._free_to_enter(vehicle, node, path[1]) \
                     and (inside is None or any(n not in inside.members for n in path[1:])):
                 return Escape("reroute", tuple(path))
+        if goal is not None and inside is None and (avoid_nodes or avoid_edges):
+            circle = self._circulate(vehicle, goal, avoid_nodes, avoid_edges)
+            if circle is not None:
+                return circle
         for nxt in sorted(self.graph.successors(node)):
             if nxt in avoid_nodes or (node, nxt) in avoid_edges or nxt == vehicle.next_node:
                 continue
@@ -245,6 +259,33 @@ class Traffic:
             if self._free_to_enter(vehicle, node, nxt):
                 return Escape("backoff", (node, nxt))
         return None
+
+    def _circulate(self, vehicle: Vehicle, goal: str, avoid_nodes: set[str],
+                   avoid_edges: set[tuple[str, str]]) -> Escape | None:
+        """Drive on two hops past what blocks the way (a busy corridor, a full siding) and come
+        back round by the usual route: a loop's answer to waiting in everyone's way."""
+        node = vehicle.node
+        for first in sorted(self.graph.successors(node)):
+            if first in avoid_nodes or (node, first) in avoid_edges:
+                continue
+            if not self._free_to_enter(vehicle, node, first):
+                continue
+            for second in sorted(self.graph.successors(first)):
+                if second in avoid_nodes or (first, second) in avoid_edges or second == node:
+                    continue
+                if self.layout.corridor_of(first, second) is not None:
+                    continue  # circulate on one-way track only
+                back = self.route(second, goal)
+                return Escape("circulate", (node, first, *back))
+        return None
+
+    def blocks_others(self, vehicle: Vehicle) -> bool:
+        """True if another AGV waits for a node or corridor that `vehicle` holds."""
+        locks = self.node_locks
+        if any(locks[h.node].put_queue for h in vehicle.held):
+            return True
+        corridors = self.corridor_locks
+        return any(corridors[cid].put_queue for cid in vehicle.corridors)
 
     def _free_to_enter(self, vehicle: Vehicle, node: str, nxt: str) -> bool:
         if not self.node_locks[nxt].is_free:

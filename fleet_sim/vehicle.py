@@ -325,9 +325,15 @@ class Vehicle:
                     return False
                 if claim.triggered:
                     return True
-                if may_escape and env.now - start >= self.config.replan_after_s:
+                if not may_escape:
+                    continue
+                waited = env.now - start
+                give_way = waited >= self.config.give_way_after_s \
+                    and self.traffic.blocks_others(self)
+                if give_way or waited >= self.config.replan_after_s:
                     escape = self.traffic.escape_for(self)
-                    if escape is not None and escape.kind == "reroute":  # blocked long
+                    if escape is not None and (escape.kind == "reroute" or (
+                            give_way and escape.kind == "circulate")):
                         self.escape = escape
                         claim.cancel()
                         return False
@@ -354,7 +360,7 @@ class Vehicle:
         options = [(v, traffic.escape_for(v, traffic.waiting[cycle[i - 1]]))
                    for i, v in enumerate(vehicles)]
         chosen: tuple[Vehicle, Escape] | None = None
-        for kind in ("yield", "reroute", "backoff"):
+        for kind in ("yield", "reroute", "circulate", "backoff"):
             for vehicle, escape in options:
                 if escape is not None and escape.kind == kind:
                     chosen = (vehicle, escape)
@@ -381,8 +387,9 @@ class Vehicle:
         self.escape = None
         self._drop_pending_corridors()
         assert self.goal is not None
-        if escape is not None and escape.kind == "reroute":
-            self.note("reroute", " ".join(escape.path))
+        if escape is not None and escape.kind in ("reroute", "circulate"):
+            self.note(escape.kind, " ".join(escape.path[:4]) + (" ..." if len(escape.path) > 4
+                                                                 else ""))
             return list(escape.path)
         if escape is not None and escape.kind == "backoff":
             step = escape.path[1]

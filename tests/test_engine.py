@@ -84,7 +84,7 @@ def test_throughput_equals_completed_orders_over_time(warehouse_layout: Layout) 
     assert figures["lead_time_mean_s"] == pytest.approx(lead.mean(), rel=1e-6)
     # every AGV's time in states adds up to the window
     shares = sum(v for k, v in figures.items() if k.startswith("state_"))
-    assert shares == pytest.approx(100.0, abs=1e-6)
+    assert shares == pytest.approx(100.0, abs=1e-4)  # each share is rounded to 1e-6
 
 
 def test_littles_law_on_the_order_queue(tiny_layout: Layout) -> None:

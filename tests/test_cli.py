@@ -1,0 +1,75 @@
+"""The fleet-sim command as a user runs it: files written, summary printed, clear errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import yaml
+
+from .conftest import LAYOUTS, ROOT, write_yaml
+
+KPI_KEYS = {"orders_created", "orders_completed", "throughput_per_hour", "lead_time_mean_s",
+            "lead_time_p95_s", "agv_utilisation_pct", "blocked_time_pct", "deadlocks_detected",
+            "distance_km"}
+
+
+def fleet_sim(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "fleet_sim.cli", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=600)
+
+
+def test_run_writes_the_run_directory(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    result = fleet_sim("run", "experiments/tiny_loop.yaml", "--agvs", "3", "--hours", "0.5",
+                       "--seed", "5", "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    assert {p.name for p in out.iterdir()} >= {"config.resolved.yaml", "kpis.json",
+                                                "events.parquet", "orders.parquet"}
+    figures = json.loads((out / "kpis.json").read_text())
+    assert figures.keys() >= KPI_KEYS
+    config = yaml.safe_load((out / "config.resolved.yaml").read_text())
+    assert config["fleet"]["size"] == 3 and config["duration_h"] == 0.5 and config["seed"] == 5
+    orders = pd.read_parquet(out / "orders.parquet")
+    assert len(orders) == figures["orders_created"]
+    events = pd.read_parquet(out / "events.parquet")
+    assert list(events.columns) == ["time_s", "agv", "event", "from_state", "to_state", "node",
+                                    "detail"]
+    assert "throughput" in result.stdout and str(out) in result.stdout
+    assert "simulated 0.50 of 0.50 h (100%)" in result.stderr  # progress
+
+
+def test_default_run_directory_never_overwrites(tmp_path: Path) -> None:
+    scenario = write_yaml(tmp_path / "s.yaml", {"name": "again", "layout": str(
+        LAYOUTS / "tiny_loop.yaml"), "duration_h": 0.2, "warmup_h": 0.0})
+    for _ in range(2):
+        assert fleet_sim("run", str(scenario), "--quiet", cwd=tmp_path).returncode == 0
+    assert (tmp_path / "results" / "again" / "kpis.json").exists()
+    assert (tmp_path / "results" / "again-2" / "kpis.json").exists()
+
+
+def test_bad_input_is_one_clear_line(tmp_path: Path) -> None:
+    scenario = write_yaml(tmp_path / "s.yaml", {"layout": str(LAYOUTS / "tiny_loop.yaml"),
+                                                "fleet": {"size": 2, "colour": "red"}})
+    result = fleet_sim("run", str(scenario))
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert result.stderr.strip().count("\n") == 0
+    assert f"{scenario}: fleet.colour: got 'red'; expected no such key" in result.stderr
+
+
+def test_layout_command_checks_and_draws(tmp_path: Path) -> None:
+    png = tmp_path / "wh.png"
+    result = fleet_sim("layout", "layouts/warehouse.yaml", "--png", str(png))
+    assert result.returncode == 0, result.stderr
+    assert "186" in result.stdout and "6 pickup, 12 drop-off" in result.stdout
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
+    broken = tmp_path / "broken.yaml"
+    broken.write_text((LAYOUTS / "tiny_loop.yaml").read_text().replace("{from: K, to: SW}",
+                                                                       "{from: K, to: ZZ}"))
+    result = fleet_sim("layout", str(broken))
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "segments[11].to: got 'ZZ'; expected the id of a node" in result.stderr

@@ -1,0 +1,123 @@
+"""Scenario files: defaults from RSS-AGV-001 7.1, strict keys, resolved config, cross-checks."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import pytest
+import yaml
+
+from fleet_sim.errors import InputError
+from fleet_sim.scenario import (
+    Scenario,
+    VehicleProfile,
+    load_layout_for,
+    load_scenario,
+    resolved,
+)
+from fleet_sim.trace import load_trace
+
+from .conftest import LAYOUTS, ROOT, write_yaml
+
+
+def test_vehicle_defaults_are_the_specs_parameters() -> None:
+    profile = VehicleProfile()
+    assert profile.max_speed_mps == 1.0  # P_001 VEL_MAX 1000 mm/s
+    assert profile.accel_mps2 == 0.5  # P_002 VEL_ACC 500 mm/s2
+    assert profile.decel_mps2 == 0.5  # P_003 VEL_DEC 500 mm/s2
+    assert profile.turn_speed_mps == 0.3  # P_004 TURN_SPEED 300 mm/s, Req.Nav.005
+    assert profile.min_gap_m == 0.5  # P_006 OBS_STOP_DIST 500 mm
+
+
+def test_bundled_scenarios_load() -> None:
+    for path in sorted((ROOT / "experiments").glob("*.yaml")):
+        scenario = load_scenario(path)
+        load_layout_for(scenario, str(path))
+
+
+def test_config_is_frozen() -> None:
+    scenario = load_scenario(ROOT / "experiments" / "tiny_loop.yaml")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        scenario.seed = 3  # type: ignore[misc]
+
+
+def test_resolved_config_writes_every_default_and_reloads(tmp_path: Path) -> None:
+    scenario = load_scenario(ROOT / "experiments" / "tiny_loop.yaml")
+    plain = resolved(scenario)
+    assert plain["fleet"]["vehicle"]["turn_speed_mps"] == 0.3
+    assert plain["dispatch"]["policy"] == "nearest_idle"
+    assert plain["traffic"]["replan_after_s"] == 30.0
+    assert "_base_dir" not in plain
+    plain["layout"] = str(LAYOUTS / "tiny_loop.yaml")
+    again = load_scenario(write_yaml(tmp_path / "again.yaml", plain))
+    assert resolved(again) == plain
+
+
+def test_overrides_by_dotted_key() -> None:
+    scenario = load_scenario(ROOT / "experiments" / "tiny_loop.yaml",
+                             {"fleet.size": 3, "demand.rate_per_hour": 12.5})
+    assert scenario.fleet.size == 3 and scenario.demand.rate_per_hour == 12.5
+
+
+@pytest.mark.parametrize("data,element,expected", [
+    ({"layout": "x.yaml", "fleet": {"sise": 3}}, "fleet.sise", "no such key"),
+    ({"layout": "x.yaml", "fleet": {"size": 0}}, "fleet.size", "an integer >= 1"),
+    ({"layout": "x.yaml", "fleet": {"size": "many"}}, "fleet.size", "an integer"),
+    ({"layout": "x.yaml", "duration_h": 1, "warmup_h": 2}, "warmup_h", "shorter than"),
+    ({"layout": "x.yaml", "dispatch": {"policy": "random"}}, "dispatch.policy",
+     "one of 'nearest_idle', 'fcfs'"),
+    ({"layout": "x.yaml", "demand": {"profile": [{"from_h": 3, "multiplier": 1}]}},
+     "demand.profile", "the first at 0"),
+    ({"layout": "x.yaml", "fleet": {"vehicle": {"accel_mps2": -1}}},
+     "fleet.vehicle.accel_mps2", "a number > 0"),
+    ({"fleet": {"size": 2}}, "layout", "required key"),
+])
+def test_bad_scenarios(tmp_path: Path, data: dict[str, object], element: str,
+                       expected: str) -> None:
+    path = write_yaml(tmp_path / "s.yaml", data)
+    with pytest.raises(InputError) as info:
+        load_scenario(path)
+    assert str(info.value).startswith(f"{path}: {element}: got ")
+    assert expected in str(info.value)
+
+
+def test_scenario_checked_against_its_layout(tmp_path: Path) -> None:
+    path = write_yaml(tmp_path / "s.yaml", {
+        "layout": str(LAYOUTS / "tiny_loop.yaml"),
+        "demand": {"flows": [{"from": "PICK", "to": "NOWHERE"}]}})
+    with pytest.raises(InputError, match=r"demand.flows\[0\].to: got 'NOWHERE'; expected a "
+                                         r"dropoff station of layout tiny_loop \(DROP\)"):
+        load_layout_for(load_scenario(path), str(path))
+    too_many = write_yaml(tmp_path / "t.yaml", {"layout": str(LAYOUTS / "tiny_loop.yaml"),
+                                                "fleet": {"size": 9}})
+    with pytest.raises(InputError, match=r"fleet\.size: got 9; expected at most the parking"):
+        load_layout_for(load_scenario(too_many), str(too_many))
+    missing = write_yaml(tmp_path / "u.yaml", {"layout": "nope.yaml"})
+    with pytest.raises(InputError, match=r"layout: got 'nope\.yaml'; expected an existing layout"):
+        load_layout_for(load_scenario(missing), str(missing))
+
+
+def test_trace_csv_errors_name_the_line(tmp_path: Path) -> None:
+    layout = load_layout_for(load_scenario(ROOT / "experiments" / "tiny_loop.yaml"), "s")
+    good = tmp_path / "ok.csv"
+    good.write_text("time_s,pickup,dropoff,note\n30,PICK,DROP,a\n5,PICK,DROP,b\n")
+    assert [o.time_s for o in load_trace(good, layout)] == [5.0, 30.0]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time_s,pickup,dropoff\n30,PICK,DROP\nsoon,PICK,DROP\n")
+    with pytest.raises(InputError, match=r"bad.csv: line 3, time_s: got 'soon'"):
+        load_trace(bad, layout)
+    wrong = tmp_path / "wrong.csv"
+    wrong.write_text("time_s,pickup,dropoff\n30,DROP,DROP\n")
+    with pytest.raises(InputError, match=r"line 2, pickup: got 'DROP'; expected a pickup"):
+        load_trace(wrong, layout)
+    header = tmp_path / "header.csv"
+    header.write_text("t,pickup,dropoff\n")
+    with pytest.raises(InputError, match=r"header: got 't,pickup,dropoff'; expected columns"):
+        load_trace(header, layout)
+
+
+def test_scenario_type_is_a_dataclass() -> None:
+    assert dataclasses.is_dataclass(Scenario)
+    text = yaml.safe_dump(resolved(load_scenario(ROOT / "experiments" / "warehouse_shift.yaml")))
+    assert "rate_per_hour: 90" in text
