@@ -31,10 +31,12 @@ from agv_model.protocols.carriro import (
 )
 from agv_model.protocols.carriro_tables import (
     AD_ACTIONS,
+    AD_STATUSES,
     CODES,
     LANDMARKS,
     MODES,
     SETTABLE_AD_ACTIONS,
+    TextField,
     describe_code,
 )
 
@@ -614,6 +616,53 @@ def test_appendix_tables() -> None:
     assert describe_code("258100AB") == ("Error", "BMS CPU自己診断エラー")
     assert describe_code("1B010000") == ("Warning", "ランドマークが検出されませんでした")
     assert describe_code("7FFFFFFF") is None
+
+
+_CM = (1, ((50, 255),), 130)  # 停止距離 (単位: センチメートル), 範囲 50-255, デフォルト 130
+_ACT = (1, ((0, 4),), None)  # アクション 0-4
+_DIR = (1, ((0, 1),), None)  # 方向 0 前進, 1 後退
+_TEXT = "text"
+APPENDIX_B: dict[int, tuple[Any, ...]] = {  # action ID -> (倍率, 範囲, デフォルト) per parameter
+    0: (), 1: ((10, ((5, 30),), None),), 2: ((10, ((10, 10),), None),),
+    3: ((10, ((20, 20),), None),), 4: ((10, ((30, 30),), None),),
+    5: (_CM, (1, ((10, 180),), 90)), 6: (_CM, (1, ((10, 180),), 90)),
+    7: (_CM, (1, ((180, 180),), None)), 8: (_CM, (1, ((180, 180),), None)),
+    9: (_CM,), 10: ((1, ((5, 60),), None),),
+    11: ((10, ((10, 30),), 10),), 12: ((10, ((10, 30),), 10),),
+    13: (_TEXT, _TEXT, (10, ((0, 255),), None), (1, ((0, 255),), None)),
+    14: (), 15: (), 16: (),
+    17: (_CM, _DIR, (10, ((12, 50),), None), _ACT),
+    18: (_CM, _DIR, (10, ((0, 50),), None), _ACT),
+    19: ((10, ((0, 255),), None), (1, ((0, 19), (255, 255)), None)),
+    21: (_CM,), 24: (), 25: (), 26: (), 27: (), 28: (),
+    29: (_CM, (1, ((1, 4),), None), (1, ((0, 7),), None), (1, ((0, 250),), None)),
+    30: (_CM, _ACT, (10, ((-50, 50),), None), _ACT),
+    31: ((10, ((-50, 50),), None), _ACT, (10, ((-80, 80),), None), _ACT),
+    32: (), 33: ((1, ((50, 5000),), None),),
+    34: ((10, ((5, 80),), 13), _DIR, (10, ((12, 100),), None), _ACT),
+    35: (), 36: (), 37: (), 38: (), 39: (),
+}
+
+
+def test_appendix_b_action_table_matches_the_document() -> None:
+    assert set(AD_ACTIONS) == set(APPENDIX_B)
+    for action_id, expected in APPENDIX_B.items():
+        actual = tuple(_TEXT if isinstance(f, TextField) else (f.scale, f.ranges, f.default)
+                       for f in AD_ACTIONS[action_id].params)
+        assert actual == expected, f"Appendix B action {action_id}"
+
+
+def test_appendix_d_and_g_codes() -> None:
+    assert list(AD_STATUSES) == list(range(1, 8))
+    assert (AD_STATUSES[2], AD_STATUSES[7]) == ("移動中", "エラーモード")
+    assert list(MODES) == list(range(13))
+    assert (MODES[5][0], MODES[10][0], MODES[11][0]) == ("パーキング", "右Uターン", "自律")
+
+
+def test_owner_may_set_the_status_list_in_state() -> None:
+    host = booted()
+    host.device.state.status_cmds = ("pallet?", "speed_limit?")
+    assert host.ask(b"status?\n") == b"status? 0 0 30\n"
 
 
 def test_registered_by_name() -> None:

@@ -46,6 +46,8 @@ Commands
   パレット台車接続 (0, 1, 4, 12) none (error? 注記: errors clear only by restart): error 3.
 - reboot:, shutdown: only in parking or error mode (注記), else error 3. `OK` is sent first;
   then the vehicle restarts (banner after `startup_s`) or stays off until `power_on`.
+- action: 1 (緊急停止) is accepted in every mode, as are ad_pattern:, ad_speed_limit:, comm:,
+  echo:, status_cmd: and every get command: the document restricts none of them.
 - ad_action: only in autonomous mode (11), else error 3; IDs outside Appendix C are error 2.
   0 and 9 stop (ad_status 4), 14 resumes (ad_status 2), 16 reverses (ad_status 3); the action
   runs with its fixed or デフォルト parameters (9: 130 cm).

@@ -208,8 +208,7 @@ class CarriroDevice(Device):
             raise ValueError(f"landmark {landmark_id} is not in Appendix F")
         self.state.landmark_id, self.state.landmark_dist_m = landmark_id, 0.0
         if output is not None and self._on and self._banner_s is None:
-            self._outbox.append((now_s, self._codec.encode_reply(
-                Reply("ad_output", VALUE, (output,)))))
+            self._emit(now_s, Reply("ad_output", VALUE, (output,)))
 
     # -- time --------------------------------------------------------------------------------
     def _event_times(self) -> tuple[float | None, float | None, float | None]:
@@ -232,17 +231,27 @@ class CarriroDevice(Device):
             if which == 0:
                 self._banner_s = None
                 self._emit(t, Reply(BANNER_NAME, BANNER, (self.model, self.version)))
-            elif which == 1 and self._pending is not None:
-                frame, self._pending = self._pending[1], None
-                self._busy_until_s = t + self.quiet_after_reply_s
-                self._emit(t, self._answer(frame, t))
-                self._after_reply(t)
+            elif which == 1:
+                self._reply(t)
             else:
                 self._next_status_s = t + self.state.comm_period_s
                 self._emit(t, Reply("status", VALUE, self._status_values()))
 
+    def _reply(self, t: float) -> None:
+        assert self._pending is not None
+        frame, self._pending = self._pending[1], None
+        self._busy_until_s = t + self.quiet_after_reply_s
+        self._emit(t, self._answer(frame, t))
+        self._after_reply(t)
+
+    def _current_codec(self) -> CarriroCodec:
+        """The codec for the status_cmd list in force (the owner may also set it in `state`)."""
+        if self._codec.status_cmds != self.state.status_cmds:
+            self._codec = CarriroCodec(self.state.status_cmds)
+        return self._codec
+
     def _emit(self, t: float, reply: Reply) -> None:
-        self._outbox.append((t, self._codec.encode_reply(reply)))
+        self._outbox.append((t, self._current_codec().encode_reply(reply)))
 
     def _restart(self, now_s: float) -> None:
         """Power-on state: settings back to defaults, counters from zero (reboot:, comm:,
@@ -252,7 +261,6 @@ class CarriroDevice(Device):
                              pallet_option=old.pallet_option, pallet_attached=old.pallet_attached,
                              trolley_option=old.trolley_option,
                              trolley_attached=old.trolley_attached)
-        self._codec = CarriroCodec(self.state.status_cmds)
         self._on, self._banner_s, self._next_status_s = True, now_s + self.startup_s, None
         self._line.clear()
 
@@ -267,7 +275,7 @@ class CarriroDevice(Device):
     # -- answering ---------------------------------------------------------------------------
     def _answer(self, frame: bytes, t: float) -> Reply:
         try:
-            command = self._codec.parse_command(frame)
+            command = self._current_codec().parse_command(frame)
             if command.name == "speed_limit" and not self.speed_limit_alias:
                 raise CarriroError(ERROR_UNKNOWN_COMMAND, command.name, frame,
                                    "ad_speed_limit (the speed_limit alias is switched off)")
@@ -395,5 +403,4 @@ class CarriroDevice(Device):
 
     def _set_status_cmd(self, command: Command, t: float) -> Reply:
         self.state.status_cmds = tuple(str(a) for a in command.args)
-        self._codec = CarriroCodec(self.state.status_cmds)
         return Reply(command.name, DONE, command.args)
