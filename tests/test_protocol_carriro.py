@@ -497,6 +497,10 @@ def test_time_must_not_run_backwards() -> None:
 def test_settings_and_hooks_validate() -> None:
     with pytest.raises(ValueError, match="processing_s"):
         CarriroDevice(processing_s=-1.0)
+    with pytest.raises(ValueError, match="12 printable"):
+        CarriroDevice(unit_id="0012f337e03")
+    with pytest.raises(ValueError, match="dotted version"):
+        CarriroDevice(version="v1")
     device = CarriroDevice()
     with pytest.raises(ValueError, match="Error or Warning"):
         device.raise_code("01010000", 0.0)  # Info: キャリロ電源オン

@@ -18,7 +18,8 @@ Wire format
   (DESIGN.md: over-long lines are errors).
 - Error replies always use `:` (`battery: error 2`), as the エラーコード format shows, even for
   get commands. The name is the line's text up to its first `?`, `:` or space; bytes outside
-  printable ASCII are written `\\xNN`; an empty line answers `: error 1`.
+  printable ASCII are written as Python escapes (`\\xff`, `\\r`); an empty line answers
+  `: error 1`. The name is cut so that the reply stays within 255 characters.
 - Precedence: error 1 (name or form) before 2 (data) before 3 (state).
 - A get-only command sent with `:` (`battery: 5`), a set-only one with `?` (`reboot?`), and
   `ad_output?` ("外部からのコマンドとして使用できません", ad_output?) are error 1: the

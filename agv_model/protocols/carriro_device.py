@@ -17,7 +17,7 @@ from collections.abc import Callable, Collection
 from dataclasses import dataclass, field, replace
 from typing import ClassVar, Final
 
-from agv_model.protocols.base import Command, Device, Reply
+from agv_model.protocols.base import Command, Device, ProtocolError, Reply
 from agv_model.protocols.carriro_codec import (
     BANNER,
     BANNER_NAME,
@@ -135,6 +135,7 @@ class CarriroDevice(Device):
         self.state = state if state is not None else CarriroState()
         self.ignored_bytes = 0  # bytes dropped because the vehicle was not listening
         self._codec = CarriroCodec(self.state.status_cmds)
+        self._check_identity()
         self._clock_s = powered_on_s
         self._on = True
         self._banner_s: float | None = powered_on_s + startup_s
@@ -150,6 +151,16 @@ class CarriroDevice(Device):
             "comm": self._set_comm, "echo": self._echo, "mode": self._set_mode,
             "reboot": self._power, "shutdown": self._power, "status_cmd": self._set_status_cmd,
         }
+
+    def _check_identity(self) -> None:
+        if not all(isinstance(a, int) and a >= 0 for a in self.action_ids):
+            raise ValueError(f"action_ids must be non-negative integers, not {self.action_ids!r}")
+        try:
+            self._codec.encode_reply(Reply(BANNER_NAME, BANNER, (self.model, self.version)))
+            self._codec.encode_reply(Reply("version", VALUE, (self.version,)))
+            self._codec.encode_reply(Reply("id", VALUE, (self.unit_id,)))
+        except ProtocolError as exc:
+            raise ValueError(f"not a valid CarriRo identity: {exc.expected}") from exc
 
     # -- the Device interface ----------------------------------------------------------------
     def receive(self, data: bytes, now_s: float) -> None:
