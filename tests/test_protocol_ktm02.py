@@ -402,3 +402,28 @@ def test_exchange_over_a_pseudo_terminal(pty_link: Any, host: Ktm02Codec) -> Non
     frames = codec.unframe(bytearray(answer))
     assert [codec.decode(f).args for f in frames] == [(1,), (RobotState.IDLE,)]
     assert frames[0] == golden_hex("ktm02", "device_ack")
+
+
+def test_output_frame_ids_rise_in_send_order(host: Ktm02Codec) -> None:
+    device = Ktm02Device(reply_delay_s=0.005, rotate_time_s=0.001)
+    bad = bytearray(host.encode(KtmCommand("StopCmd", frame_id=9)))
+    bad[5] ^= 1
+    device.receive(host.encode(Command("RotateLeftAlongLineCmd", (10,))) + bytes(bad), 0.0)
+    out = [(t, Ktm02Codec().decode(d)) for t, d in device.poll(1.0)]
+    assert [(t, r.name, r.frame_id) for t, r in out] == [
+        (pytest.approx(0.005), "ControllerAckCmd", 1),
+        (pytest.approx(0.006), "MovingFinishCmd", 2),
+        (pytest.approx(0.010), "ControllerNakCmd", 3),
+    ]
+
+
+def test_frame_timeout_counts_from_the_frame_s_own_first_byte(host: Ktm02Codec) -> None:
+    device = Ktm02Device(frame_timeout_s=0.1)
+    a = host.encode(KtmCommand("StopCmd", frame_id=1))
+    b = host.encode(KtmCommand("StopCmd", frame_id=2))
+    device.receive(a[:3], 0.0)
+    device.receive(a[3:] + b[:3], 0.09)
+    device.receive(b[3:], 0.15)
+    out = [Ktm02Codec().decode(d) for _, d in device.poll(1.0)]
+    assert [(r.name, r.args) for r in out] == [("ControllerAckCmd", (1,)),
+                                               ("ControllerAckCmd", (2,))]

@@ -500,7 +500,6 @@ class Ktm02Device(Device):
         self._buffer = bytearray()
         self._partial_since_s: float | None = None
         self._busy_until_s = 0.0
-        self._state_s = 0.0
         self._motion = _Motion()
         self._odometer = _Odometer()
         self._camera = _Camera()
@@ -517,13 +516,13 @@ class Ktm02Device(Device):
             try:
                 frames = self.codec.unframe(self._buffer)
             except ProtocolError:
-                self._answer(now_s, self._nak(0, ErrorKind.UNKNOWN_COMMAND_ERROR))
+                self._answer(now_s, 0, ErrorKind.UNKNOWN_COMMAND_ERROR)
                 continue
             if not frames:
                 break
+            self._partial_since_s = now_s  # what is left started in this chunk
             for frame in frames:
                 self._handle(frame, now_s)
-            self._partial_since_s = now_s  # what is left started in this chunk
         if not self._buffer:
             self._partial_since_s = None
 
@@ -564,7 +563,6 @@ class Ktm02Device(Device):
             due = earliest(*self._event_times())
             if due is None or due > now_s:
                 break
-            self._state_s = max(self._state_s, due)
             if due == self._timeout_s():
                 frame_id = self._buffer[4] if len(self._buffer) > 4 else 0
                 self._buffer.clear()
@@ -585,12 +583,15 @@ class Ktm02Device(Device):
     def _nak(self, frame_id: int, kind: ErrorKind) -> bytes:
         return self._send("ControllerNakCmd", frame_id, kind)
 
-    def _answer(self, now_s: float, *frames: bytes) -> float:
+    def _answer(self, now_s: float, nak_id: int | None = None,
+                nak_kind: ErrorKind = ErrorKind.UNKNOWN_COMMAND_ERROR) -> float:
+        """Take the next reply slot after now_s, run events up to it and return its time;
+        with `nak_id`, send a NAK in it."""
         done_s = max(now_s, self._busy_until_s) + self.reply_delay_s
         self._busy_until_s = done_s
         self._advance(done_s)
-        for frame in frames:
-            self._outbox.put(done_s, frame)
+        if nak_id is not None:
+            self._outbox.put(done_s, self._nak(nak_id, nak_kind))
         return done_s
 
     def _handle(self, frame: bytes, now_s: float) -> None:
@@ -598,13 +599,13 @@ class Ktm02Device(Device):
             command = self.codec.parse_command(frame)
         except VerifyCodeError:
             frame_id = frame[4] if len(frame) > 4 else 0
-            self._answer(now_s, self._nak(frame_id, ErrorKind.VERIFY_ERROR))
+            self._answer(now_s, frame_id, ErrorKind.VERIFY_ERROR)
             return
         except UnknownCommandError as err:
-            self._answer(now_s, self._nak(err.frame_id, ErrorKind.UNKNOWN_COMMAND_ERROR))
+            self._answer(now_s, err.frame_id)
             return
         except ProtocolError:
-            self._answer(now_s, self._nak(0, ErrorKind.UNKNOWN_COMMAND_ERROR))
+            self._answer(now_s, 0)
             return
         if command.name == "ControllerAckCmd":
             return
