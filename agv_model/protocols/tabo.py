@@ -43,7 +43,7 @@ Decisions where the sheet is silent, damaged or contradicts itself:
    an integer, LED id not 1/2, negative fade time) gets NAK:<its group> for every group, by
    analogy; CES/CER and the getters have no group letter, so a malformed one is not answered.
    Unknown commands are not answered either (the sheet defines no reply); the device records
-   both in ``Device.ignored``. BHL with nothing to stop answers NAK:b.
+   both in ``TaboDevice.ignored``. BHL with nothing to stop answers NAK:b.
 10. Memory (SLV..STD, SDN, CMR rows and メモ): set values take effect in volatile memory at
     once; restart (CES, CER) writes them to non-volatile memory; GLV/GTV/GLD/GTD return the
     values read at boot ("起動時の補正値が戻される"); CMR restores factory values at the next
@@ -255,7 +255,8 @@ OFF: RGB = (0, 0, 0)
 
 @dataclass(frozen=True)
 class Settings:
-    """What lives in TABO's memory (設定 rows). Corrections are x0.1 %."""
+    """What lives in TABO's memory (設定 rows). Corrections are x0.1 %. The factory name
+    "TABO" and brake off are assumptions; the sheet gives no factory values."""
 
     line_speed: tuple[int, int] = (0, 0)  # SLV: forward, backward
     turn_speed: tuple[int, int] = (0, 0)  # STV: clockwise, counter-clockwise
