@@ -1,13 +1,20 @@
-"""Shared fixtures: paths to bundled files and small scenario builders."""
+"""Shared fixtures: bundled files, small scenario builders, golden files and a virtual device
+on a real pseudo-terminal."""
 
 from __future__ import annotations
 
+import os
+import select
+import tty
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+import serial
 import yaml
 
+from agv_model.protocols import Device
 from fleet_sim.confparse import build
 from fleet_sim.layout import Layout, load_layout
 from fleet_sim.scenario import Scenario
@@ -37,3 +44,70 @@ def make_scenario(layout_file: str = "tiny_loop.yaml", base_dir: Path = LAYOUTS,
 def write_yaml(path: Path, data: Any) -> Path:
     path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     return path
+
+
+GOLDEN = Path(__file__).parent / "golden"
+
+
+def golden_hex(protocol: str, name: str) -> bytes:
+    """Bytes of a `.hex` golden file: hex byte tokens, `#` comments, `30*246` repeats."""
+    out = bytearray()
+    for line in (GOLDEN / protocol / f"{name}.hex").read_text(encoding="utf-8").splitlines():
+        for token in line.split("#", 1)[0].split():
+            byte, _, count = token.partition("*")
+            out += bytes([int(byte, 16)]) * int(count or "1")
+    return bytes(out)
+
+
+def golden_bytes(protocol: str, name: str) -> bytes:
+    """Exact bytes of a raw golden file."""
+    return (GOLDEN / protocol / name).read_bytes()
+
+
+class PtyLink:
+    """A virtual device behind the master side of a pseudo-terminal; the host talks to the
+    slave path through pyserial. The device runs in simulated time, `step_s` per loop turn."""
+
+    def __init__(self, device: Device) -> None:
+        self.device = device
+        self.master_fd, self.slave_fd = os.openpty()
+        tty.setraw(self.slave_fd)
+        self.port = serial.Serial(os.ttyname(self.slave_fd), baudrate=19200, timeout=0)
+        self.now_s = 0.0
+
+    def exchange(self, request: bytes, done: Callable[[bytes], bool], *, step_s: float = 0.01,
+                 max_steps: int = 2000) -> bytes:
+        """Write `request` from the host, drive the device until `done(received)`; return what
+        the host read."""
+        self.port.write(request)
+        self.port.flush()
+        received = b""
+        for _ in range(max_steps):
+            ready, _, _ = select.select([self.master_fd], [], [], 0.005)
+            if ready:
+                self.device.receive(os.read(self.master_fd, 4096), self.now_s)
+            self.now_s += step_s
+            for _, data in self.device.poll(self.now_s):
+                os.write(self.master_fd, data)
+            received += self.port.read(4096)
+            if done(received):
+                return received
+        raise AssertionError(f"no complete answer after {max_steps} steps; got {received!r}")
+
+    def close(self) -> None:
+        self.port.close()
+        os.close(self.master_fd)
+        os.close(self.slave_fd)
+
+
+@pytest.fixture
+def pty_link() -> Iterator[Callable[[Device], PtyLink]]:
+    links: list[PtyLink] = []
+
+    def make(device: Device) -> PtyLink:
+        links.append(PtyLink(device))
+        return links[-1]
+
+    yield make
+    for link in links:
+        link.close()

@@ -1,0 +1,406 @@
+"""AGV-3 SCPI-like protocol: codec and virtual device.
+
+Source: ``specs/agv-3-protocol.sv.md`` ("Grupp 3 AGV protokoll", revision 1.1), cited by its
+headings: Syntax, Kommandon, Revision.
+
+Syntax: ``"cmd(?) (args...)\\r\\n"``; identifiers have levels separated by ':', upper-case letters
+are required and lower-case ones optional, case does not matter; ``?`` makes a get; arguments are
+separated by one or more spaces, extra ones are ignored; ';' chains commands on the same level,
+a leading ':' goes back to the root, ``*`` commands have no level.
+
+Decisions where the document is silent or contradicts itself:
+
+1. Short and long forms: "stora bokstäver ... är nödvändig medans små är frivilliga". We accept
+   the short form, the long form and anything between (``NAVI``), looser than SCPI, which only
+   knows the two ends. Nothing else: ``NA`` and ``NAVX`` are unknown.
+2. Line endings: the footnote says every string ends with "\\r\\n", the chaining example shows
+   replies ending "\\n\\r". We follow the footnote; ``Agv3Device(reply_terminator=b"\\n\\r")``
+   reproduces the example byte for byte.
+3. Chaining keeps the level of the previous command's parent (as SCPI does); a ``*`` command
+   leaves the level alone; an unknown command leaves it alone too. Empty segments are skipped;
+   an empty line is not answered. Each command of a chain gets its own reply line.
+4. A set normally answers an empty line; STArt and STOp answer "Starting..." and
+   "Stopping..." as in the chaining example. Errors ("en sträng med ett felmeddelande", text
+   not given) answer ``ERROR: <what>``, naming the identifier and the problem.
+5. Arguments are case-sensitive ("Argument är ej okänsliga ... om inget annat anges"), so
+   ``ROL lead`` is an error. Numbers outside the stated sets (PICKUp/DROPOff station 0-3,
+   count 0-10) are errors, and the order is kept. PASSengers takes a whole number >= 0 (no upper
+   bound is stated).
+6. STATus answers "<state>" alone when the info column is empty, "<state> <info>" otherwise.
+7. EStop set latches the stop; the document has no command to release it, so the simulation
+   calls `Agv3Device.release_estop`. While latched, STArt answers an error.
+8. After STArt the AGV looks for the line for ``line_search_s`` (assumed 2 s), then LEADING or
+   FOLLOWING -1 by its role. BATtery answers "<volts with six decimals>V", the example's form
+   "1.092556V"; that figure is also the default reading.
+9. The 0.25 s reply limit ("Om inget returneras inom 0.25s") is ``REPLY_TIMEOUT_S`` for hosts;
+   the device's assumed ``reply_delay_s`` (0.01 s) stays well inside it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from agv_model.protocols._sim import Outbox, SimClock, earliest
+from agv_model.protocols.base import Codec, Command, Device, ProtocolError, Reply, register
+
+PROTOCOL = "agv3"
+TERMINATOR = b"\r\n"  # Syntax, footnote 1
+REPLY_TIMEOUT_S = 0.25  # Syntax: "Om inget returneras inom 0.25s så får det antas som ett fel"
+IDENTITY = "AGV-3"  # *IDN
+ERROR_PREFIX = "ERROR: "
+STATION_MAX = 3  # PICKUp <station, 0-3 = 0>
+COUNT_MAX = 10  # PICKUp <antal, 0-10 = 0>
+PASSENGERS_DEFAULT = 10  # PASSengers <max antal=10>
+ROLES = ("LEAD", "FOLLOW")  # ROLe <roll, LEAD|FOLLOW=LEAD>
+STATES = ("STOPPED", "STARTED", "FOLLOWING", "LEADING", "STATION", "FAULT")  # STATus table
+
+
+@dataclass(frozen=True)
+class Node:
+    """One identifier of the command tree, e.g. ``NAVigation``; upper case is the short form."""
+
+    long: str
+    get: bool = False
+    set: bool = False
+    children: tuple[Node, ...] = ()
+
+    @property
+    def short(self) -> str:
+        return self.long.rstrip("abcdefghijklmnopqrstuvwxyz")
+
+    def matches(self, token: str) -> bool:
+        token = token.upper()
+        return len(token) >= len(self.short) and self.long.upper().startswith(token)
+
+    def child(self, token: str) -> Node | None:
+        return next((c for c in self.children if c.matches(token)), None)
+
+
+ROOT = Node("", children=(
+    Node("NAVigation", children=(
+        Node("STArt", set=True),
+        Node("STOp", set=True),
+        Node("PICKUp", get=True, set=True),
+        Node("DROPOff", get=True, set=True),
+        Node("ROLe", get=True, set=True),
+        Node("PASSengers", get=True, set=True),
+        Node("STATus", get=True),
+    )),
+    Node("SYStem", children=(
+        Node("EStop", get=True, set=True),
+        Node("BATtery", get=True),
+    )),
+    Node("*IDN", get=True),
+))
+
+
+class UnknownCommandError(ProtocolError):
+    """An identifier that names no command of the tree."""
+
+
+def find(name: str) -> Node:
+    """The node of a full identifier such as ``NAVigation:STArt`` or ``nav:sta``."""
+    node = ROOT
+    for token in name.lstrip(":").split(":"):
+        found = node.child(token)
+        if found is None:
+            raise UnknownCommandError(PROTOCOL, name, "a command of the AGV-3 tree")
+        node = found
+    return node
+
+
+class Agv3Codec(Codec):
+    """AGV-3 lines both ways."""
+
+    name = PROTOCOL
+
+    def __init__(self, terminator: bytes = TERMINATOR) -> None:
+        self.terminator = terminator
+
+    # -- host side -------------------------------------------------------------------------
+
+    def encode(self, command: Command) -> bytes:
+        return self.encode_chain([command])
+
+    def encode_chain(self, commands: list[Command]) -> bytes:
+        """One line for several commands, each written from the root (``:NAV:STA;:SYS:BAT?``
+        is always right, whatever the level)."""
+        parts: list[str] = []
+        for command in commands:
+            find(command.name)
+            mark = "?" if command.kind == "get" else ""
+            root = ":" if parts and not command.name.startswith("*") else ""
+            words = [root + command.name.lstrip(":") + mark, *map(str, command.args)]
+            parts.append(" ".join(words))
+        return ";".join(parts).encode("ascii") + self.terminator
+
+    def decode(self, frame: bytes) -> Reply:
+        text = self._text(frame)
+        if text.startswith(ERROR_PREFIX):
+            return Reply("", "error", (text[len(ERROR_PREFIX):],))
+        return Reply("", "value" if text else "ok", tuple(text.split()))
+
+    # -- vehicle side ----------------------------------------------------------------------
+
+    def parse_command(self, frame: bytes) -> Command:
+        """One command; a ';' chain raises (use `parse_line`)."""
+        parsed = self.parse_line(frame)
+        if len(parsed) != 1:
+            raise ProtocolError(PROTOCOL, frame, "exactly one command (use parse_line for ';')")
+        if isinstance(parsed[0], ProtocolError):
+            raise parsed[0]
+        return parsed[0]
+
+    def parse_line(self, frame: bytes) -> list[Command | ProtocolError]:
+        """Every command of a line, in order; a segment that cannot be read becomes its error,
+        so the rest of the chain still runs."""
+        text = self._text(frame)
+        level: tuple[Node, ...] = ()
+        out: list[Command | ProtocolError] = []
+        for segment in text.split(";"):
+            words = segment.split()
+            if not words:
+                continue
+            header, args = words[0], tuple(words[1:])
+            kind: Literal["get", "set"] = "get" if header.endswith("?") else "set"
+            path = header.removesuffix("?")
+            try:
+                nodes = self._resolve(path, level)
+            except ProtocolError as err:
+                out.append(err)
+                continue
+            if not path.startswith("*"):
+                level = nodes[:-1]
+            out.append(Command(":".join(n.long for n in nodes), args, kind))
+        return out
+
+    def _resolve(self, path: str, level: tuple[Node, ...]) -> tuple[Node, ...]:
+        """Walk `path` from the root (leading ':' or '*') or from `level`; return the full node
+        path from the root."""
+        start = () if path.startswith((":", "*")) else level
+        tokens = path.removeprefix(":").split(":")
+        if not all(tokens):
+            raise ProtocolError(PROTOCOL, path, "identifiers separated by single ':'")
+        nodes = list(start)
+        for token in tokens:
+            child = (nodes[-1] if nodes else ROOT).child(token)
+            if child is None:
+                raise UnknownCommandError(PROTOCOL, path, "a command of the AGV-3 tree")
+            nodes.append(child)
+        return tuple(nodes)
+
+    def encode_reply(self, reply: Reply) -> bytes:
+        if reply.status == "error":
+            text = ERROR_PREFIX + " ".join(map(str, reply.args))
+        else:
+            text = " ".join(map(str, reply.args))
+        return text.encode("ascii") + self.terminator
+
+    def unframe(self, buffer: bytearray) -> list[bytes]:
+        """Cut complete lines at the terminator (removed)."""
+        frames: list[bytes] = []
+        while (end := buffer.find(self.terminator)) >= 0:
+            frames.append(bytes(buffer[:end]))
+            del buffer[: end + len(self.terminator)]
+        return frames
+
+    @staticmethod
+    def _text(frame: bytes) -> str:
+        try:
+            return frame.decode("ascii")
+        except UnicodeDecodeError as err:
+            raise ProtocolError(PROTOCOL, frame, "ASCII text (Syntax, footnote 1)") from err
+
+
+# -- virtual device ----------------------------------------------------------------------------
+
+
+@dataclass
+class _Order:
+    station: int = 0
+    count: int = 0
+
+    def text(self) -> str:
+        return f"{self.station} {self.count}"
+
+
+class Agv3Device(Device):
+    """A virtual AGV-3 answering lines in simulated time.
+
+    Settings (assumed defaults): ``reply_delay_s`` 0.01 s per line; ``line_search_s`` 2 s from
+    STArt to finding the line (None: until `set_status`); ``battery_v`` 1.092556 (the document's
+    example); ``reply_terminator`` "\\r\\n" (decision 2).
+    """
+
+    name = PROTOCOL
+
+    def __init__(
+        self,
+        *,
+        reply_delay_s: float = 0.01,
+        line_search_s: float | None = 2.0,
+        battery_v: float = 1.092556,
+        reply_terminator: bytes = TERMINATOR,
+    ) -> None:
+        self.reply_delay_s = reply_delay_s
+        self.line_search_s = line_search_s
+        self.battery_v = battery_v
+        self.codec = Agv3Codec()
+        self.reply_codec = Agv3Codec(reply_terminator)
+        self.role = "LEAD"
+        self.max_passengers = PASSENGERS_DEFAULT
+        self.passengers = 0
+        self.pickup = _Order()
+        self.dropoff = _Order()
+        self.estop = False
+        self.state = "STOPPED"
+        self.info = ""
+        self._line_found_s: float | None = None
+        self._clock = SimClock(PROTOCOL)
+        self._outbox = Outbox()
+        self._buffer = bytearray()
+        self._busy_until_s = 0.0
+
+    # -- Device interface ------------------------------------------------------------------
+
+    def receive(self, data: bytes, now_s: float) -> None:
+        self._clock.advance(now_s)
+        self._buffer += data
+        for line in self.codec.unframe(self._buffer):
+            done_s = max(now_s, self._busy_until_s) + self.reply_delay_s
+            self._advance(done_s)
+            try:
+                parsed = self.codec.parse_line(line)
+            except ProtocolError as err:
+                parsed = [err]
+            if not parsed:
+                continue
+            self._busy_until_s = done_s
+            replies = b"".join(self.reply_codec.encode_reply(self._run(p, done_s))
+                               for p in parsed)
+            self._outbox.put(done_s, replies)
+
+    def poll(self, now_s: float) -> list[tuple[float, bytes]]:
+        self._clock.advance(now_s)
+        self._advance(now_s)
+        return self._outbox.due(now_s)
+
+    def next_output_s(self) -> float | None:
+        return earliest(self._outbox.next_time_s())
+
+    # -- simulation-facing -----------------------------------------------------------------
+
+    def set_status(self, state: str, info: str = "") -> None:
+        """Put the AGV in a STATus state (the driving model decides, e.g. FOLLOWING 4)."""
+        if state not in STATES:
+            raise ValueError(f"state {state!r} must be one of {', '.join(STATES)}")
+        self.state, self.info = state, info
+        self._line_found_s = None
+
+    def release_estop(self) -> None:
+        self.estop = False
+
+    def arrive_at_station(self, station: int) -> None:
+        """Carry out the drop-off and pick-up orders for `station`, then pause there."""
+        if self.dropoff.count and self.dropoff.station == station:
+            self.passengers -= min(self.dropoff.count, self.passengers)
+            self.dropoff = _Order()
+        if self.pickup.count and self.pickup.station == station:
+            room = max(0, self.max_passengers - self.passengers)
+            self.passengers += min(self.pickup.count, room)
+            self.pickup = _Order()
+        self.set_status("STATION", "STOPPED")
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _advance(self, now_s: float) -> None:
+        if self._line_found_s is not None and self._line_found_s <= now_s:
+            self._line_found_s = None
+            self._on_main_road()
+
+    def _on_main_road(self) -> None:
+        if self.role == "LEAD":
+            self.state, self.info = "LEADING", ""
+        else:
+            self.state, self.info = "FOLLOWING", "-1"
+
+    def _run(self, parsed: Command | ProtocolError, at_s: float) -> Reply:
+        if isinstance(parsed, ProtocolError):
+            what = "unknown command" if isinstance(parsed, UnknownCommandError) else "bad syntax"
+            return Reply("", "error", (f"{what} {parsed.data!r}",))
+        command = parsed
+        node = find(command.name)
+        allowed = node.get if command.kind == "get" else node.set
+        if not allowed:
+            return Reply(command.name, "error", (f"{command.name} has no {command.kind}",))
+        try:
+            text = (self._get(command.name) if command.kind == "get"
+                    else self._set(command.name, command.args, at_s))
+        except ValueError as err:
+            return Reply(command.name, "error", (f"{command.name}: {err}",))
+        return Reply(command.name, "value" if text else "ok", (text,) if text else ())
+
+    def _get(self, name: str) -> str:
+        values = {
+            "NAVigation:PICKUp": self.pickup.text(),
+            "NAVigation:DROPOff": self.dropoff.text(),
+            "NAVigation:ROLe": self.role,
+            "NAVigation:PASSengers": str(self.passengers),
+            "NAVigation:STATus": f"{self.state} {self.info}".rstrip(),
+            "SYStem:EStop": "TRUE" if self.estop else "FALSE",
+            "SYStem:BATtery": f"{self.battery_v:.6f}V",
+            "*IDN": IDENTITY,
+        }
+        return values[name]
+
+    def _set(self, name: str, args: tuple[str, ...], at_s: float) -> str:
+        if name == "NAVigation:STArt":
+            if self.estop:
+                raise ValueError("emergency stop is active")
+            self.set_status("STARTED")
+            if self.line_search_s is not None:
+                self._line_found_s = at_s + self.line_search_s
+            return "Starting..."
+        if name == "NAVigation:STOp":
+            self.set_status("STOPPED")
+            return "Stopping..."
+        if name in ("NAVigation:PICKUp", "NAVigation:DROPOff"):
+            station = _whole(args, 0, 0, STATION_MAX, "station")
+            count = _whole(args, 1, 0, COUNT_MAX, "count")
+            order = _Order(station, count) if count else _Order()
+            if name == "NAVigation:PICKUp":
+                self.pickup = order
+            else:
+                self.dropoff = order
+        elif name == "NAVigation:ROLe":
+            role = args[0] if args else "LEAD"
+            if role not in ROLES:
+                raise ValueError(f"role {role!r} must be LEAD or FOLLOW (case-sensitive)")
+            self.role = role
+            if self.state in ("LEADING", "FOLLOWING"):
+                self._on_main_road()
+        elif name == "NAVigation:PASSengers":
+            self.max_passengers = _whole(args, 0, 0, None, "max", PASSENGERS_DEFAULT)
+        elif name == "SYStem:EStop":
+            self.estop = True
+            self.set_status("STOPPED")
+        return ""
+
+
+def _whole(args: tuple[str, ...], index: int, low: int, high: int | None, what: str,
+           default: int = 0) -> int:
+    """Argument `index` as a whole number in low..high, or `default` when absent."""
+    if len(args) <= index:
+        return default
+    text = args[index]
+    span = f"{low}-{high}" if high is not None else f">= {low}"
+    if not text.lstrip("+-").isdigit():
+        raise ValueError(f"{what} {text!r} must be a whole number {span}")
+    value = int(text)
+    if value < low or (high is not None and value > high):
+        raise ValueError(f"{what} {value} must be {span}")
+    return value
+
+
+register(PROTOCOL, Agv3Codec, Agv3Device)

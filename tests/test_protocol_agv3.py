@@ -1,0 +1,227 @@
+"""AGV-3 codec and virtual device (specs/agv-3-protocol.sv.md)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from agv_model.protocols import Command, ProtocolError, Reply, get_codec, get_device
+from agv_model.protocols.agv3 import REPLY_TIMEOUT_S, Agv3Codec, Agv3Device, find
+
+from .conftest import GOLDEN, golden_bytes
+
+CASES = sorted(p.stem for p in (GOLDEN / "agv3").glob("*.in"))
+
+
+def ask(device: Agv3Device, line: str, at_s: float = 0.0) -> list[str]:
+    """Send one line at at_s; return the reply lines sent within the 0.25 s limit."""
+    device.receive(line.encode("ascii") + b"\r\n", at_s)
+    sent = b"".join(data for _, data in device.poll(at_s + REPLY_TIMEOUT_S))
+    assert sent.endswith(b"\r\n") or not sent
+    return sent.decode("ascii").split("\r\n")[:-1]
+
+
+# -- golden exchanges from the document ----------------------------------------------------
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_documented_example_exchange(case: str) -> None:
+    terminator = b"\n\r" if case == "chain_example" else b"\r\n"
+    device = Agv3Device(reply_terminator=terminator)
+    device.receive(golden_bytes("agv3", f"{case}.in"), 0.0)
+    sent = b"".join(data for _, data in device.poll(REPLY_TIMEOUT_S))
+    assert sent == golden_bytes("agv3", f"{case}.out")
+
+
+def test_chain_example_with_the_footnote_line_ending() -> None:
+    device = Agv3Device()
+    device.receive(golden_bytes("agv3", "chain_example.in"), 0.0)
+    sent = b"".join(data for _, data in device.poll(1.0))
+    assert sent == golden_bytes("agv3", "chain_example.out").replace(b"\n\r", b"\r\n")
+
+
+def test_chain_example_parses_with_levels_kept() -> None:
+    (frame,) = Agv3Codec().unframe(bytearray(golden_bytes("agv3", "chain_example.in")))
+    assert Agv3Codec().parse_line(frame) == [
+        Command("NAVigation:STArt", ("1", "2", "3"), "set"),
+        Command("NAVigation:STOp", ("hammertime",), "set"),
+        Command("SYStem:BATtery", (), "get"),
+    ]
+
+
+# -- grammar -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("header", "name"), [
+    ("NAVigation:STArt", "NAVigation:STArt"),
+    ("NAV:STA", "NAVigation:STArt"),
+    ("nav:sta", "NAVigation:STArt"),
+    ("NaV:StA", "NAVigation:STArt"),
+    ("navi:star", "NAVigation:STArt"),
+    (":NAV:STAT", "NAVigation:STATus"),
+    ("NAV:PICKU", "NAVigation:PICKUp"),
+    ("nav:pickup", "NAVigation:PICKUp"),
+    ("SYS:ES", "SYStem:EStop"),
+    ("*idn", "*IDN"),
+])
+def test_short_long_and_any_case_forms(header: str, name: str) -> None:
+    assert Agv3Codec().parse_command(header.encode() + b"?").name == name
+
+
+@pytest.mark.parametrize("header", ["NA:STA", "NAV:ST", "NAV:PICK", "NAVX:STA", "NAV:STARTX",
+                                    "STA", "SYS:STA", "NAV::STA"])
+def test_headers_that_are_not_commands(header: str) -> None:
+    with pytest.raises(ProtocolError) as err:
+        Agv3Codec().parse_command(header.encode())
+    assert header.lstrip(":") in str(err.value)
+
+
+def test_chaining_keeps_the_level_and_colon_returns_to_root() -> None:
+    parsed = Agv3Codec().parse_line(b"SYS:ES?;BAT?;*IDN?;ES;:NAV:ROL FOLLOW;PASS?")
+    assert [(c.name, c.kind) for c in parsed if isinstance(c, Command)] == [
+        ("SYStem:EStop", "get"), ("SYStem:BATtery", "get"), ("*IDN", "get"),
+        ("SYStem:EStop", "set"), ("NAVigation:ROLe", "set"), ("NAVigation:PASSengers", "get"),
+    ]
+
+
+def test_a_bad_segment_does_not_stop_the_chain() -> None:
+    parsed = Agv3Codec().parse_line(b"NAV:STA; FOO; STO")
+    assert isinstance(parsed[1], ProtocolError)
+    assert parsed[2] == Command("NAVigation:STOp", (), "set")
+
+
+def test_parse_command_refuses_a_chain() -> None:
+    with pytest.raises(ProtocolError, match="exactly one command"):
+        Agv3Codec().parse_command(b"NAV:STA;STO")
+
+
+def test_non_ascii_is_refused() -> None:
+    with pytest.raises(ProtocolError, match="ASCII"):
+        Agv3Codec().parse_line("NAV:STÅ".encode())
+
+
+def test_encode_and_chain_round_trip() -> None:
+    codec = Agv3Codec()
+    assert codec.encode(Command("NAV:PICKU", ("2", "5"), "set")) == b"NAV:PICKU 2 5\r\n"
+    line = codec.encode_chain([Command("NAVigation:STArt"), Command("SYStem:BATtery", (), "get"),
+                               Command("*IDN", (), "get")])
+    assert line == b"NAVigation:STArt;:SYStem:BATtery?;*IDN?\r\n"
+    assert [c.name for c in codec.parse_line(line[:-2]) if isinstance(c, Command)] == [
+        "NAVigation:STArt", "SYStem:BATtery", "*IDN"]
+    with pytest.raises(ProtocolError):
+        codec.encode(Command("NAV:FLY"))
+
+
+def test_replies_encode_and_decode() -> None:
+    codec = Agv3Codec()
+    assert codec.encode_reply(Reply("NAVigation:PICKUp", "value", ("2 5",))) == b"2 5\r\n"
+    assert codec.encode_reply(Reply("NAVigation:ROLe", "ok")) == b"\r\n"
+    assert codec.decode(b"FOLLOWING -1") == Reply("", "value", ("FOLLOWING", "-1"))
+    assert codec.decode(b"") == Reply("", "ok")
+    assert codec.decode(b"ERROR: x") == Reply("", "error", ("x",))
+
+
+def test_unframe_needs_crlf() -> None:
+    buffer = bytearray(b"*IDN?\r\nNAV:STA\n*IDN?\r")
+    assert Agv3Codec().unframe(buffer) == [b"*IDN?"]
+    assert buffer == bytearray(b"NAV:STA\n*IDN?\r")
+
+
+def test_registered_by_name() -> None:
+    assert isinstance(get_codec("agv3"), Agv3Codec)
+    assert isinstance(get_device("agv3", reply_delay_s=0.1), Agv3Device)
+    assert find("nav:stat").long == "STATus"
+
+
+# -- commands, defaults and errors ---------------------------------------------------------
+
+
+def test_pickup_and_dropoff_get_set_defaults_and_cancel() -> None:
+    device = Agv3Device()
+    assert ask(device, "NAV:PICKU 2 5;PICKU?;DROPO 3 1 extra;DROPO?") == ["", "2 5", "", "3 1"]
+    assert ask(device, "NAV:PICKU 3 0;PICKU?", 1.0) == ["", "0 0"]  # antal 0 cancels
+    assert ask(device, "NAV:DROPO;DROPO?", 2.0) == ["", "0 0"]  # defaults 0 0
+
+
+@pytest.mark.parametrize("line", ["NAV:PICKU 4 1", "NAV:PICKU 1 11", "NAV:DROPO x 1",
+                                  "NAV:DROPO -1 1"])
+def test_order_out_of_range_is_an_error_and_keeps_the_order(line: str) -> None:
+    device = Agv3Device()
+    ask(device, "NAV:PICKU 1 1;DROPO 1 1")
+    (reply,) = ask(device, line, 1.0)
+    assert reply.startswith("ERROR: NAVigation:")
+    assert ask(device, "NAV:PICKU?;DROPO?", 2.0) == ["1 1", "1 1"]
+
+
+def test_role_default_case_sensitive_arguments() -> None:
+    device = Agv3Device()
+    assert ask(device, "nav:rol FOLLOW;rol?") == ["", "FOLLOW"]
+    assert ask(device, "NAV:ROL follow", 1.0)[0].startswith("ERROR:")
+    assert ask(device, "NAV:ROL;ROL?", 2.0) == ["", "LEAD"]
+
+
+def test_passengers_sets_max_but_reads_onboard() -> None:
+    device = Agv3Device()
+    assert ask(device, "NAV:PASS 2;PASS?") == ["", "0"]
+    ask(device, "NAV:PICKU 1 5", 1.0)
+    device.arrive_at_station(1)
+    assert ask(device, "NAV:PASS?;PICKU?;STAT?", 2.0) == ["2", "0 0", "STATION STOPPED"]
+
+
+def test_status_follows_start_line_search_role_and_stop() -> None:
+    device = Agv3Device(reply_delay_s=0.01, line_search_s=2.0)
+    assert ask(device, "NAV:STAT?") == ["STOPPED"]
+    assert ask(device, "NAV:STA;STAT?", 1.0) == ["Starting...", "STARTED"]
+    assert ask(device, "NAV:STAT?", 2.5) == ["STARTED"]
+    assert ask(device, "NAV:STAT?", 3.02) == ["LEADING"]  # found at 1.01 + 2
+    assert ask(device, "NAV:ROL FOLLOW;STAT?", 4.0) == ["", "FOLLOWING -1"]
+    device.set_status("FAULT", "line lost")
+    assert ask(device, "NAV:STAT?", 5.0) == ["FAULT line lost"]
+    assert ask(device, "NAV:STO;STAT?", 6.0) == ["Stopping...", "STOPPED"]
+
+
+def test_estop_latches_and_refuses_start() -> None:
+    device = Agv3Device()
+    ask(device, "NAV:STA")
+    assert ask(device, "SYS:ES;ES?;:NAV:STAT?;STA", 1.0) == [
+        "", "TRUE", "STOPPED", "ERROR: NAVigation:STArt: emergency stop is active"]
+    device.release_estop()
+    assert ask(device, "NAV:STA", 2.0) == ["Starting..."]
+
+
+@pytest.mark.parametrize(("line", "error"), [
+    ("NAV:FOO", "ERROR: unknown command 'NAV:FOO'"),
+    ("NAV:STA?", "ERROR: NAVigation:STArt has no get"),
+    ("NAV:STAT", "ERROR: NAVigation:STATus has no set"),
+    ("SYS:BAT 12", "ERROR: SYStem:BATtery has no set"),
+    ("*IDN", "ERROR: *IDN has no set"),
+    ("NAV?", "ERROR: NAVigation has no get"),
+])
+def test_unknown_commands_and_missing_operations_answer_an_error(line: str, error: str) -> None:
+    assert ask(Agv3Device(), line) == [error]
+
+
+def test_extra_arguments_are_ignored() -> None:
+    device = Agv3Device(battery_v=24.5)
+    assert ask(device, "*IDN? please;:SYS:BAT? now") == ["AGV-3", "24.500000V"]
+
+
+def test_reply_comes_within_the_timeout_in_simulated_time() -> None:
+    device = Agv3Device(reply_delay_s=0.01)
+    device.receive(b"*IDN?\r\n", 10.0)
+    assert device.next_output_s() == pytest.approx(10.01)
+    assert device.next_output_s() - 10.0 < REPLY_TIMEOUT_S  # type: ignore[operator]
+    assert device.poll(10.005) == []
+
+
+def test_empty_line_is_not_answered() -> None:
+    device = Agv3Device()
+    device.receive(b"\r\n ; \r\n", 0.0)
+    assert device.next_output_s() is None
+
+
+def test_exchange_over_a_pseudo_terminal(pty_link: Any) -> None:
+    link = pty_link(Agv3Device(reply_delay_s=0.02))
+    answer = link.exchange(b"*IDN?;:nav:sta;STAT?\r\n", lambda got: got.count(b"\r\n") >= 3)
+    assert answer == b"AGV-3\r\nStarting...\r\nSTARTED\r\n"
