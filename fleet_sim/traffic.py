@@ -84,6 +84,9 @@ class Traffic:
         self.node_locks = {n: Lock(env, n) for n in self.graph.nodes}
         self.corridor_locks = {c.id: Lock(env, f"corridor {c.id}") for c in layout.corridors}
         self.waiting: dict[int, Lock] = {}
+        self.version = 0
+        """Counts changes of lock ownership and waits: a blocked AGV that sees the same count
+        as at its last look has nothing new to find."""
         self.vehicles: dict[int, Vehicle] = {}
         self._known_cycles: set[frozenset[int]] = set()
         for _, _, data in self.graph.edges(data=True):

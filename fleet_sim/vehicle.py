@@ -194,6 +194,7 @@ class Vehicle:
         claim = lock.claim(self.id)
         yield from self._wait(lock, claim, may_escape=False)
         self.held = [Held(access, claim, self.env.now)]
+        self.traffic.version += 1
         self.node = access
         self.parked_in = None
         self.fleet.release_parking(place)
@@ -280,6 +281,7 @@ class Vehicle:
                 self._release_corridor(cid)
             return False
         self.ahead.append(Held(node, claim, self.env.now))
+        self.traffic.version += 1
         return True
 
     def _try_take(self, via: str, node: str, after: str | None) -> bool:
@@ -299,6 +301,7 @@ class Vehicle:
         for cid, entry in needed:
             self.corridors[cid] = (traffic.corridor_locks[cid].claim(self.id), entry)
         self.ahead.append(Held(node, lock.claim(self.id), self.env.now))
+        traffic.version += 1
         return True
 
     def _wait(self, lock: Lock, claim: Claim,
@@ -308,13 +311,21 @@ class Vehicle:
         if claim.triggered:
             return True
         env = self.env
+        traffic = self.traffic
         start = env.now
-        self.traffic.waiting[self.id] = lock
+        traffic.waiting[self.id] = lock
+        traffic.version += 1
+        looked_at: tuple[int, bool, bool] | None = None
         try:
             while True:
-                if may_escape and self._deadlocked():
-                    claim.cancel()
-                    return False
+                waited = env.now - start
+                now_seen = (traffic.version, waited >= self.config.give_way_after_s,
+                            waited >= self.config.replan_after_s)
+                if may_escape and now_seen != looked_at:  # nothing changed, nothing to look at
+                    looked_at = now_seen
+                    if self._deadlocked() or self._takes_other_way(now_seen[1], now_seen[2]):
+                        claim.cancel()
+                        return False
                 try:
                     yield claim | env.timeout(self.config.deadlock_check_s)
                 except simpy.Interrupt:
@@ -325,21 +336,23 @@ class Vehicle:
                     return False
                 if claim.triggered:
                     return True
-                if not may_escape:
-                    continue
-                waited = env.now - start
-                give_way = waited >= self.config.give_way_after_s \
-                    and self.traffic.blocks_others(self)
-                if give_way or waited >= self.config.replan_after_s:
-                    escape = self.traffic.escape_for(self)
-                    if escape is not None and (escape.kind == "reroute" or (
-                            give_way and escape.kind == "circulate")):
-                        self.escape = escape
-                        claim.cancel()
-                        return False
         finally:
-            del self.traffic.waiting[self.id]
+            del traffic.waiting[self.id]
+            traffic.version += 1
             self.recorder.blocked(start, env.now)
+
+    def _takes_other_way(self, may_give_way: bool, may_replan: bool) -> bool:
+        """Blocked long enough: take another route if there is one; with someone queued behind,
+        circulate rather than block them."""
+        give_way = may_give_way and self.traffic.blocks_others(self)
+        if not (give_way or may_replan):
+            return False
+        escape = self.traffic.escape_for(self)
+        if escape is None or not (escape.kind == "reroute"
+                                  or (give_way and escape.kind == "circulate")):
+            return False
+        self.escape = escape
+        return True
 
     def _deadlocked(self) -> bool:
         """Look for a wait-for cycle through this AGV; resolve it. True if this AGV must move."""
@@ -404,11 +417,13 @@ class Vehicle:
     def _release(self, held: Held) -> None:
         lock = self.traffic.node_locks[held.node]
         lock.release(held.claim)
+        self.traffic.version += 1
         self.recorder.occupied("node", held.node, self.id, held.since_s, self.env.now)
 
     def _release_corridor(self, cid: int) -> None:
         claim, _ = self.corridors.pop(cid)
         self.traffic.corridor_locks[cid].release(claim)
+        self.traffic.version += 1
 
     def _release_left_corridors(self) -> None:
         """Let go of corridors the AGV has entered and fully left, and of pending ones whose
