@@ -12,7 +12,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from fleet_sim.battery import BatteryProfile
 from fleet_sim.confparse import build, read_yaml, to_plain
+from fleet_sim.distributions import Duration
 from fleet_sim.errors import InputError
 from fleet_sim.layout import Layout, load_layout
 
@@ -34,13 +36,23 @@ class VehicleProfile:
     """Gap kept to the AGV ahead; P_006 OBS_STOP_DIST 500 mm, the distance the LDS stops at."""
     boot_s: float = 5.0
     """Assumed: time in ST_001 Booting before Event_Init_Complete."""
+    approach_s: float = 1.5
+    """Assumed: L_Approach, the precise approach to a station (4.3)."""
+    handshake_s: float = 1.0
+    """Assumed: L_Handshake, the I/O handshake with the station (4.3)."""
+    verify_s: float = 0.5
+    """Assumed: L_Verify, checking the load is seated (4.3). L_Transfer is the station's
+    handling time."""
+    spin_s: float = 6.0
+    """Assumed: a 180-degree spin on the spot (5.3 TYPE_CMD 0x10)."""
+    battery: BatteryProfile = BatteryProfile()
 
     def check(self, file: str, element: str) -> None:
         for name in ("max_speed_mps", "accel_mps2", "decel_mps2", "turn_speed_mps", "length_m"):
             value = getattr(self, name)
             if value <= 0:
                 raise InputError(file, f"{element}.{name}", value, "a number > 0")
-        for name in ("min_gap_m", "boot_s"):
+        for name in ("min_gap_m", "boot_s", "approach_s", "handshake_s", "verify_s", "spin_s"):
             value = getattr(self, name)
             if value < 0:
                 raise InputError(file, f"{element}.{name}", value, "a number >= 0")
@@ -154,6 +166,175 @@ class TrafficConfig:
 
 
 @dataclass(frozen=True)
+class Rules:
+    """Thresholds and timings of RSS-AGV-001, each configurable, each defaulting to the spec."""
+
+    bat_low_pct: float = 20.0
+    """P_050 BAT_LOW_TH: Idle -> Moving only above it (4.2.2); Event_Low_Battery at it."""
+    bat_critical_pct: float = 10.0
+    """P_051 BAT_CRIT_TH: below it the AGV shuts down with E_201."""
+    charge_done_pct: float = 95.0
+    """4.2.10: charging ends once SOC > 95 %."""
+    safe_mode_soc_pct: float = 15.0
+    """4.2.14 / 6.3."""
+    safe_mode_rssi_dbm: float = -80.0
+    """4.2.14."""
+    obstacle_pause_s: float = 0.3
+    """4.2.3: obstacle within 1.0 m for >= 300 ms."""
+    obstacle_clear_s: float = 2.0
+    """4.2.4: path clear for >= 2000 ms."""
+    obstacle_timeout_s: float = 300.0
+    """6.1 E_101: paused for 5 minutes."""
+    obs_detect_dist_m: float = 1.5
+    """P_005 OBS_DETECT_DIST 1500 mm: slowing starts here."""
+    obs_stop_dist_m: float = 0.5
+    """P_006 OBS_STOP_DIST 500 mm."""
+    obstacle_slow_speed_mps: float = 0.3
+    """Assumed: creep speed inside the detection zone."""
+    comm_policy: Literal["req_err_011", "timeout_60s"] = "req_err_011"
+    """FMS heartbeat loss: Req.Err.011 (default, DESIGN reading) or 4.2.11's 60 s to Error."""
+    comm_timeout_s: float = 60.0
+    """4.2.11: communication timeout to Error (policy timeout_60s; internal links always)."""
+    reconnect_timeout_s: float = 600.0
+    """Req.Err.011: Error after 10 minutes without reconnecting."""
+    heartbeat_timeout_s: float = 3.0
+    """Assumed: the FMS and the AGV notice a lost link after 3 missed 1-s heartbeats."""
+    comm_loss_speed_mps: float = 0.3
+    """Assumed: the slow mode of Req.Err.011."""
+    link_min_rssi_dbm: float = -80.0
+    """Assumed: no Wi-Fi link below this signal (the 4.2.14 threshold)."""
+    weak_rssi_dbm: float = -70.0
+    """Assumed: E_002 (Wi-Fi signal low, warning) below this signal."""
+    line_keep_heading_m: float = 0.5
+    """Req.Err.010: keep the last heading for up to 50 cm looking for the tape."""
+    stop_tolerance_mm: float = 10.0
+    """4.2.5: stop within +/-10 mm at a station."""
+    marker_pause_s: float = 3.0
+    """5.3 TYPE_CMD 0x20: pause 3 s."""
+
+    def check(self, file: str, element: str) -> None:
+        for name in ("bat_low_pct", "bat_critical_pct", "charge_done_pct", "safe_mode_soc_pct"):
+            if not 0 <= getattr(self, name) <= 100:
+                raise InputError(file, f"{element}.{name}", getattr(self, name),
+                                 "a percentage in [0, 100]")
+        if self.bat_critical_pct >= self.bat_low_pct:
+            raise InputError(file, f"{element}.bat_critical_pct", self.bat_critical_pct,
+                             f"below bat_low_pct ({self.bat_low_pct})")
+        for name in ("obstacle_pause_s", "obstacle_clear_s", "obstacle_timeout_s",
+                     "comm_timeout_s", "reconnect_timeout_s", "heartbeat_timeout_s",
+                     "line_keep_heading_m", "stop_tolerance_mm", "marker_pause_s"):
+            if getattr(self, name) < 0:
+                raise InputError(file, f"{element}.{name}", getattr(self, name), "a number >= 0")
+        for name in ("obstacle_slow_speed_mps", "comm_loss_speed_mps"):
+            if getattr(self, name) <= 0:
+                raise InputError(file, f"{element}.{name}", getattr(self, name), "a speed > 0")
+
+
+@dataclass(frozen=True)
+class ChargingConfig:
+    enabled: bool = True
+    threshold_pct: float = 30.0
+    """Assumed policy: an AGV with nothing to do goes to charge at or below this SOC."""
+    opportunity: bool = False
+    """Charge while idle whenever a charger is free and SOC is below opportunity_below_pct."""
+    opportunity_below_pct: float = 80.0
+    schedule_h: tuple[float, ...] = ()
+    """Clock hours (0-24) at which every AGV goes to charge once it is free (scheduled)."""
+
+    def check(self, file: str, element: str) -> None:
+        for name in ("threshold_pct", "opportunity_below_pct"):
+            if not 0 <= getattr(self, name) <= 100:
+                raise InputError(file, f"{element}.{name}", getattr(self, name),
+                                 "a percentage in [0, 100]")
+        for i, hour in enumerate(self.schedule_h):
+            if not 0 <= hour < 24:
+                raise InputError(file, f"{element}.schedule_h[{i}]", hour, "an hour in [0, 24)")
+
+
+@dataclass(frozen=True)
+class SegmentBlock:
+    """A scripted obstacle: the segment between two nodes is blocked for a while."""
+
+    from_node: str = field(metadata={"key": "from"})
+    to_node: str = field(metadata={"key": "to"})
+    at_s: float = 0.0
+    duration_s: float = 900.0
+
+
+@dataclass(frozen=True)
+class LinkLoss:
+    """A scripted Wi-Fi loss: AGV `agv` loses the FMS link at `at_s` for `duration_s`."""
+
+    agv: int
+    at_s: float
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A scripted fault: AGV `agv` raises `code` at `at_s`."""
+
+    agv: int
+    at_s: float
+    code: Literal["E_101", "E_102", "E_201", "E_202", "E_999", "E_301"] = "E_999"
+
+
+@dataclass(frozen=True)
+class IncidentsConfig:
+    obstacle_rate_per_km: float = 0.0
+    """People and forklifts met per km driven (layout zones may set their own)."""
+    obstacle_duration: Duration = field(
+        default_factory=lambda: Duration("exponential", mean_s=4.0))
+    """How long an obstacle stays within range (assumed: exponential, mean 4 s)."""
+    blocks: tuple[SegmentBlock, ...] = ()
+    link_loss_rate_per_h: float = 0.0
+    """Random FMS link losses per AGV and hour (dead spots come from the layout's RSSI)."""
+    link_loss_duration: Duration = field(
+        default_factory=lambda: Duration("exponential", mean_s=30.0))
+    link_losses: tuple[LinkLoss, ...] = ()
+    internal_link_loss_rate_per_h: float = 0.0
+    """Losses of the vehicle's internal links (sensor bus); > comm_timeout_s means Error."""
+    internal_link_loss_duration: Duration = field(
+        default_factory=lambda: Duration("exponential", mean_s=20.0))
+    mtbf_h: float = 0.0
+    """Mean operating hours between random critical faults (E_999) per AGV; 0: none."""
+    transfer_failure_prob: float = 0.0
+    """Chance that a load transfer fails (E_102)."""
+    line_loss_per_km: float = 0.0
+    """Times per km an AGV loses the tape (Req.Err.010)."""
+    line_found_prob: float = 0.8
+    """Assumed: share of line losses where the tape is found again within 50 cm (E_001)."""
+    line_search_s: float = 2.0
+    """Assumed: time lost finding the tape again."""
+    faults: tuple[Fault, ...] = ()
+    operator_response: Duration = field(
+        default_factory=lambda: Duration("triangular", low_s=60.0, mode_s=180.0, high_s=600.0))
+    """Assumed: time until an operator reaches a failed AGV and turns it to MANUAL."""
+    repair: Duration = field(
+        default_factory=lambda: Duration("triangular", low_s=120.0, mode_s=300.0,
+                                         high_s=1200.0))
+    """Assumed: time in Maintenance."""
+    relocalise_s: float = 10.0
+    """Assumed: initial position estimation on return to AUTO (4.2.13)."""
+    rescue: Duration = field(
+        default_factory=lambda: Duration("triangular", low_s=300.0, mode_s=900.0,
+                                         high_s=1800.0))
+    """Assumed: time until an operator rescues an AGV in SafeMode."""
+    rescue_soc_pct: float = 50.0
+    """Assumed: SOC an operator leaves a rescued or shut-down AGV with (manual charge)."""
+
+    def check(self, file: str, element: str) -> None:
+        for name in ("obstacle_rate_per_km", "link_loss_rate_per_h", "mtbf_h",
+                     "internal_link_loss_rate_per_h", "line_loss_per_km", "relocalise_s"):
+            if getattr(self, name) < 0:
+                raise InputError(file, f"{element}.{name}", getattr(self, name), "a number >= 0")
+        for name in ("transfer_failure_prob", "line_found_prob"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise InputError(file, f"{element}.{name}", getattr(self, name),
+                                 "a probability in [0, 1]")
+
+
+@dataclass(frozen=True)
 class Scenario:
     layout: str
     """Layout file, relative to the scenario file."""
@@ -169,6 +350,9 @@ class Scenario:
     demand: DemandConfig = DemandConfig()
     dispatch: DispatchConfig = DispatchConfig()
     traffic: TrafficConfig = TrafficConfig()
+    rules: Rules = Rules()
+    charging: ChargingConfig = ChargingConfig()
+    incidents: IncidentsConfig = IncidentsConfig()
     base_dir: str = field(default=".", metadata={"key": "_base_dir"}, compare=False)
 
     def check(self, file: str, element: str) -> None:
@@ -247,6 +431,17 @@ def check_against_layout(scenario: Scenario, layout: Layout, file: str) -> None:
         if node not in layout.graph:
             raise InputError(file, f"fleet.start_nodes[{i}]", node,
                              f"a node of layout {layout.name}")
+    for i, block in enumerate(scenario.incidents.blocks):
+        if not layout.graph.has_edge(block.from_node, block.to_node):
+            raise InputError(file, f"incidents.blocks[{i}]",
+                             f"{block.from_node} -> {block.to_node}",
+                             f"a segment of layout {layout.name}")
+    numbered = [("link_losses", i, x.agv) for i, x in enumerate(scenario.incidents.link_losses)]
+    numbered += [("faults", i, x.agv) for i, x in enumerate(scenario.incidents.faults)]
+    for key, i, agv in numbered:
+        if not 0 <= agv < scenario.fleet.size:
+            raise InputError(file, f"incidents.{key}[{i}].agv", agv,
+                             f"an AGV number from 0 to {scenario.fleet.size - 1}")
     if not scenario.fleet.start_nodes:
         room = sum(p.capacity for p in layout.parking)
         if scenario.fleet.size > room:
