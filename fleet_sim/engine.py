@@ -1,8 +1,9 @@
 """Builds the SimPy model of a scenario, runs it, and hands back the run's records.
 
 Random streams come from one `numpy.random.SeedSequence(seed)`, spawned in a fixed order
-(arrivals, handling times, traffic back-off per AGV), so the same scenario and seed give the same
-run, and runs that differ only in fleet size still share their order streams.
+(arrivals, handling times, traffic back-off per AGV, incidents per AGV), so the same scenario
+and seed give the same run, and runs that differ only in fleet size still share their order
+streams.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import simpy
 
 from fleet_sim.demand import Demand, TraceOrder
 from fleet_sim.fleet_manager import FleetManager
+from fleet_sim.incidents import start_incidents
 from fleet_sim.kinematics import Motion
 from fleet_sim.layout import Layout
 from fleet_sim.records import Recorder
@@ -58,14 +60,19 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     recorder = Recorder(scenario.warmup_s, scenario.duration_s, trace_occupancy=trace_occupancy)
     traffic = Traffic(env, layout, motion)
     fleet = FleetManager(env, layout, traffic, scenario.dispatch, recorder)
-    arrivals, handling, backoff = np.random.SeedSequence(scenario.seed).spawn(3)
+    arrivals, handling, backoff, incident = np.random.SeedSequence(scenario.seed).spawn(4)
     vehicle_seeds = backoff.spawn(scenario.fleet.size)
+    incident_seeds = incident.spawn(2 * scenario.fleet.size)
     vehicles = [
-        Vehicle(i, env, traffic, fleet, recorder, profile, scenario.traffic,
-                np.random.default_rng(vehicle_seeds[i]))
+        Vehicle(i, env, traffic, fleet, recorder, scenario,
+                np.random.default_rng(vehicle_seeds[i]),
+                np.random.default_rng(incident_seeds[2 * i]))
         for i in range(scenario.fleet.size)
     ]
     _place(vehicles, scenario, layout, fleet)
+    start_incidents(env, scenario, vehicles, fleet, traffic, recorder,
+                    [np.random.default_rng(incident_seeds[2 * i + 1])
+                     for i in range(scenario.fleet.size)])
     demand = Demand(env, layout, scenario.demand, scenario.start_h, fleet.submit,
                     np.random.default_rng(arrivals), np.random.default_rng(handling), trace)
     for v in vehicles:

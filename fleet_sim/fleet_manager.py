@@ -7,8 +7,14 @@ Dispatch policies (scenario `dispatch.policy`), both serving orders oldest first
 * ``fcfs``: the AGV that has been idle longest, wherever it is.
 
 An AGV counts as idle from the moment it has no order, including while it drives to parking; an
-order assigned to it then turns it round at the next node where it can stop.
-A station with several docking nodes sends each AGV to the node with the fewest AGVs bound for it.
+order assigned to it then turns it round at the next node where it can stop. AGVs without an FMS
+link take no orders. A station with several docking nodes sends each AGV to the node with the
+fewest AGVs bound for it.
+
+Chargers: an AGV asks for one; the fleet manager gives it the nearest free charger, or queues it
+(first come, first served) until one frees up. One AGV per charger.
+Orders of a failed AGV: one not yet loaded goes back to the front of the queue; a loaded one is
+recorded as failed (its load is with the broken AGV).
 """
 
 from __future__ import annotations
@@ -39,6 +45,8 @@ class FleetManager:
         self.idle: list[Vehicle] = []
         self.parking_free = {p.id: p.capacity for p in layout.parking}
         self.bound_for: Counter[str] = Counter()
+        self.chargers_free: list[Place] = list(layout.chargers)
+        self.charger_queue: deque[tuple[Vehicle, simpy.Event]] = deque()
         recorder.queue_trace.append((env.now, 0))
 
     # ---- orders -----------------------------------------------------------------------------
@@ -51,15 +59,74 @@ class FleetManager:
         self.idle.append(vehicle)
         self._dispatch()
 
+    def withdraw(self, vehicle: Vehicle) -> None:
+        """The AGV is no longer available for orders (charging, failed...)."""
+        if vehicle in self.idle:
+            self.idle.remove(vehicle)
+
+    def link_restored(self) -> None:
+        self._dispatch()
+
+    def give_back(self, vehicle: Vehicle, order: Order) -> None:
+        """An order its AGV cannot carry out goes back to the front of the queue."""
+        for node in (order.pickup_node, order.dropoff_node):
+            if node is not None:
+                self.bound_for[node] -= 1
+        order.pickup_node = order.dropoff_node = None
+        order.agv = None
+        order.assigned_s = None
+        order.reassigned += 1
+        vehicle.note("order_reassigned", f"order {order.id}")
+        self.waiting.appendleft(order)
+        self._dispatch()
+
+    def order_failed(self, order: Order, code: str) -> None:
+        order.failed_s = self.env.now
+        order.failure = code
+        if order.pickup_node is not None and order.picked_s is None:
+            self.bound_for[order.pickup_node] -= 1
+        if order.dropoff_node is not None:
+            self.bound_for[order.dropoff_node] -= 1
+
+    # ---- chargers -------------------------------------------------------------------------------
+    def charger_available(self) -> bool:
+        return bool(self.chargers_free) and not self.charger_queue
+
+    def request_charger(self, vehicle: Vehicle) -> simpy.Event:
+        """An event that succeeds with the charger assigned to `vehicle`."""
+        self.withdraw(vehicle)
+        event = self.env.event()
+        self.charger_queue.append((vehicle, event))
+        self._assign_chargers()
+        return event
+
+    def cancel_charger_request(self, vehicle: Vehicle) -> None:
+        self.charger_queue = deque((v, e) for v, e in self.charger_queue if v is not vehicle)
+
+    def release_charger(self, place: Place) -> None:
+        self.chargers_free.append(place)
+        self._assign_chargers()
+
+    def _assign_chargers(self) -> None:
+        while self.chargers_free and self.charger_queue:
+            vehicle, event = self.charger_queue.popleft()
+            place = min(self.chargers_free, key=lambda c: (
+                self.traffic.travel_time_s(vehicle.dispatch_node, c.nodes[0]), c.id))
+            self.chargers_free.remove(place)
+            event.succeed(place)
     def left_station(self, node: str) -> None:
         self.bound_for[node] -= 1
 
     def _dispatch(self) -> None:
         changed = False
         while self.waiting and self.idle:
-            order = self.waiting.popleft()
-            order.pickup_node = self._docking_node(self.layout.places[order.pickup])
-            vehicle = self._choose(order.pickup_node)
+            order = self.waiting[0]
+            pickup = self.layout.places[order.pickup]
+            vehicle = self._choose(min(pickup.nodes, key=lambda n: self.bound_for[n]))
+            if vehicle is None:
+                break
+            self.waiting.popleft()
+            order.pickup_node = self._docking_node(pickup)
             self.idle.remove(vehicle)
             order.dropoff_node = self._docking_node(self.layout.places[order.dropoff])
             order.agv = vehicle.id
@@ -73,10 +140,13 @@ class FleetManager:
                 or self.recorder.queue_trace[-1][1] != len(self.waiting):
             self.recorder.queue_trace.append((self.env.now, len(self.waiting)))
 
-    def _choose(self, pickup_node: str) -> Vehicle:
+    def _choose(self, pickup_node: str) -> Vehicle | None:
+        ready = [v for v in self.idle if v.fms_link]
+        if not ready:
+            return None
         if self.config.policy == "fcfs":
-            return self.idle[0]
-        return min(self.idle,
+            return ready[0]
+        return min(ready,
                    key=lambda v: (self.traffic.travel_time_s(v.dispatch_node, pickup_node), v.id))
 
     def _docking_node(self, place: Place) -> str:

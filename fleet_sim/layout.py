@@ -41,12 +41,19 @@ REVERSE_BEYOND_DEG = 150.0
 """Heading changes larger than this are a reversal: the AGV must stop at the node first."""
 
 
+Marker = Literal["speed_low", "speed_mid", "speed_high", "location", "spin", "pause"]
+MARKER_SPEED_MPS = {"speed_low": 0.2, "speed_mid": 0.5, "speed_high": 1.0}
+"""RSS-AGV-001 5.3: TYPE_SPD 0x01/0x02/0x03 set the speed to 0.2/0.5/1.0 m/s."""
+
+
 @dataclass(frozen=True)
 class NodeSpec:
     id: str
     x: float
     y: float
     kind: NodeKind = "tag"
+    marker: Marker | None = None
+    """RFID marker action (RSS-AGV-001 5.3): speed tags, location correction, spin, pause."""
 
 
 @dataclass(frozen=True)
@@ -57,6 +64,8 @@ class SegmentSpec:
     speed_limit_mps: float | None = None
     direction: Literal["one_way", "two_way"] = "one_way"
     branch: Branch = "auto"
+    rssi_dbm: float | None = None
+    """Wi-Fi signal on the segment; default: its zone's, else defaults.rssi_dbm."""
 
 
 @dataclass(frozen=True)
@@ -87,6 +96,20 @@ class LayoutDefaults:
     speed_limit_mps: float = 1.0
     turn_length_m: float = 1.0
     """Length of the curve after a branch node, driven at the vehicle's turn speed (assumed)."""
+    rssi_dbm: float = -55.0
+    """Assumed: good Wi-Fi coverage where nothing else is said."""
+
+
+@dataclass(frozen=True)
+class ZoneSpec:
+    """An area of the floor (x_min, y_min, x_max, y_max in metres) whose segments (by their
+    midpoint) get their own Wi-Fi signal or obstacle rate."""
+
+    id: str
+    area_m: tuple[float, float, float, float]
+    rssi_dbm: float | None = None
+    obstacle_rate_per_km: float | None = None
+    obstacle_duration: Duration | None = None
 
 
 @dataclass(frozen=True)
@@ -99,6 +122,7 @@ class LayoutSpec:
     chargers: tuple[ChargerSpec, ...] = ()
     description: str = ""
     defaults: LayoutDefaults = LayoutDefaults()
+    zones: tuple[ZoneSpec, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -153,6 +177,7 @@ class Layout:
         self.chargers = [p for p in places if p.kind == "charger"]
         self.parking = [p for p in places if p.kind == "parking"]
         self.turn_length_m = spec.defaults.turn_length_m
+        self.markers = {n.id: n.marker for n in spec.nodes if n.marker is not None}
 
     def corridor_of(self, u: str, v: str) -> Corridor | None:
         return self._corridor_of.get((u, v))
@@ -266,12 +291,40 @@ def _build_graph(spec: LayoutSpec, file: str, max_speed_mps: float | None) -> nx
                                  f"joins {u} -> {v})")
             branch = seg.branch if (u, v) == (seg.from_node, seg.to_node) else "auto"
             graph.add_edge(u, v, length_m=length, speed_limit_mps=limit,
-                           two_way=seg.direction == "two_way", branch=branch, index=i)
+                           two_way=seg.direction == "two_way", branch=branch, index=i,
+                           rssi_dbm=seg.rssi_dbm, obstacle_rate_per_km=None,
+                           obstacle_duration=None)
+    _apply_zones(spec, file, graph)
     for node in spec.nodes:
         if graph.out_degree(node.id) == 0:
             raise InputError(file, f"nodes[{first_index[node.id]}]", node.id,
                              "a node with a way out (no segment leaves it)")
     return graph
+
+
+def _apply_zones(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None:
+    """Segments take their zone's signal and obstacle rate (the first zone holding their
+    midpoint); a segment's own rssi_dbm wins; the layout default fills the rest."""
+    for i, spec_zone in enumerate(spec.zones):
+        x0, y0, x1, y1 = spec_zone.area_m
+        if x0 >= x1 or y0 >= y1:
+            raise InputError(file, f"zones[{i}].area_m", list(spec_zone.area_m),
+                             "[x_min, y_min, x_max, y_max] with x_min < x_max, y_min < y_max")
+        rate = spec_zone.obstacle_rate_per_km
+        if rate is not None and rate < 0:
+            raise InputError(file, f"zones[{i}].obstacle_rate_per_km", rate, "a rate >= 0")
+    for u, v, data in graph.edges(data=True):
+        mx = (graph.nodes[u]["x"] + graph.nodes[v]["x"]) / 2
+        my = (graph.nodes[u]["y"] + graph.nodes[v]["y"]) / 2
+        zone = next((z for z in spec.zones
+                     if z.area_m[0] <= mx <= z.area_m[2] and z.area_m[1] <= my <= z.area_m[3]),
+                    None)
+        if data["rssi_dbm"] is None:
+            data["rssi_dbm"] = zone.rssi_dbm if zone is not None and zone.rssi_dbm is not None \
+                else spec.defaults.rssi_dbm
+        if zone is not None:
+            data["obstacle_rate_per_km"] = zone.obstacle_rate_per_km
+            data["obstacle_duration"] = zone.obstacle_duration
 
 
 def _check_places(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None:

@@ -3,6 +3,7 @@ place and turned into tables only after the run (by fleet_sim.results)."""
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 
 EVENT_COLUMNS = ("time_s", "agv", "event", "from_state", "to_state", "node", "detail")
@@ -26,6 +27,11 @@ class Order:
     picked_s: float | None = None
     dropoff_arrival_s: float | None = None
     delivered_s: float | None = None
+    failed_s: float | None = None
+    failure: str | None = None
+    """Error code of the fault that lost a loaded order."""
+    reassigned: int = 0
+    """Times the order went back to the queue because its AGV failed before loading."""
 
 
 @dataclass
@@ -45,6 +51,18 @@ class Recorder:
     deadlocks: int = 0
     occupancy: list[tuple[str, str, int, float, float]] = field(default_factory=list)
     """(kind, key, agv, start_s, end_s): node holds and segment traversals, when traced."""
+    charge_waits: list[tuple[float, float]] = field(default_factory=list)
+    """(asked_s, charger_assigned_s) per charging."""
+    obstacle_pauses: int = 0
+    comm_losses: int = 0
+    errors: list[tuple[float, int, str, str]] = field(default_factory=list)
+    """(time_s, agv, code, level) of every Error."""
+    warnings: Counter[str] = field(default_factory=Counter)
+    soc_trace: list[tuple[float, int, float]] = field(default_factory=list)
+    """(time_s, agv, soc_pct) at every state change, for battery plots."""
+
+    def warning(self, code: str) -> None:
+        self.warnings[code] += 1
 
     def event(self, time_s: float, agv: int, event: str, from_state: str, to_state: str,
               node: str, detail: str = "") -> None:

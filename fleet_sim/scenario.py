@@ -45,7 +45,7 @@ class VehicleProfile:
     handling time."""
     spin_s: float = 6.0
     """Assumed: a 180-degree spin on the spot (5.3 TYPE_CMD 0x10)."""
-    battery: BatteryProfile = BatteryProfile()
+    battery: BatteryProfile = field(default_factory=BatteryProfile)
 
     def check(self, file: str, element: str) -> None:
         for name in ("max_speed_mps", "accel_mps2", "decel_mps2", "turn_speed_mps", "length_m"):

@@ -32,7 +32,7 @@ from fleet_sim.kinematics import Motion, Piece, stop_entry_speed, traverse
 from fleet_sim.layout import Corridor, Layout
 
 if TYPE_CHECKING:
-    from fleet_sim.vehicle import Vehicle
+    from fleet_sim.driving import Driver as Vehicle
 
 
 class Claim(Request):
@@ -84,6 +84,10 @@ class Traffic:
         self.node_locks = {n: Lock(env, n) for n in self.graph.nodes}
         self.corridor_locks = {c.id: Lock(env, f"corridor {c.id}") for c in layout.corridors}
         self.waiting: dict[int, Lock] = {}
+        self.blocks: dict[tuple[str, str], list[tuple[float, float]]] = {}
+        """Scripted obstacles: segment (both directions) -> [(from_s, until_s)]."""
+        self.known_blocks: dict[tuple[str, str], float] = {}
+        """Blocks an AGV has reported: routes keep off them until they end."""
         self.version = 0
         """Counts changes of lock ownership and waits: a blocked AGV that sees the same count
         as at its last look has nothing new to find."""
@@ -113,8 +117,29 @@ class Traffic:
         """Free-flow travel time from src to dest (cached per destination)."""
         return self._table(dest)[0][src]
 
+    def block(self, u: str, v: str, from_s: float, until_s: float) -> None:
+        for key in ((u, v), (v, u)):
+            self.blocks.setdefault(key, []).append((from_s, until_s))
+
+    def blocked_until(self, u: str, v: str, now_s: float) -> float | None:
+        """End of the scripted block on u -> v in force now, if any; reported to routing."""
+        for start, end in self.blocks.get((u, v), ()):
+            if start <= now_s < end:
+                self.known_blocks[(u, v)] = end
+                self.known_blocks[(v, u)] = end
+                return end
+        return None
+
     def route(self, src: str, dest: str) -> list[str]:
-        """Nodes from src to dest by shortest free-flow travel time, src included."""
+        """Nodes from src to dest by shortest free-flow travel time, src included; around
+        segments reported blocked when there is a way round."""
+        if self.known_blocks:
+            now = self.env.now
+            self.known_blocks = {k: t for k, t in self.known_blocks.items() if t > now}
+            if self.known_blocks:
+                around = self.route_avoiding(src, dest, set(), set(self.known_blocks))
+                if around is not None:
+                    return around
         next_hop = self._table(dest)[1]
         path = [src]
         node = src

@@ -1,451 +1,509 @@
-"""The AGV process: drives routes hop by hop under traffic control and serves orders.
+"""The AGV: the RSS-AGV-001 state machine driving a `Driver` through its day.
 
-Driving (see fleet_sim.traffic for the rules): standing at a node, the AGV takes the next node
-(waiting if it must), then tries to take the node after it; with it, it may pass through the next
-node at the highest speed from which it could still stop at the one after; without it, it brakes
-to stop at the next node. Each hop's time is closed form (fleet_sim.kinematics).
+Every change of state goes through `fire(event)`, which looks the (state, event) pair up in the
+table of fleet_sim.state_machine, checks the guard against this vehicle's facts (SOC, load
+sensor, link, obstacle timing...) and records the transition. The behaviours:
 
-The order cycle uses the states and triggers of RSS-AGV-001 4.2: Idle -(Event_Transport_Order)->
-Moving -(Event_Arrived_Pickup)-> Loading -(Event_Load_Complete)-> Moving -(Event_Arrived_Dropoff)->
-Unloading -(Event_Unload_Complete)-> Idle. Trips to parking are Moving with purpose ``to_parking``.
+* Orders: Idle -> Moving -> Loading (L_Approach, L_Handshake, L_Transfer, L_Verify) -> Moving ->
+  Unloading (U_Approach, U_Handshake, U_Transfer, U_Verify) -> Idle. L_Transfer is the station's
+  handling time; the other sub-states take the vehicle profile's times.
+* Battery: drained per metre (more when loaded), by handling and by idling. An AGV at or below the
+  charging threshold (or P_050, Event_Low_Battery) asks the fleet manager for a charger, drives
+  there (Moving, purpose to_charger), docks, charges along the charge curve until SOC > 95 %,
+  undocks. Below P_051 it shuts down with E_201.
+* Obstacles (4.2.3/4.2.4): met while driving; seen for < 300 ms they only slow the AGV (the
+  P_005/P_006 zone), otherwise it pauses until the path has been clear for 2000 ms; E_101 after
+  5 minutes paused. Scripted blocks stop AGVs in front of the blocked segment.
+* FMS link (Req.Err.011 by default): a lost heartbeat is noticed after `heartbeat_timeout_s`; the
+  AGV drives on slowly to the next tag, waits in Idle, resumes when the link is back, and raises
+  an Error after 10 minutes. Policy `timeout_60s` (4.2.11) instead raises an Error after 60 s.
+  Segments below `link_min_rssi_dbm` are dead spots. A lost AGV takes no new orders and keeps the
+  order it carries.
+* Faults: line loss (Req.Err.010), transfer failure (E_102), random critical faults (MTBF) and
+  scripted ones: Error, an operator comes (Event_Switch_Manual -> Maintenance, the AGV is taken off
+  the track), repairs it, and switches back to AUTO (-> Idle after position re-estimation). An
+  order not yet loaded goes back to the queue; a loaded one is recorded as failed. SafeMode per
+  4.2.14/6.3; only an operator rescue brings an AGV back from it.
 """
 
 from __future__ import annotations
 
-import itertools
-from collections.abc import Generator
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+import math
+from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 import simpy
 
-from fleet_sim.errors import SimulationError
-from fleet_sim.layout import Place
+from fleet_sim.battery import Battery
+from fleet_sim.driving import Driver, Proc
+from fleet_sim.error_codes import describe
+from fleet_sim.layout import MARKER_SPEED_MPS, Place
 from fleet_sim.records import Order, Recorder
-from fleet_sim.scenario import TrafficConfig, VehicleProfile
+from fleet_sim.scenario import ChargingConfig, IncidentsConfig, Rules, Scenario
+from fleet_sim.state_machine import Params, transition_for
 from fleet_sim.states import State
-from fleet_sim.traffic import Claim, Escape, Lock, Traffic
+from fleet_sim.traffic import Traffic
 
 if TYPE_CHECKING:
     from fleet_sim.fleet_manager import FleetManager
 
-Proc = Generator[simpy.Event, Any, Any]
+
+class Failure:
+    """The cause of an interrupt that sends an AGV to Error."""
+
+    def __init__(self, code: str, detail: str = "") -> None:
+        self.code = code
+        self.detail = detail
 
 
-@dataclass(slots=True)
-class Held:
-    node: str
-    claim: Claim
-    since_s: float
-    behind_m: float = 0.0
-    """How far the AGV has driven past this node."""
-
-
-class Vehicle:
+class Vehicle(Driver):
     def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
-                 fleet: FleetManager, recorder: Recorder, profile: VehicleProfile,
-                 config: TrafficConfig, rng: np.random.Generator) -> None:
-        self.id = agv_id
-        self.env = env
-        self.traffic = traffic
+                 fleet: FleetManager, recorder: Recorder, scenario: Scenario,
+                 rng: np.random.Generator, incident_rng: np.random.Generator) -> None:
+        super().__init__(agv_id, env, traffic, recorder, scenario.fleet.vehicle,
+                         scenario.traffic, rng)
         self.fleet = fleet
-        self.recorder = recorder
-        self.profile = profile
-        self.config = config
-        self.rng = rng
-        self.clear_m = profile.length_m + profile.min_gap_m
-        self.node = ""
-        self.prev: str | None = None
-        self.speed_mps = 0.0
-        self.held: list[Held] = []
-        self.ahead: list[Held] = []
-        self.corridors: dict[int, tuple[Claim, str | None]] = {}
-        """Corridor id -> (claim, entry node while not yet entered, None once inside)."""
-        self.goal: str | None = None
-        self.next_node: str | None = None
-        self.order: Order | None = None
-        self.parked_in: Place | None = None
-        self.escape: Escape | None = None
+        self.rules: Rules = scenario.rules
+        self.charging: ChargingConfig = scenario.charging
+        self.incidents: IncidentsConfig = scenario.incidents
+        self.incident_rng = incident_rng
+        rules = scenario.rules
+        self.params = Params(rules.bat_low_pct, rules.charge_done_pct, rules.safe_mode_soc_pct,
+                             rules.safe_mode_rssi_dbm, rules.obstacle_pause_s,
+                             rules.obstacle_clear_s, rules.stop_tolerance_mm)
+        self.battery = Battery(scenario.fleet.vehicle.battery, env.now)
         self.work: simpy.Event = env.event()
-        self.state = State.BOOTING
-        self.process: simpy.Process | None = None
-        traffic.vehicles[agv_id] = self
+        self.loaded = False
+        self._position_known = True
+        self._stop_error_mm = 0.0
+        self._obstacle_near_s = 0.0
+        self._obstacle_clear_s = 0.0
+        self.error_code: str | None = None
+        self.links_down = 0
+        """FMS link losses in force (scripted or random, noticed)."""
+        self.in_dead_spot = False
+        self.link_changed: simpy.Event = env.event()
+        self.charger: Place | None = None
+        self.docked = False
+        self.charge_due = False
+        self.marker_speed_mps: float | None = None
+        self.parking_target: Place | None = None
+        self.purpose = ""
 
-    # ---- placement --------------------------------------------------------------------------
-    def place_at(self, node: str) -> None:
-        """Stand on `node` at t=0 (holding it, and its corridor if it is inside one)."""
-        corridor = self.traffic.layout.corridor_at(node)
-        if corridor is not None:
-            claim = self.traffic.corridor_locks[corridor.id].claim(self.id)
-            if not claim.triggered:
-                raise SimulationError(f"AGV {self.id} starts in corridor {corridor.id}, "
-                                      "which another AGV already occupies")
-            self.corridors[corridor.id] = (claim, None)
-        claim = self.traffic.node_locks[node].claim(self.id)
-        if not claim.triggered:
-            raise SimulationError(f"AGV {self.id} starts on node {node}, already occupied")
-        self.held = [Held(node, claim, self.env.now)]
-        self.node = node
+    # ---- facts the guards read (fleet_sim.state_machine.Facts) --------------------------------
+    @property
+    def soc_pct(self) -> float:
+        return self.battery.soc_pct(self.env.now)
 
-    def place_in_parking(self, place: Place) -> None:
-        self.parked_in = place
-        self.node = place.nodes[0]
+    @property
+    def position_known(self) -> bool:
+        return self._position_known
+
+    @property
+    def obstacle_near_s(self) -> float:
+        return self._obstacle_near_s
+
+    @property
+    def obstacle_clear_s(self) -> float:
+        return self._obstacle_clear_s
+
+    @property
+    def stop_error_mm(self) -> float:
+        return self._stop_error_mm
+
+    @property
+    def load_on(self) -> bool:
+        return self.loaded
+
+    @property
+    def charger_free(self) -> bool:
+        return self.charger is not None
+
+    @property
+    def error_flags(self) -> bool:
+        return self.error_code is not None
+
+    @property
+    def rssi_dbm(self) -> float:
+        graph = self.traffic.graph
+        if self.prev is not None and graph.has_edge(self.prev, self.node):
+            return float(graph.edges[self.prev, self.node]["rssi_dbm"])
+        return max((float(d["rssi_dbm"]) for _, _, d in graph.out_edges(self.node, data=True)),
+                   default=self.traffic.layout.spec.defaults.rssi_dbm)
+
+    @property
+    def fms_link(self) -> bool:
+        return self.links_down == 0 and not self.in_dead_spot
+
+    @property
+    def on_charger(self) -> bool:
+        return self.docked
+
+    @property
+    def post_passed(self) -> bool:
+        return True
+
+    # ---- the state machine ------------------------------------------------------------------
+    def fire(self, event: str, detail: str = "") -> bool:
+        """Take the transition for `event` from the current state; False if its guard fails.
+        An event with no transition from here raises InvalidTransition."""
+        transition = transition_for(self.id, self.state, event)
+        if transition.guard is not None and not transition.guard(self, self.params):
+            self.note("guard_failed", f"{event}: needs {transition.condition}")
+            return False
+        self.recorder.event(self.env.now, self.id, event, self.state.value,
+                            transition.target.value, self.node, detail)
+        self.state = transition.target
+        return True
 
     def start(self) -> None:
         self.recorder.event(self.env.now, self.id, "Event_Power_On", "", State.BOOTING.value,
                             self.node)
         self.process = self.env.process(self.run())
 
-    # ---- states -----------------------------------------------------------------------------
-    def set_state(self, new: State, trigger: str, detail: str = "") -> None:
-        self.recorder.event(self.env.now, self.id, trigger, self.state.value, new.value,
-                            self.node, detail)
-        self.state = new
+    def fail(self, code: str, detail: str = "") -> bool:
+        """Send the AGV to Error from wherever it is (an incident process calls this)."""
+        if self.failing or self.process is None or not self.process.is_alive:
+            return False
+        self.failing = True
+        self.process.interrupt(Failure(code, detail))
+        return True
 
-    def note(self, event: str, detail: str = "") -> None:
-        """Record an event that changes no state (deadlock, reroute, assignment...)."""
-        self.recorder.event(self.env.now, self.id, event, self.state.value, self.state.value,
-                            self.node, detail)
-
-    @property
-    def dispatch_node(self) -> str:
-        """Where the dispatcher should measure travel from: the node the AGV is committed to."""
-        if self.ahead:
-            return self.ahead[-1].node
-        return self.node
-
-    # ---- the order cycle --------------------------------------------------------------------
+    # ---- its day ------------------------------------------------------------------------------
     def run(self) -> Proc:
         yield self.env.timeout(self.profile.boot_s)
-        self.set_state(State.IDLE, "Event_Init_Complete")
+        self.fire("Event_Init_Complete")
         while True:
-            if self.order is None:
-                yield from self._idle()
-            assert self.order is not None
-            yield from self._serve(self.order)
+            try:
+                if self.order is None:
+                    yield from self._idle()
+                if self.order is not None:
+                    yield from self._serve(self.order)
+            except simpy.Interrupt as interrupt:
+                if not isinstance(interrupt.cause, Failure):
+                    raise
+                yield from self._recover(interrupt.cause)
+
+    def needs_charge(self) -> bool:
+        if not self.charging.enabled:
+            return False
+        soc = self.soc_pct
+        if soc <= max(self.charging.threshold_pct, self.rules.bat_low_pct):
+            return True
+        if self.charge_due and soc <= self.rules.charge_done_pct:
+            return True
+        return self.charging.opportunity and soc < self.charging.opportunity_below_pct \
+            and self.fleet.charger_available()
 
     def _idle(self) -> Proc:
+        """Nothing to do: charge if needed, else offer itself to the dispatcher and park."""
+        if self.needs_charge():
+            yield from self._charge()
+            return
         self.work = self.env.event()
         self.fleet.vehicle_idle(self)
-        while self.order is None:
-            place = None
-            if self.parked_in is None and self.fleet.config.park_idle:
-                place = self.fleet.reserve_parking(self)
-            if place is None:
-                yield self.work
-                continue
-            self.set_state(State.MOVING, "Event_Transport_Order", "to_parking")
-            access = place.nodes[0]
-            yield from self.drive(access, stop_for_order=True)
-            if self.order is None and self.node == access:
-                # drive off the tape into a bay, at turn speed, before letting go of the track
-                yield self.env.timeout(self.clear_m / self.profile.turn_speed_mps)
-                self._enter_parking(place)
-                self.set_state(State.IDLE, "Event_Arrived_Parking", place.id)
-            else:
-                self.fleet.release_parking(place)
-                if self.order is None:
-                    self.set_state(State.IDLE, "Event_Stop")
+        if self.order is not None:
+            return
+        if self.parked_in is None and self.fleet.config.park_idle and self.fms_link:
+            place = self.fleet.reserve_parking(self)
+            if place is not None:
+                self.parking_target = place
+                self.purpose = "to_parking"
+                self.fire("Event_Go_Park", f"to_parking {place.id}")
+                access = place.nodes[0]
+                yield from self.drive(access, stop_early=self._stop_parking_trip)
+                if self.node == access and self.order is None and not self.charge_due:
+                    # drive off the tape into a bay, at turn speed, before letting go of it
+                    yield self.env.timeout(self.clear_m / self.profile.turn_speed_mps)
+                    self._enter_parking(place)
+                    self.parking_target = None
+                    self.fire("Event_Arrived_Parking", place.id)
+                else:
+                    self.parking_target = None
+                    self.fleet.release_parking(place)
+                    self.fire("Event_Stop", "trip to parking cut short")
+                    if self.order is None:
+                        self.fleet.withdraw(self)
+                        return
+                if self.order is not None:
+                    return
+        # wait for work, a charging call, or the battery running down
+        threshold = max(self.charging.threshold_pct, self.rules.bat_low_pct) \
+            if self.charging.enabled else self.rules.bat_critical_pct
+        until_low = self.battery.seconds_until(self.env.now, threshold)
+        events = [self.work]
+        if math.isfinite(until_low):
+            events.append(self.env.timeout(until_low + 1e-6))
+        yield self.env.any_of(events)
+        if self.order is None:
+            self.fleet.withdraw(self)
+            if self.soc_pct < self.rules.bat_critical_pct:
+                self.fail_now("E_201")
+
+    def fail_now(self, code: str) -> NoReturn:
+        """A fault found by the AGV's own process: raise it as an interrupt to itself."""
+        self.failing = True
+        raise simpy.Interrupt(Failure(code))
+
+    def _stop_parking_trip(self) -> bool:
+        return self.order is not None or self.charge_due or not self.fms_link
 
     def _serve(self, order: Order) -> Proc:
+        if not self.fire("Event_Transport_Order", f"to_pickup order {order.id}"):
+            self.fleet.give_back(self, order)
+            self.order = None
+            return
         if self.parked_in is not None:
-            yield from self._leave_parking()
+            yield from self._unpark()
         assert order.pickup_node is not None and order.dropoff_node is not None
-        self.set_state(State.MOVING, "Event_Transport_Order", f"to_pickup order {order.id}")
-        yield from self.drive(order.pickup_node)
+        self.purpose = "to_pickup"
+        yield from self._drive_to(order.pickup_node)
         order.pickup_arrival_s = self.env.now
-        self.set_state(State.LOADING, "Event_Arrived_Pickup", f"order {order.id}")
-        yield self.env.timeout(order.pickup_handling_s)
+        self.fire("Event_Arrived_Pickup", f"order {order.id}")
+        yield from self._handle("L", order.pickup_handling_s, order)
+        self.loaded = True
         order.picked_s = self.env.now
         self.fleet.left_station(order.pickup_node)
-        self.set_state(State.MOVING, "Event_Load_Complete", f"to_dropoff order {order.id}")
-        yield from self.drive(order.dropoff_node)
+        self.purpose = "to_dropoff"
+        self.fire("Event_Load_Complete", f"to_dropoff order {order.id}")
+        yield from self._drive_to(order.dropoff_node)
         order.dropoff_arrival_s = self.env.now
-        self.set_state(State.UNLOADING, "Event_Arrived_Dropoff", f"order {order.id}")
-        yield self.env.timeout(order.dropoff_handling_s)
+        self.fire("Event_Arrived_Dropoff", f"order {order.id}")
+        yield from self._handle("U", order.dropoff_handling_s, order)
+        self.loaded = False
         order.delivered_s = self.env.now
         self.fleet.left_station(order.dropoff_node)
         self.order = None
-        self.set_state(State.IDLE, "Event_Unload_Complete", f"order {order.id}")
+        self.fire("Event_Unload_Complete", f"order {order.id}")
 
-    # ---- parking ------------------------------------------------------------------------------
-    def _enter_parking(self, place: Place) -> None:
-        """Drive off the tape into the parking area: every lock is let go."""
-        for held in self.held:
-            self._release(held)
-        self.held = []
-        for cid in list(self.corridors):
-            self._release_corridor(cid)
-        self.parked_in = place
-        self.prev = None
+    def _handle(self, prefix: str, transfer_s: float, order: Order) -> Proc:
+        """The four sub-states of Loading (4.3) or Unloading: approach, handshake, transfer,
+        verify. A failed transfer raises E_102."""
+        profile = self.profile
+        self.battery.draw(self.env.now, profile.battery.handling_w)
+        for name, seconds in (("Approach", profile.approach_s),
+                              ("Handshake", profile.handshake_s),
+                              ("Transfer", transfer_s), ("Verify", profile.verify_s)):
+            self.note(f"{prefix}_{name}", f"order {order.id}")
+            yield self.env.timeout(seconds)
+            if name == "Transfer" and self.incidents.transfer_failure_prob > 0 \
+                    and self.incident_rng.random() < self.incidents.transfer_failure_prob:
+                self.battery.draw(self.env.now, profile.battery.idle_w)
+                self.fail_now("E_102")
+        self.battery.draw(self.env.now, profile.battery.idle_w)
 
-    def _leave_parking(self) -> Proc:
+    def _unpark(self) -> Proc:
         place = self.parked_in
         assert place is not None
-        access = place.nodes[0]
-        corridor = self.traffic.layout.corridor_at(access)
-        if corridor is not None:
-            lock = self.traffic.corridor_locks[corridor.id]
-            claim = lock.claim(self.id)
-            yield from self._wait(lock, claim, may_escape=False)
-            self.corridors[corridor.id] = (claim, None)
-        lock = self.traffic.node_locks[access]
-        claim = lock.claim(self.id)
-        yield from self._wait(lock, claim, may_escape=False)
-        self.held = [Held(access, claim, self.env.now)]
-        self.traffic.version += 1
-        self.node = access
+        yield from self._reenter_track(place.nodes[0])
         self.parked_in = None
         self.fleet.release_parking(place)
 
-    # ---- driving ------------------------------------------------------------------------------
-    def drive(self, goal: str, stop_for_order: bool = False) -> Proc:
-        """Drive to `goal` and stop there, holding it. With `stop_for_order`, stop at the first
-        node where the AGV can once an order has been assigned to it."""
-        self.goal = goal
-        path = self.traffic.route(self.node, goal)
-        i = 0
-        while self.node != self.goal:
-            nxt = path[i + 1]
-            self.next_node = nxt
-            if not self.ahead:
-                after = path[i + 2] if i + 2 < len(path) else None
-                taken = yield from self._take(nxt, after)
-                if not taken:
-                    path = yield from self._get_out()
-                    i = 0
-                    continue
-            v_end_max = 0.0
-            if nxt != self.goal and i + 2 < len(path):
-                w = path[i + 2]
-                x = path[i + 3] if i + 3 < len(path) else None
-                if self._try_take(nxt, w, x):
-                    v_end_max = self.traffic.pass_speed_mps(self.node, nxt, w)
-            yield from self._hop(nxt, v_end_max)
-            i += 1
-            if stop_for_order and self.order is not None:
-                self.goal = self.ahead[-1].node if self.ahead else self.node
-        self.next_node = None
-        self._drop_pending_corridors()
-        if self.ahead or self.speed_mps > 1e-9:
-            raise SimulationError(f"AGV {self.id} ended a drive at {self.node} still moving")
+    # ---- charging ------------------------------------------------------------------------------
+    def _charge(self) -> Proc:
+        trigger = "Event_Low_Battery" if self.soc_pct <= self.rules.bat_low_pct \
+            else "Event_Go_Charge"
+        asked = self.env.now
+        request = self.fleet.request_charger(self)
+        until_dead = self.battery.seconds_until(self.env.now, self.rules.bat_critical_pct)
+        events: list[simpy.Event] = [request]
+        if math.isfinite(until_dead):
+            events.append(self.env.timeout(until_dead + 1e-6))
+        yield self.env.any_of(events)
+        if not request.triggered:
+            self.fleet.cancel_charger_request(self)
+            self.fail_now("E_201")
+        place = request.value
+        assert isinstance(place, Place)
+        self.charger = place
+        self.recorder.charge_waits.append((asked, self.env.now))
+        self.charge_due = False
+        self.purpose = "to_charger"
+        self.fire(trigger, f"to_charger {place.id} soc {self.soc_pct:.1f}")
+        if self.parked_in is not None:
+            yield from self._unpark()
+        yield from self._drive_to(place.nodes[0])
+        self.fire("Event_Arrived_Charger", place.id)
+        self.docked = True
+        self.battery.draw(self.env.now, 0.0)  # the charger powers the AGV
+        yield self.env.timeout(place.docking_s)
+        start = self.soc_pct
+        target = self.rules.charge_done_pct + 0.1
+        charge_s = self.battery.profile.charge_time_s(start, target, place.power_kw)
+        yield self.env.timeout(charge_s)
+        self.battery.set_soc(self.env.now, max(start, target))
+        yield self.env.timeout(place.docking_s)  # undocking
+        self.docked = False
+        self.battery.draw(self.env.now, self.profile.battery.idle_w)
+        self.fire("Event_Charge_Complete", f"{place.id} soc {self.soc_pct:.1f}")
+        self.charger = None
+        self.fleet.release_charger(place)
 
-    def _hop(self, nxt: str, v_end_max: float) -> Proc:
-        u = self.node
-        corridor = self.traffic.layout.corridor_of(u, nxt)
-        if corridor is not None and corridor.id not in self.corridors:
-            raise SimulationError(f"AGV {self.id} about to enter corridor {corridor.id} "
-                                  f"({u} -> {nxt}) without holding it")
-        time_s, v_end = self.traffic.hop(self.prev, u, nxt, self.speed_mps, v_end_max)
-        start = self.env.now
-        yield self.env.timeout(time_s)
-        length = self.traffic.graph.edges[u, nxt]["length_m"]
-        self.recorder.drove(start, self.env.now, length)
-        if self.recorder.trace_occupancy:
-            self.recorder.occupied("segment", f"{u}>{nxt}", self.id, start, self.env.now)
-        self.prev, self.node, self.speed_mps = u, nxt, v_end
-        arrived = self.ahead.pop(0)
-        for held in self.held:
-            held.behind_m += length
-        self.held.append(arrived)
-        while len(self.held) > 1 and self.held[0].behind_m >= self.clear_m - 1e-9:
-            self._release(self.held.pop(0))
-        if corridor is not None:
-            claim, _ = self.corridors[corridor.id]
-            self.corridors[corridor.id] = (claim, None)
-        self._release_left_corridors()
+    # ---- driving with the link, markers, obstacles and the battery -----------------------------
+    def _drive_to(self, goal: str) -> Proc:
+        """Drive to `goal`; under Req.Err.011, stop at the next tag when the FMS link is lost,
+        wait in Idle, and drive on when it is back (Error after 10 minutes)."""
+        while True:
+            if self.rules.comm_policy == "req_err_011":
+                yield from self.drive(goal, stop_early=lambda: not self.fms_link)
+            else:
+                yield from self.drive(goal)
+            if self.node == goal:
+                return
+            yield from self._wait_for_link()
 
-    def _take(self, node: str, after: str | None) -> Generator[simpy.Event, Any, bool]:
-        """Take `node` (and the corridors the AGV enters on its way), waiting if need be.
-        False when the AGV gave up waiting and must find another way."""
-        taken_corridors: list[int] = []
-        for a, b in ((self.node, node), (node, after)):
-            corridor = self.traffic.entry_corridor(a, b)
-            if corridor is None or corridor.id in self.corridors:
-                continue
-            lock = self.traffic.corridor_locks[corridor.id]
-            claim = lock.claim(self.id)
-            ok = yield from self._wait(lock, claim)
-            if not ok:
-                for cid in taken_corridors:
-                    self._release_corridor(cid)
-                return False
-            self.corridors[corridor.id] = (claim, a)
-            taken_corridors.append(corridor.id)
-        lock = self.traffic.node_locks[node]
-        claim = lock.claim(self.id)
-        ok = yield from self._wait(lock, claim)
-        if not ok:
-            for cid in taken_corridors:
-                self._release_corridor(cid)
-            return False
-        self.ahead.append(Held(node, claim, self.env.now))
-        self.traffic.version += 1
-        return True
+    def _wait_for_link(self) -> Proc:
+        self.fire("Event_Heartbeat_Lost", "Req.Err.011: waiting at the nearest tag")
+        lost = self.env.now
+        while not self.fms_link:
+            left = self.rules.reconnect_timeout_s - (self.env.now - lost)
+            if left <= 0:
+                self.fail_now("E_301")
+            yield self.link_changed | self.env.timeout(left)
+        if not self.fire("Event_Heartbeat_Restored", "link back"):
+            # may not move on (SOC at or below P_050): charge first, then resume the trip
+            yield from self._charge()
+            self.fire("Event_Transport_Order", "resume after charging")
 
-    def _try_take(self, via: str, node: str, after: str | None) -> bool:
-        """Take `node` now if it and the corridors on the way are free; never wait."""
-        traffic = self.traffic
-        needed: list[tuple[int, str]] = []
-        for a, b in ((via, node), (node, after)):
-            corridor = traffic.entry_corridor(a, b)
-            if corridor is None or corridor.id in self.corridors:
-                continue
-            if not traffic.corridor_locks[corridor.id].is_free:
-                return False
-            needed.append((corridor.id, a))
-        lock = traffic.node_locks[node]
-        if not lock.is_free:
-            return False
-        for cid, entry in needed:
-            self.corridors[cid] = (traffic.corridor_locks[cid].claim(self.id), entry)
-        self.ahead.append(Held(node, lock.claim(self.id), self.env.now))
-        traffic.version += 1
-        return True
+    def set_link(self, down_delta: int) -> None:
+        """An FMS link loss starts (+1) or ends (-1); wakes an AGV waiting for the link."""
+        self.links_down += down_delta
+        self._link_changed()
 
-    def _wait(self, lock: Lock, claim: Claim,
-              may_escape: bool = True) -> Generator[simpy.Event, Any, bool]:
-        """Wait for `claim`. Returns True once held; False if the AGV gave up (deadlock victim,
-        or blocked for long with another route at hand) and the claim was withdrawn."""
-        if claim.triggered:
-            return True
-        env = self.env
-        traffic = self.traffic
-        start = env.now
-        traffic.waiting[self.id] = lock
-        traffic.version += 1
-        looked_at: tuple[int, bool, bool] | None = None
-        try:
-            while True:
-                waited = env.now - start
-                now_seen = (traffic.version, waited >= self.config.give_way_after_s,
-                            waited >= self.config.replan_after_s)
-                if may_escape and now_seen != looked_at:  # nothing changed, nothing to look at
-                    looked_at = now_seen
-                    if self._deadlocked() or self._takes_other_way(now_seen[1], now_seen[2]):
-                        claim.cancel()
-                        return False
-                try:
-                    yield claim | env.timeout(self.config.deadlock_check_s)
-                except simpy.Interrupt:
-                    if claim.triggered:
-                        self.escape = None
-                        return True
-                    claim.cancel()
-                    return False
-                if claim.triggered:
-                    return True
-        finally:
-            del traffic.waiting[self.id]
-            traffic.version += 1
-            self.recorder.blocked(start, env.now)
+    def _link_changed(self) -> None:
+        if not self.link_changed.triggered:
+            self.link_changed.succeed()
+        self.link_changed = self.env.event()
 
-    def _takes_other_way(self, may_give_way: bool, may_replan: bool) -> bool:
-        """Blocked long enough: take another route if there is one; with someone queued behind,
-        circulate rather than block them."""
-        give_way = may_give_way and self.traffic.blocks_others(self)
-        if not (give_way or may_replan):
-            return False
-        escape = self.traffic.escape_for(self)
-        if escape is None or not (escape.kind == "reroute"
-                                  or (give_way and escape.kind == "circulate")):
-            return False
-        self.escape = escape
-        return True
+    def _speed_cap_mps(self) -> float | None:
+        cap = self.marker_speed_mps
+        if not self.fms_link and self.rules.comm_policy == "req_err_011":
+            slow = self.rules.comm_loss_speed_mps
+            cap = slow if cap is None else min(cap, slow)
+        return cap
 
-    def _deadlocked(self) -> bool:
-        """Look for a wait-for cycle through this AGV; resolve it. True if this AGV must move."""
-        traffic = self.traffic
-        cycle = traffic.find_cycle(self.id)
-        if cycle is None:
-            return False
-        vehicles = [traffic.vehicles[m] for m in cycle]
-        if any(v.escape is not None for v in vehicles):
-            return False  # already being resolved
-        new = traffic.new_cycle(cycle)
-        members = " ".join(str(m) for m in cycle)
-        locks = " ".join(traffic.waiting[m].key for m in cycle)
-        if new:
-            self.recorder.deadlocks += 1
-            self.note("deadlock_detected", f"agvs {members} waiting for {locks}")
-        # Member i holds the lock that member i-1 waits for; its escape must let go of it.
-        options = [(v, traffic.escape_for(v, traffic.waiting[cycle[i - 1]]))
-                   for i, v in enumerate(vehicles)]
-        chosen: tuple[Vehicle, Escape] | None = None
-        for kind in ("yield", "reroute", "circulate", "backoff"):
-            for vehicle, escape in options:
-                if escape is not None and escape.kind == kind:
-                    chosen = (vehicle, escape)
-                    break
-            if chosen is not None:
-                break
-        if chosen is None:
-            if new:
-                self.note("deadlock_unresolved", f"agvs {members}: no free way out yet")
-            return False
-        victim, escape = chosen
-        victim.note("deadlock_resolved", f"{escape.kind} via {' '.join(escape.path)}")
-        victim.escape = escape
-        if victim is self:
-            return True
-        assert victim.process is not None
-        victim.process.interrupt("deadlock")
-        return False
+    def _travel(self, u: str, v: str, time_s: float) -> Proc:
+        edge = self.traffic.graph.edges[u, v]
+        dead = edge["rssi_dbm"] < self.rules.link_min_rssi_dbm
+        if dead != self.in_dead_spot:
+            self.in_dead_spot = dead
+            self.recorder.comm_losses += dead
+            self.note("dead_spot_in" if dead else "dead_spot_out", f"{u} -> {v}")
+            self._link_changed()
+        if edge["rssi_dbm"] < self.rules.weak_rssi_dbm:
+            self.recorder.warning("E_002")
+        blocked_until = self.traffic.blocked_until(u, v, self.env.now)
+        if blocked_until is not None:
+            yield from self._obstacle(blocked_until - self.env.now, f"segment {u} -> {v} blocked")
+        length = edge["length_m"]
+        rate = edge["obstacle_rate_per_km"]
+        if rate is None:
+            rate = self.incidents.obstacle_rate_per_km
+        rng = self.incident_rng
+        if rate > 0 and rng.random() < 1.0 - math.exp(-rate * length / 1000.0):
+            share = float(rng.random())
+            duration = edge["obstacle_duration"] or self.incidents.obstacle_duration
+            yield self.env.timeout(time_s * share)
+            yield from self._obstacle(duration.sample(rng), f"on {u} -> {v}")
+            yield self.env.timeout(time_s * (1 - share))
+        else:
+            yield self.env.timeout(time_s)
+        line_rate = self.incidents.line_loss_per_km
+        if line_rate > 0 and rng.random() < 1.0 - math.exp(-line_rate * length / 1000.0):
+            if rng.random() < self.incidents.line_found_prob:
+                self.recorder.warning("E_001")
+                self.note("line_lost", f"found again within {self.rules.line_keep_heading_m} m")
+                yield self.env.timeout(self.incidents.line_search_s)
+            else:
+                self.fail_now("E_202")
 
-    def _get_out(self) -> Generator[simpy.Event, Any, list[str]]:
-        """After giving up a wait: take the escape (another route, or one hop back), or wait a
-        little and try the usual route again. Returns the new path from the current node."""
-        escape = self.escape or self.traffic.escape_for(self)
-        self.escape = None
-        self._drop_pending_corridors()
-        assert self.goal is not None
-        if escape is not None and escape.kind in ("reroute", "circulate"):
-            self.note(escape.kind, " ".join(escape.path[:4]) + (" ..." if len(escape.path) > 4
-                                                                 else ""))
-            return list(escape.path)
-        if escape is not None and escape.kind == "backoff":
-            step = escape.path[1]
-            if self._try_take(self.node, step, None):
-                self.note("backoff", f"{self.node} -> {step}")
-                yield from self._hop(step, 0.0)
-                return self.traffic.route(self.node, self.goal)
-        yield self.env.timeout(float(self.rng.exponential(self.config.backoff_s)))
-        return self.traffic.route(self.node, self.goal)
-
-    # ---- releasing ------------------------------------------------------------------------------
-    def _release(self, held: Held) -> None:
-        lock = self.traffic.node_locks[held.node]
-        lock.release(held.claim)
-        self.traffic.version += 1
-        self.recorder.occupied("node", held.node, self.id, held.since_s, self.env.now)
-
-    def _release_corridor(self, cid: int) -> None:
-        claim, _ = self.corridors.pop(cid)
-        self.traffic.corridor_locks[cid].release(claim)
-        self.traffic.version += 1
-
-    def _release_left_corridors(self) -> None:
-        """Let go of corridors the AGV has entered and fully left, and of pending ones whose
-        entry node it is no longer at or heading to."""
-        if not self.corridors:
+    def _obstacle(self, seen_s: float, where: str) -> Proc:
+        """An obstacle in front for `seen_s` seconds (4.2.3/4.2.4, P_005/P_006)."""
+        rules = self.rules
+        motion = self.traffic.motion
+        v = max(self.speed_mps, min(self.profile.max_speed_mps, 1.0))
+        slow = min(rules.obstacle_slow_speed_mps, v)
+        # braking to the creep speed and back costs this much over cruising the same distance
+        extra = (v - slow) / motion.decel_mps2 + (v - slow) / motion.accel_mps2 \
+            - (v * v - slow * slow) * (1 / motion.decel_mps2 + 1 / motion.accel_mps2) / (2 * v)
+        self._obstacle_near_s = seen_s
+        if seen_s < rules.obstacle_pause_s:
+            self.note("obstacle_slowdown", f"{where}: seen {seen_s:.2f} s")
+            yield self.env.timeout(extra + seen_s * (1 - slow / v))
             return
-        layout = self.traffic.layout
-        nodes = [h.node for h in self.held]
-        spots = set(nodes) | {h.node for h in self.ahead}
-        for cid, (_, entry) in list(self.corridors.items()):
-            corridor = layout.corridors[cid]
-            if entry is not None:
-                if entry not in spots:
-                    self._release_corridor(cid)
-                continue
-            if any(n in corridor.members for n in nodes):
-                continue
-            if any((a, b) in corridor.segments for a, b in itertools.pairwise(nodes)):
-                continue
-            self._release_corridor(cid)
+        yield self.env.timeout(extra + rules.obstacle_pause_s)
+        self.fire("Event_Obstacle_Detected", f"{where}: within 1.0 m for "
+                                              f">= {rules.obstacle_pause_s * 1000:.0f} ms")
+        self.recorder.obstacle_pauses += 1
+        paused = self.env.now
+        wait = seen_s - rules.obstacle_pause_s + rules.obstacle_clear_s
+        if wait >= rules.obstacle_timeout_s:
+            yield self.env.timeout(rules.obstacle_timeout_s)
+            self.fail_now("E_101")
+        yield self.env.timeout(wait)
+        self._obstacle_clear_s = rules.obstacle_clear_s
+        self.fire("Event_Obstacle_Cleared", f"paused {self.env.now - paused:.1f} s")
+        yield self.env.timeout(v / (2 * motion.accel_mps2))  # speeding up again from a stop
 
-    def _drop_pending_corridors(self) -> None:
-        for cid, (_, entry) in list(self.corridors.items()):
-            if entry is not None:
-                self._release_corridor(cid)
+    def _arrived(self, u: str, v: str, length_m: float, start_s: float) -> Proc:
+        self.battery.drive(self.env.now, length_m, self.loaded)
+        marker = self.traffic.layout.markers.get(v)
+        if marker is not None:
+            if marker in MARKER_SPEED_MPS:
+                self.marker_speed_mps = MARKER_SPEED_MPS[marker]
+            elif marker == "location":
+                self._position_known = True
+            elif marker == "spin":
+                yield self.env.timeout(self.profile.spin_s)
+            elif marker == "pause":
+                yield self.env.timeout(self.rules.marker_pause_s)
+            self.note(f"marker_{marker}", v)
+        if self.soc_pct < self.rules.bat_critical_pct:
+            self.fail_now("E_201")
+
+    # ---- faults and recovery -------------------------------------------------------------------
+    def _recover(self, failure: Failure) -> Proc:
+        """Error -> (operator) -> Maintenance -> (repair) -> Idle, or SafeMode -> rescue."""
+        env = self.env
+        self.fleet.withdraw(self)
+        self.speed_mps = 0.0
+        self.error_code = failure.code
+        level, text = describe(failure.code)
+        self.recorder.errors.append((env.now, self.id, failure.code, level))
+        self.fire("Event_Critical_Error", f"{failure.code} {level}: {text} {failure.detail}")
+        order = self.order
+        if order is not None:
+            self.order = None
+            if self.loaded:
+                self.fleet.order_failed(order, failure.code)
+            else:
+                self.fleet.give_back(self, order)
+        self.loaded = False
+        if self.parking_target is not None:
+            self.fleet.release_parking(self.parking_target)
+            self.parking_target = None
+        if self.charger is not None and not self.docked:
+            self.fleet.release_charger(self.charger)
+            self.charger = None
+        if self.fire("Event_NetLoss_LowBat", "4.2.14: no link, low battery, no charger"):
+            yield env.timeout(self.incidents.rescue.sample(self.incident_rng))
+            self.fire("Event_Operator_Rescue")
+        else:
+            yield env.timeout(self.incidents.operator_response.sample(self.incident_rng))
+            self.fire("Event_Switch_Manual", "operator at the AGV")
+        if self.parked_in is None:
+            self._leave_track()
+        if self.docked and self.charger is not None:
+            self.docked = False
+            self.fleet.release_charger(self.charger)
+            self.charger = None
+        yield env.timeout(self.incidents.repair.sample(self.incident_rng))
+        if self.soc_pct < self.incidents.rescue_soc_pct:
+            self.battery.set_soc(env.now, self.incidents.rescue_soc_pct)  # charged by hand
+        self.error_code = None
+        self.marker_speed_mps = None
+        yield env.timeout(self.incidents.relocalise_s)
+        if self.parked_in is None:
+            yield from self._reenter_track(self.node)
+        self.failing = False
+        self.fire("Event_Switch_Auto", "back to AUTO, position re-estimated")
