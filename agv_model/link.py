@@ -61,13 +61,19 @@ SETTLE_LIMIT_S: Final = 60.0  # how long a new device may take to send its start
 
 
 class LinkSettingsError(ValueError):
-    """A link setting that cannot describe a real wire; the message names the value."""
+    """A link setting that cannot describe a real wire: names the setting, value, expectation."""
+
+    def __init__(self, label: str, setting: str, value: object, expected: str) -> None:
+        self.setting = setting
+        self.value = value
+        self.expected = expected
+        super().__init__(f"Not a valid {label}: {value!r}; expected {expected}")
 
 
-def _check_time(label: str, value: object) -> None:
+def _check_time(label: str, setting: str, value: object) -> None:
     if isinstance(value, bool) or not isinstance(value, int | float) or not (
             math.isfinite(value) and value >= 0):
-        raise LinkSettingsError(f"Not a valid {label}: {value!r}; expected seconds >= 0")
+        raise LinkSettingsError(label, setting, value, "a time in seconds >= 0")
 
 
 @dataclass(frozen=True)
@@ -86,13 +92,13 @@ class Jitter:
 
     def __post_init__(self) -> None:
         if self.distribution not in JITTER_DISTRIBUTIONS:
-            raise LinkSettingsError(f"Not a valid jitter distribution: {self.distribution!r}; "
-                                    f"expected one of {', '.join(JITTER_DISTRIBUTIONS)}")
-        for label in ("low_s", "high_s", "mean_s", "sd_s"):
-            _check_time(f"jitter {label}", getattr(self, label))
+            raise LinkSettingsError("jitter distribution", "distribution", self.distribution,
+                                    f"one of {', '.join(JITTER_DISTRIBUTIONS)}")
+        for setting in ("low_s", "high_s", "mean_s", "sd_s"):
+            _check_time(f"jitter {setting}", setting, getattr(self, setting))
         if self.high_s < self.low_s:
-            raise LinkSettingsError(f"Not a valid jitter high_s: {self.high_s!r}; expected at "
-                                    f"least low_s ({self.low_s!r})")
+            raise LinkSettingsError("jitter high_s", "high_s", self.high_s,
+                                    f"at least low_s ({self.low_s!r})")
 
     def draw_s(self, rng: np.random.Generator) -> float:
         if self.distribution == "uniform":
@@ -120,24 +126,24 @@ class LinkSettings:
 
     def __post_init__(self) -> None:
         if isinstance(self.baud, bool) or not isinstance(self.baud, int) or self.baud <= 0:
-            raise LinkSettingsError(f"Not a valid baud rate: {self.baud!r}; expected a whole "
-                                    "number of bits per second > 0")
+            raise LinkSettingsError("baud rate", "baud", self.baud,
+                                    "a whole number of bits per second > 0")
         if isinstance(self.data_bits, bool) or self.data_bits not in DATA_BITS:
-            raise LinkSettingsError(f"Not a valid number of data bits: {self.data_bits!r}; "
-                                    f"expected one of {', '.join(map(str, DATA_BITS))}")
+            raise LinkSettingsError("number of data bits", "data_bits", self.data_bits,
+                                    f"one of {', '.join(map(str, DATA_BITS))}")
         if self.parity not in PARITIES:
-            raise LinkSettingsError(f"Not a valid parity: {self.parity!r}; expected one of "
-                                    f"{', '.join(PARITIES)}")
+            raise LinkSettingsError("parity", "parity", self.parity,
+                                    f"one of {', '.join(PARITIES)}")
         if isinstance(self.stop_bits, bool) or self.stop_bits not in STOP_BITS:
-            raise LinkSettingsError(f"Not a valid number of stop bits: {self.stop_bits!r}; "
-                                    "expected 1, 1.5 or 2")
+            raise LinkSettingsError("number of stop bits", "stop_bits", self.stop_bits,
+                                    "1, 1.5 or 2")
         if self.processing_s is not None:
-            _check_time("processing time (processing_s)", self.processing_s)
-        _check_time("host gap (host_gap_s)", self.host_gap_s)
-        _check_time("latency (latency_s)", self.latency_s)
-        _check_time("reply timeout (reply_timeout_s)", self.reply_timeout_s)
+            _check_time("processing time", "processing_s", self.processing_s)
+        _check_time("host gap", "host_gap_s", self.host_gap_s)
+        _check_time("latency", "latency_s", self.latency_s)
+        _check_time("reply timeout", "reply_timeout_s", self.reply_timeout_s)
         if not isinstance(self.jitter, Jitter):
-            raise LinkSettingsError(f"Not a valid jitter: {self.jitter!r}; expected a Jitter")
+            raise LinkSettingsError("jitter", "jitter", self.jitter, "a Jitter")
 
     @property
     def bits_per_char(self) -> float:
