@@ -67,7 +67,7 @@ def test_carriro_over_a_pseudo_terminal(emulator: subprocess.Popen[str],
     with carriro_port(path) as port:
         # The banner comes 1 s (assumed startup_s) after start; a port opened later than that
         # would have flushed it (pyserial clears input on open), so it may be missing.
-        assert port.readline() in (BANNER, b"")
+        assert BANNER.endswith(port.readline())
         for name in ("comm_get", "echo"):
             port.write(golden_bytes("carriro", f"{name}.request"))
             assert port.readline() == golden_bytes("carriro", f"{name}.reply")
