@@ -166,7 +166,8 @@ class Exchange:
     `reply_s` runs from the command's first character leaving the host to the reply's last
     character received (or to the host giving up, on a timeout). `processing_s` is the device's
     own time, from the command's last character received to the reply being sent; it is `inf`
-    when the device never answered.
+    when the device sent nothing before the host gave up. `reply` holds what the device sent,
+    even when its first character came too late (`timed_out`).
     """
 
     command: bytes
@@ -221,7 +222,9 @@ class Link:
 
     The device keeps its state from one exchange to the next (a mode set stays set). A new
     device's start-up output (CarriRo's banner) is drained first. `rng` draws the jitter; give
-    each link its own stream (`SeedSequence.spawn`) for repeatable runs.
+    each link its own stream (`SeedSequence.spawn`) for repeatable runs. A `device` passed in
+    keeps its own processing time (`settings.processing_s` only configures a new one) and must
+    not have been driven past simulated time 0.
     """
 
     def __init__(self, protocol: str, settings: LinkSettings, *,
