@@ -33,10 +33,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     lay.add_argument("--max-speed", type=float, default=None,
                      help="vehicle top speed in m/s to check speed limits against")
 
+    emu = sub.add_parser("emulate", help="serve a virtual vehicle on a pseudo-terminal")
+    emu.add_argument("protocol", help="carriro, ktm02, tabo or agv3")
+    emu.add_argument("--profile", help="vehicle profile (default: the one for the protocol)")
+    emu.add_argument("--seed", type=int, help="seed of the link jitter")
+
     args = parser.parse_args(argv)
     try:
         if args.command == "run":
             return _run(args)
+        if args.command == "emulate":
+            return _emulate(args)
         return _layout(args)
     except FleetSimError as exc:
         print(f"fleet-sim: error: {exc}", file=sys.stderr)
@@ -138,6 +145,16 @@ def _layout(args: argparse.Namespace) -> int:
     draw_layout(layout, png)
     print(f"  drawing      {png}")
     return 0
+
+
+def _emulate(args: argparse.Namespace) -> int:
+    """Print the pty path first, answer until Ctrl-C or SIGTERM, exit 0."""
+    from agv_model.emulate import EmulateError, choose_profile, serve
+
+    try:
+        return serve(choose_profile(args.protocol, args.profile), seed=args.seed)
+    except EmulateError as exc:
+        raise FleetSimError(str(exc)) from None
 
 
 if __name__ == "__main__":

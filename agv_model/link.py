@@ -1,0 +1,289 @@
+"""Serial and radio link timing: how long one command and its reply take on the real wire.
+
+A `LinkSettings` says what the wire is (baud, data bits, parity, stop bits -> bits per
+character), how long the vehicle takes to answer (`processing_s`), how long the host waits after
+a reply before it sends again (`host_gap_s`), how long the host waits for an answer
+(`reply_timeout_s`), the one-way delay of a radio hop (`latency_s`) and a random `Jitter` on
+each answer. A `Link` puts a protocol's codec and virtual device behind those settings: for any
+`Command` it encodes the real bytes, feeds them to the device one character at a time in
+simulated time, takes the device's real reply bytes and returns an `Exchange`, the breakdown of
+the time from the first byte sent to the reply fully received.
+
+Readings (documented here; the profiles in `agv_model/profiles/` carry the figures):
+
+- A character is one start bit, the data bits, one parity bit unless parity is "none", and the
+  stop bits: CarriRo's 8E1 is 11 bits (インターフェイス仕様), so 11 / 19200 s a character.
+- The host sends the command's characters back to back; the device receives each one when its
+  last stop bit has arrived (plus `latency_s` on a radio link); the reply's characters follow
+  back to back from the moment the device sends it, delayed by the drawn jitter and `latency_s`.
+- The reply is everything the device sends at the first instant at or after the command's last
+  character arrived: CarriRo's line, KTM-02's ACK together with the data frame a request asks
+  for, every line of an AGV-3 chain. Later messages (TABO's FIN:m, a KTM-02 MovingFinishCmd at
+  the end of a motion) are not part of the reply; output before the command arrived (a periodic
+  CarriRo `status?`) is unsolicited and kept in `Link.unsolicited`.
+- The reply timeout is read as AGV-3 writes it ("Om inget returneras inom 0.25s"): the time
+  from the command's last character leaving the host to the reply's first character being
+  received. A reply later than that, or none at all, is a timeout; the host gives up after
+  `reply_timeout_s`, waits `host_gap_s` and may send again. Where a document gives no timeout
+  the profile's figure is an assumption and says so. A reply that comes after the host gave up
+  stays on the wire, as on a real line: the next exchange takes it as its answer if it arrives
+  after that command, which is the stale-reply hazard a real host has to handle.
+- `host_gap_s` follows each reply (CarriRo 処理: 10 ms after the reply is received); it is not
+  part of the reply time but delays the next command (`Exchange.ready_s`).
+- `processing_s` is handed to the virtual device, which is where the time is spent (CarriRo's
+  `processing_s`, the others' `reply_delay_s`); None keeps the device's own default.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Final, Literal
+
+import numpy as np
+
+from agv_model.protocols import Command, Device, get_codec, get_device, names
+
+Parity = Literal["none", "even", "odd", "mark", "space"]
+JitterDistribution = Literal["none", "uniform", "normal", "exponential"]
+
+PARITIES: Final = ("none", "even", "odd", "mark", "space")
+DATA_BITS: Final = (5, 6, 7, 8)
+STOP_BITS: Final = (1, 1.5, 2)
+JITTER_DISTRIBUTIONS: Final = ("none", "uniform", "normal", "exponential")
+# The device setting that holds each protocol's answer time (see the protocol modules).
+PROCESSING_SETTING: Final[Mapping[str, str]] = {
+    "carriro": "processing_s", "ktm02": "reply_delay_s", "tabo": "reply_delay_s",
+    "agv3": "reply_delay_s",
+}
+SETTLE_LIMIT_S: Final = 60.0  # how long a new device may take to send its start-up output
+
+
+class LinkSettingsError(ValueError):
+    """A link setting that cannot describe a real wire: names the setting, value, expectation."""
+
+    def __init__(self, label: str, setting: str, value: object, expected: str) -> None:
+        self.setting = setting
+        self.value = value
+        self.expected = expected
+        super().__init__(f"Not a valid {label}: {value!r}; expected {expected}")
+
+
+def _check_time(label: str, setting: str, value: object) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not (
+            math.isfinite(value) and value >= 0):
+        raise LinkSettingsError(label, setting, value, "a time in seconds >= 0")
+
+
+@dataclass(frozen=True)
+class Jitter:
+    """Random extra delay on each reply, drawn from a seeded `numpy.random.Generator`.
+
+    uniform: between `low_s` and `high_s`; normal: `mean_s`, `sd_s`, cut at 0;
+    exponential: mean `mean_s`; none: always 0 and no draw.
+    """
+
+    distribution: JitterDistribution = "none"
+    low_s: float = 0.0
+    high_s: float = 0.0
+    mean_s: float = 0.0
+    sd_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.distribution not in JITTER_DISTRIBUTIONS:
+            raise LinkSettingsError("jitter distribution", "distribution", self.distribution,
+                                    f"one of {', '.join(JITTER_DISTRIBUTIONS)}")
+        for setting in ("low_s", "high_s", "mean_s", "sd_s"):
+            _check_time(f"jitter {setting}", setting, getattr(self, setting))
+        if self.high_s < self.low_s:
+            raise LinkSettingsError("jitter high_s", "high_s", self.high_s,
+                                    f"at least low_s ({self.low_s!r})")
+
+    def draw_s(self, rng: np.random.Generator) -> float:
+        if self.distribution == "uniform":
+            return float(rng.uniform(self.low_s, self.high_s))
+        if self.distribution == "normal":
+            return max(0.0, float(rng.normal(self.mean_s, self.sd_s)))
+        if self.distribution == "exponential":
+            return float(rng.exponential(self.mean_s)) if self.mean_s > 0 else 0.0
+        return 0.0
+
+
+@dataclass(frozen=True)
+class LinkSettings:
+    """One wire between host and vehicle. Every time is in seconds."""
+
+    baud: int
+    data_bits: int = 8
+    parity: Parity = "none"
+    stop_bits: float = 1
+    processing_s: float | None = None
+    host_gap_s: float = 0.0
+    reply_timeout_s: float = 1.0
+    latency_s: float = 0.0
+    jitter: Jitter = field(default_factory=Jitter)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.baud, bool) or not isinstance(self.baud, int) or self.baud <= 0:
+            raise LinkSettingsError("baud rate", "baud", self.baud,
+                                    "a whole number of bits per second > 0")
+        if isinstance(self.data_bits, bool) or self.data_bits not in DATA_BITS:
+            raise LinkSettingsError("number of data bits", "data_bits", self.data_bits,
+                                    f"one of {', '.join(map(str, DATA_BITS))}")
+        if self.parity not in PARITIES:
+            raise LinkSettingsError("parity", "parity", self.parity,
+                                    f"one of {', '.join(PARITIES)}")
+        if isinstance(self.stop_bits, bool) or self.stop_bits not in STOP_BITS:
+            raise LinkSettingsError("number of stop bits", "stop_bits", self.stop_bits,
+                                    "1, 1.5 or 2")
+        if self.processing_s is not None:
+            _check_time("processing time", "processing_s", self.processing_s)
+        _check_time("host gap", "host_gap_s", self.host_gap_s)
+        _check_time("latency", "latency_s", self.latency_s)
+        _check_time("reply timeout", "reply_timeout_s", self.reply_timeout_s)
+        if not isinstance(self.jitter, Jitter):
+            raise LinkSettingsError("jitter", "jitter", self.jitter, "a Jitter")
+
+    @property
+    def bits_per_char(self) -> float:
+        """Start bit + data bits + parity bit + stop bits."""
+        return 1 + self.data_bits + (0 if self.parity == "none" else 1) + self.stop_bits
+
+    @property
+    def char_s(self) -> float:
+        return self.bits_per_char / self.baud
+
+    def transfer_s(self, n_bytes: int) -> float:
+        """Time to send `n_bytes` characters back to back."""
+        return n_bytes * self.bits_per_char / self.baud
+
+
+@dataclass(frozen=True)
+class Exchange:
+    """One command and its reply on the link. Times are simulated seconds.
+
+    `reply_s` runs from the command's first character leaving the host to the reply's last
+    character received (or to the host giving up, on a timeout). `processing_s` is the device's
+    own time, from the command's last character received to the reply being sent; it is `inf`
+    when the device sent nothing before the host gave up. `reply` holds what the device sent,
+    even when its first character came too late (`timed_out`).
+    """
+
+    command: bytes
+    reply: bytes
+    sent_s: float
+    tx_s: float
+    latency_s: float
+    processing_s: float
+    jitter_s: float
+    rx_s: float
+    gap_s: float
+    reply_timeout_s: float
+    timed_out: bool
+
+    @property
+    def tx_bytes(self) -> int:
+        return len(self.command)
+
+    @property
+    def rx_bytes(self) -> int:
+        return len(self.reply)
+
+    @property
+    def reply_s(self) -> float:
+        if self.timed_out:
+            return self.tx_s + self.reply_timeout_s
+        return self.tx_s + 2 * self.latency_s + self.processing_s + self.jitter_s + self.rx_s
+
+    @property
+    def ready_s(self) -> float:
+        """When the host may send its next command: after the reply and the host gap."""
+        return self.sent_s + self.reply_s + self.gap_s
+
+    def breakdown(self) -> dict[str, float | int | bool]:
+        return {"tx_bytes": self.tx_bytes, "tx_s": self.tx_s, "latency_s": self.latency_s,
+                "processing_s": self.processing_s, "jitter_s": self.jitter_s,
+                "rx_bytes": self.rx_bytes, "rx_s": self.rx_s, "gap_s": self.gap_s,
+                "reply_s": self.reply_s, "timed_out": self.timed_out}
+
+
+def device_settings(protocol: str, settings: LinkSettings) -> dict[str, Any]:
+    """The keyword settings that give `protocol`'s virtual device the link's processing time."""
+    if protocol not in PROCESSING_SETTING:
+        raise KeyError(f"unknown protocol {protocol!r}; expected one of {', '.join(names())}")
+    if settings.processing_s is None:
+        return {}
+    return {PROCESSING_SETTING[protocol]: settings.processing_s}
+
+
+class Link:
+    """A host talking to one virtual vehicle over a timed wire, in simulated time.
+
+    The device keeps its state from one exchange to the next (a mode set stays set). A new
+    device's start-up output (CarriRo's banner) is drained first. `rng` draws the jitter; give
+    each link its own stream (`SeedSequence.spawn`) for repeatable runs. A `device` passed in
+    keeps its own processing time (`settings.processing_s` only configures a new one) and must
+    not have been driven past simulated time 0.
+    """
+
+    def __init__(self, protocol: str, settings: LinkSettings, *,
+                 rng: np.random.Generator | None = None, device: Device | None = None) -> None:
+        self.protocol = protocol
+        self.settings = settings
+        self.codec = get_codec(protocol)
+        self.device = device if device is not None else get_device(
+            protocol, **device_settings(protocol, settings))
+        self.rng = rng if rng is not None else np.random.default_rng()
+        self.unsolicited: list[tuple[float, bytes]] = []
+        self.ready_s = 0.0
+        self._settle()
+
+    def _settle(self) -> None:
+        while (due_s := self.device.next_output_s()) is not None and due_s <= SETTLE_LIMIT_S:
+            for time_s, data in self.device.poll(due_s):
+                self.unsolicited.append((time_s, data))
+                end_s = time_s + self.settings.latency_s + self.settings.transfer_s(len(data))
+                self.ready_s = max(self.ready_s, end_s + self.settings.host_gap_s)
+
+    def exchange(self, command: Command | bytes, at_s: float | None = None) -> Exchange:
+        """Send one command at `at_s` (or as soon as the host may) and time its reply."""
+        s = self.settings
+        data = command if isinstance(command, bytes) else self.codec.encode(command)
+        sent_s = max(self.ready_s, at_s if at_s is not None else self.ready_s)
+        self.unsolicited += self.device.poll(sent_s)
+        for i in range(len(data)):
+            self.device.receive(data[i:i + 1], sent_s + s.latency_s + s.transfer_s(i + 1))
+        tx_s = s.transfer_s(len(data))
+        arrived_s = sent_s + s.latency_s + tx_s
+        give_up_s = sent_s + tx_s + s.reply_timeout_s
+        reply_at_s, reply = self._first_output(arrived_s, give_up_s)
+        if reply_at_s is None:
+            result = Exchange(data, b"", sent_s, tx_s, s.latency_s, math.inf, 0.0, 0.0,
+                              s.host_gap_s, s.reply_timeout_s, True)
+        else:
+            jitter_s = s.jitter.draw_s(self.rng)
+            first_char_s = reply_at_s + jitter_s + s.latency_s + s.char_s
+            result = Exchange(data, reply, sent_s, tx_s, s.latency_s, reply_at_s - arrived_s,
+                              jitter_s, s.transfer_s(len(reply)), s.host_gap_s,
+                              s.reply_timeout_s, first_char_s > give_up_s)
+        self.ready_s = result.ready_s
+        return result
+
+    def _first_output(self, arrived_s: float, give_up_s: float) -> tuple[float | None, bytes]:
+        """The device's first output at or after `arrived_s`, if it comes by `give_up_s`."""
+        while (due_s := self.device.next_output_s()) is not None and due_s <= give_up_s:
+            out = self.device.poll(max(due_s, arrived_s))
+            self.unsolicited += [(t, b) for t, b in out if t < arrived_s]
+            answer = [(t, b) for t, b in out if t >= arrived_s]
+            if answer:
+                first_s = answer[0][0]
+                self.unsolicited += [(t, b) for t, b in answer if t > first_s]
+                return first_s, b"".join(b for t, b in answer if t == first_s)
+        return None, b""
+
+
+def exchange_once(protocol: str, command: Command | bytes, settings: LinkSettings, *,
+                  seed: int | None = None) -> Exchange:
+    """Time one command against a fresh device (after its start-up output)."""
+    return Link(protocol, settings, rng=np.random.default_rng(seed)).exchange(command)

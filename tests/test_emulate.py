@@ -1,0 +1,150 @@
+"""`fleet-sim emulate`: a virtual vehicle on a real pseudo-terminal.
+
+The subprocess tests talk to it with pyserial as a controller would; their timeouts only guard
+against hangs. The pacing itself is checked in simulated time by stepping an `Emulator` by hand.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+import tty
+from collections.abc import Iterator
+from typing import IO
+
+import numpy as np
+import pytest
+import serial
+
+from agv_model.emulate import Emulator, _Wire, choose_profile, describe
+from agv_model.link import LinkSettings, device_settings
+from agv_model.profile import load_profile
+from agv_model.protocols import get_device
+from fleet_sim.cli import main
+
+from .conftest import ROOT, golden_bytes
+
+GUARD_S = 15.0  # against hangs only
+PORT_TIMEOUT_S = 5.0  # set once: changing a setting later makes pyserial re-apply parity,
+# which a Linux pty refuses (EINVAL)
+BANNER = b"CarriRo AD+ 1.16.0.2\n"  # スタートアップ
+
+
+def first_line(stream: IO[str]) -> str:
+    ready, _, _ = select.select([stream], [], [], GUARD_S)
+    assert ready, "the emulator printed no path"
+    return stream.readline().strip()
+
+
+@pytest.fixture
+def emulator() -> Iterator[subprocess.Popen[str]]:
+    proc = subprocess.Popen([sys.executable, "-m", "fleet_sim.cli", "emulate", "carriro"],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    yield proc
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait(GUARD_S)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()
+    proc.stderr.close()
+
+
+def carriro_port(path: str) -> serial.Serial:
+    return serial.Serial(path, baudrate=19200, bytesize=serial.EIGHTBITS,
+                         parity=serial.PARITY_EVEN, stopbits=serial.STOPBITS_ONE,
+                         timeout=PORT_TIMEOUT_S)
+
+
+@pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGINT])
+def test_carriro_over_a_pseudo_terminal(emulator: subprocess.Popen[str],
+                                        stop: signal.Signals) -> None:
+    assert emulator.stdout is not None and emulator.stderr is not None
+    path = first_line(emulator.stdout)
+    assert path.startswith("/dev/")
+    with carriro_port(path) as port:
+        # The banner comes 1 s (assumed startup_s) after start; a port opened later than that
+        # would have flushed it (pyserial clears input on open), so it may be missing.
+        assert BANNER.endswith(port.readline())
+        for name in ("comm_get", "echo"):
+            port.write(golden_bytes("carriro", f"{name}.request"))
+            assert port.readline() == golden_bytes("carriro", f"{name}.reply")
+            select.select([], [], [], 0.02)  # the host's 10 ms after a reply (処理)
+    emulator.send_signal(stop)
+    assert emulator.wait(GUARD_S) == 0
+    errors = emulator.stderr.read()
+    assert "Traceback" not in errors
+    assert "19200 8E1, 11 bits per character" in errors
+
+
+def test_unknown_protocol_is_one_line_and_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["emulate", "modbus"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("fleet-sim: error: unknown protocol 'modbus'; expected one of carriro, "
+                   "ktm02, tabo, agv3\n")
+
+
+def test_profile_of_another_protocol_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["emulate", "carriro", "--profile", "tabo"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "profile 'tabo' speaks 'tabo', not 'carriro'" in err
+
+
+def test_unknown_profile_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["emulate", "agv3", "--profile", "nope"]) == 2
+    assert "got 'nope'; expected one of agv-3" in capsys.readouterr().err
+
+
+def test_default_profile_per_protocol() -> None:
+    assert {p: choose_profile(p).name for p in ("carriro", "ktm02", "tabo", "agv3")} == {
+        "carriro": "carriro-ad-plus", "ktm02": "ktm-02", "tabo": "tabo", "agv3": "agv-3"}
+    assert describe(load_profile("carriro-ad-plus").link) == "19200 8E1, 11 bits per character"
+    assert describe(LinkSettings(9600, 7, "odd", 1.5)) == "9600 7O1.5, 10.5 bits per character"
+
+
+def test_wire_delivers_each_character_when_its_last_bit_is_in() -> None:
+    wire = _Wire(LinkSettings(10000, 8, "none", 1, latency_s=0.5))  # 1 ms a character
+    wire.send(b"ab", 1.0)
+    wire.send(b"c", 1.0)  # queued behind "ab": the line is busy until 1.002
+    assert [t for t, _ in wire.queue] == pytest.approx([1.501, 1.502, 1.503])
+    assert wire.due(1.5015) == [(pytest.approx(1.501), ord("a"))]
+    assert wire.next_s() == pytest.approx(1.502)
+
+
+def read_all(fd: int) -> bytes:
+    data = b""
+    while select.select([fd], [], [], 0)[0]:
+        data += os.read(fd, 4096)
+    return data
+
+
+def test_reply_bytes_are_never_early() -> None:
+    """Step the emulator in simulated time: each reply character appears on the host side only
+    once the link model says it has arrived."""
+    profile = load_profile("carriro-ad-plus")
+    char_s = profile.link.char_s
+    master, slave = os.openpty()
+    try:
+        tty.setraw(slave)
+        os.set_blocking(master, False)
+        device = get_device("carriro", **device_settings("carriro", profile.link))
+        emu = Emulator(profile, device, master, np.random.default_rng(0))
+        emu.step(1.0 + 21 * char_s)  # the banner, sent at 1.0, fully delivered
+        assert read_all(slave) == BANNER
+        sent_s = 1.1
+        emu.heard(b"comm?\n", sent_s)
+        arrived_s = sent_s + 6 * char_s  # the LF's last bit is in
+        reply_s = arrived_s + 0.005  # processing (assumed 5 ms)
+        emu.step(arrived_s)
+        emu.step(reply_s + 3 * char_s - 1e-9)
+        assert read_all(slave) == b"co"
+        emu.step(reply_s + 8 * char_s - 1e-9)
+        assert read_all(slave) == b"mm? 0"
+        emu.step(reply_s + 8 * char_s)
+        assert read_all(slave) == b"\n"
+        assert emu.dropped_bytes == 0
+    finally:
+        os.close(master)
+        os.close(slave)

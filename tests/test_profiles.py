@@ -1,0 +1,194 @@
+"""Vehicle profiles: the five bundled files load, carry the documents' figures, and the loader
+rejects what it cannot use with the file, the key, the value and what it expected."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from agv_model.link import Link
+from agv_model.profile import (
+    ASSUMED,
+    DOCUMENTS,
+    PROFILE_DIR,
+    Profile,
+    ProfileError,
+    load_profile,
+    load_profiles,
+    profile_for,
+    profile_names,
+    read_profile,
+)
+from agv_model.protocols import Command
+
+NAMES = ("agv-3", "carriro-ad-plus", "ktm-02", "rss-agv-001", "tabo")
+FIGURES_PER_PROFILE = 5 + 4 + 9  # kinematics, battery, link
+
+
+def test_all_five_profiles_load() -> None:
+    assert profile_names() == NAMES
+    profiles = load_profiles()
+    assert {name: p.protocol for name, p in profiles.items()} == {
+        "agv-3": "agv3", "carriro-ad-plus": "carriro", "ktm-02": "ktm02", "rss-agv-001": None,
+        "tabo": "tabo"}
+    for profile in profiles.values():
+        assert profile.document in DOCUMENTS.values()
+
+
+def test_generic_profile_carries_rss_agv_001_7_1_defaults() -> None:
+    generic = load_profile("rss-agv-001")
+    k = generic.kinematics
+    assert (k.max_speed_mmps, k.accel_mmps2, k.decel_mmps2, k.turn_speed_mmps) == (
+        1000, 500, 500, 300)
+    assert (k.max_speed_mps, k.accel_mps2, k.decel_mps2, k.turn_speed_mps) == (1.0, 0.5, 0.5, 0.3)
+    for key, param in (("max_speed_mmps", "P_001"), ("accel_mmps2", "P_002"),
+                       ("decel_mmps2", "P_003"), ("turn_speed_mmps", "P_004")):
+        assert generic.sources[f"kinematics.{key}"].startswith(f"RSS-AGV-001 7.1 {param}")
+
+
+def test_carriro_profile_carries_the_interface_settings() -> None:
+    carriro = load_profile("carriro-ad-plus")
+    link = carriro.link
+    assert (link.baud, link.data_bits, link.parity, link.stop_bits) == (19200, 8, "even", 1)
+    assert link.host_gap_s == 0.010 and link.bits_per_char == 11
+    assert carriro.kinematics.max_speed_mmps == pytest.approx(3.0 / 3.6 * 1000, abs=1e-3)
+    for key in ("baud", "data_bits", "parity", "stop_bits"):
+        assert "インターフェイス仕様" in carriro.sources[f"link.{key}"]
+    assert carriro.sources["link.host_gap_s"].startswith("CarriRo API v1.4, 処理")
+
+
+def test_documented_figures_of_the_other_vehicles() -> None:
+    assert load_profile("agv-3").link.reply_timeout_s == 0.25
+    assert load_profile("agv-3").sources["link.reply_timeout_s"].startswith(
+        "AGV-3 protocol, Syntax")
+    assert load_profile("tabo").kinematics.max_speed_mmps == 410
+    assert load_profile("tabo").sources["kinematics.max_speed_mmps"].startswith("TABO commands")
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_every_figure_cites_a_document_or_says_assumed(name: str) -> None:
+    profile = load_profile(name)
+    assert len(profile.sources) == FIGURES_PER_PROFILE
+    for key, text in profile.sources.items():
+        assert text.startswith(ASSUMED) or any(text.startswith(tag) for tag in DOCUMENTS), key
+    # a figure from another vehicle's document would be a mistake
+    own = {tag for tag, file in DOCUMENTS.items() if file == profile.document}
+    for text in profile.sources.values():
+        cited = {tag for tag in DOCUMENTS if text.startswith(tag)}
+        assert cited <= own
+
+
+@pytest.mark.parametrize("name", [n for n in NAMES if n != "rss-agv-001"])
+def test_each_profile_link_drives_its_protocol(name: str) -> None:
+    profile = load_profile(name)
+    assert profile.protocol is not None
+    link = Link(profile.protocol, profile.link)
+    assert profile_for(profile.protocol) == profile
+    hello = {"carriro": b"comm?\n", "ktm02": Command("RequestStatusCmd"), "tabo": b"GBI\n",
+             "agv3": b"*IDN?\r\n"}[profile.protocol]
+    exchange = link.exchange(hello)
+    assert exchange.reply and not exchange.timed_out
+
+
+def test_profiles_are_frozen() -> None:
+    profile = load_profile("tabo")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        profile.kinematics.max_speed_mmps = 1.0  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        profile.sources["link.baud"] = "assumed"  # type: ignore[index]
+
+
+def broken(tmp_path: Path, change: Any, name: str = "carriro-ad-plus") -> Path:
+    """A copy of a bundled profile, changed by `change(data)`."""
+    data = yaml.safe_load((PROFILE_DIR / f"{name}.yaml").read_text(encoding="utf-8"))
+    change(data)
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data, allow_unicode=True), encoding="utf-8")
+    return path
+
+
+def test_a_copy_loads_like_the_original(tmp_path: Path) -> None:
+    copied = read_profile(broken(tmp_path, lambda d: None))
+    original = load_profile("carriro-ad-plus")
+    assert dataclasses.replace(copied, sources={}) == dataclasses.replace(original, sources={})
+    assert dict(copied.sources) == dict(original.sources)
+
+
+def test_unknown_key_names_file_key_value_and_expectation(tmp_path: Path) -> None:
+    path = broken(tmp_path, lambda d: d["kinematics"].update(top_speed_kmh=6))
+    with pytest.raises(ProfileError) as info:
+        read_profile(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: kinematics.top_speed_kmh: got 6; expected one of the "
+                              "keys max_speed_mmps, accel_mmps2")
+    assert (info.value.file, info.value.key, info.value.value) == (
+        str(path), "kinematics.top_speed_kmh", 6)
+
+
+def setter(section: str, key: str, value: Any) -> Any:
+    def change(data: dict[str, Any]) -> None:
+        target = data
+        for part in section.split(".") if section else ():
+            target = target[part]
+        target[key] = value
+    return change
+
+
+def deleter(section: str, key: str) -> Any:
+    def change(data: dict[str, Any]) -> None:
+        target = data
+        for part in section.split("."):
+            target = target[part]
+        del target[key]
+    return change
+
+
+@pytest.mark.parametrize(("change", "key", "expected"), [
+    (setter("", "colour", "red"), "colour", "one of the keys title, document"),
+    (setter("link.jitter", "spread_s", 0.1), "link.jitter.spread_s", "one of the keys distr"),
+    (setter("link", "baud", 0), "link.baud", "a whole number of bits per second > 0"),
+    (setter("link", "parity", "E"), "link.parity", "one of none, even"),
+    (setter("link.jitter", "distribution", "gauss"), "link.jitter.distribution", "one of none"),
+    (setter("kinematics", "max_speed_mmps", "fast"), "kinematics.max_speed_mmps", "a number"),
+    (setter("kinematics", "length_mm", 0), "kinematics.length_mm", "a number > 0"),
+    (setter("battery", "idle_w", -1), "battery.idle_w", "a number >= 0"),
+    (setter("kinematics", "turn_speed_mmps", 900), "kinematics.turn_speed_mmps", "at most"),
+    (setter("", "protocol", "modbus"), "protocol", "null or one of carriro"),
+    (setter("", "document", "brochure.pdf"), "document", "one of rss-agv-001"),
+    (deleter("battery", "charge_w"), "battery.charge_w", "a value (the key is missing)"),
+    (deleter("link.source", "baud"), "link.source.baud", "a citation or 'assumed ...'"),
+    (setter("link.source", "baud", "the brochure"), "link.source.baud", "'assumed ...' or a"),
+    (setter("link.source", "speed", "assumed"), "link.source.speed", "a figure of link"),
+])
+def test_bad_profiles_are_rejected(tmp_path: Path, change: Any, key: str,
+                                   expected: str) -> None:
+    path = broken(tmp_path, change)
+    with pytest.raises(ProfileError) as info:
+        read_profile(path)
+    assert info.value.key == key
+    assert str(info.value).startswith(f"{path}: {key}: got ")
+    assert info.value.expected.startswith(expected)
+
+
+def test_bad_yaml_and_missing_files(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("title: [unclosed\n", encoding="utf-8")
+    with pytest.raises(ProfileError, match="expected valid YAML"):
+        read_profile(bad)
+    with pytest.raises(ProfileError, match="a readable profile file"):
+        read_profile(tmp_path / "missing.yaml")
+    with pytest.raises(ProfileError, match="got 'nope'; expected one of agv-3, carriro-ad-plus"):
+        load_profile("nope")
+
+
+def test_profile_for_an_unbundled_protocol() -> None:
+    with pytest.raises(ProfileError, match="got 'modbus'"):
+        profile_for("modbus")
+
+
+def test_profile_type() -> None:
+    assert all(isinstance(p, Profile) for p in load_profiles().values())
