@@ -8,6 +8,10 @@ KPIs are measured over the window from the end of the warm-up to the end of the 
 * blocked_time_pct: share of AGV time in the window spent waiting for a node or corridor.
 * state_<name>_pct: share of AGV time in the window spent in each state of RSS-AGV-001.
 * distance_km: distance driven in the window. orders_created / orders_completed count the run.
+* availability_pct: share of AGV time in the window not in Error, Maintenance or SafeMode.
+* orders_failed (lost with a failed AGV), orders_reassigned, charges, charging_queue_wait_mean_s
+  (asking for a charger to getting one), obstacle_pauses, comm_losses, errors_by_code and
+  warnings_by_code count the whole run.
 """
 
 from __future__ import annotations
@@ -28,7 +32,10 @@ from fleet_sim.states import State
 
 ORDER_COLUMNS = ("order_id", "created_s", "pickup", "dropoff", "pickup_node", "dropoff_node",
                  "agv", "assigned_s", "pickup_arrival_s", "picked_s", "dropoff_arrival_s",
-                 "delivered_s", "pickup_handling_s", "dropoff_handling_s", "lead_time_s")
+                 "delivered_s", "pickup_handling_s", "dropoff_handling_s", "lead_time_s",
+                 "failed_s", "failure", "reassigned")
+DOWN_STATES = (State.ERROR, State.MAINTENANCE, State.SAFE_MODE)
+"""States in which an AGV is not available (availability_pct)."""
 
 
 def events_table(run: RunOutput) -> pd.DataFrame:
@@ -43,16 +50,24 @@ def orders_table(run: RunOutput) -> pd.DataFrame:
         (o.id, o.created_s, o.pickup, o.dropoff, o.pickup_node, o.dropoff_node, o.agv,
          o.assigned_s, o.pickup_arrival_s, o.picked_s, o.dropoff_arrival_s, o.delivered_s,
          o.pickup_handling_s, o.dropoff_handling_s,
-         None if o.delivered_s is None else o.delivered_s - o.created_s)
+         None if o.delivered_s is None else o.delivered_s - o.created_s,
+         o.failed_s, o.failure, o.reassigned)
         for o in run.recorder.orders
     ]
     frame = pd.DataFrame(rows, columns=list(ORDER_COLUMNS))
     floats = [c for c in ORDER_COLUMNS if c.endswith("_s")]
     frame[floats] = frame[floats].astype("float64")
     frame["agv"] = frame["agv"].astype("Int64")
-    for column in ("pickup", "dropoff", "pickup_node", "dropoff_node"):
+    frame["reassigned"] = frame["reassigned"].astype("int64")
+    for column in ("pickup", "dropoff", "pickup_node", "dropoff_node", "failure"):
         frame[column] = frame[column].astype("string")
     return frame
+
+
+def soc_table(run: RunOutput) -> pd.DataFrame:
+    """State of charge of every AGV at each of its state changes (for battery plots)."""
+    frame = pd.DataFrame(run.recorder.soc_trace, columns=["time_s", "agv", "soc_pct"])
+    return frame.astype({"time_s": "float64", "agv": "int64", "soc_pct": "float64"})
 
 
 def state_seconds(events: pd.DataFrame, n_agvs: int, start_s: float,
@@ -109,6 +124,23 @@ def kpis(run: RunOutput, events: pd.DataFrame, orders: pd.DataFrame) -> dict[str
     }
     for state in State:
         out[f"state_{state.key}_pct"] = _round(100.0 * states[state.value] / agv_s)
+    down = sum(states[s.value] for s in DOWN_STATES)
+    charge_waits = [b - a for a, b in rec.charge_waits]
+    errors: dict[str, int] = {}
+    for _, _, code, _ in rec.errors:
+        errors[code] = errors.get(code, 0) + 1
+    out.update({
+        "availability_pct": _round(100.0 * (1.0 - down / agv_s)),
+        "orders_failed": int(orders["failed_s"].notna().sum()),
+        "orders_reassigned": int(orders["reassigned"].sum()),
+        "charges": len(charge_waits),
+        "charging_queue_wait_mean_s": _round(float(np.mean(charge_waits))) if charge_waits
+        else None,
+        "obstacle_pauses": rec.obstacle_pauses,
+        "comm_losses": rec.comm_losses,
+        "errors_by_code": dict(sorted(errors.items())),
+        "warnings_by_code": dict(sorted(rec.warnings.items())),
+    })
     return out
 
 
@@ -136,6 +168,7 @@ def write_run(run: RunOutput, out_dir: Path) -> dict[str, Any]:
     (out_dir / "kpis.json").write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
     events.to_parquet(out_dir / "events.parquet", index=False)
     orders.to_parquet(out_dir / "orders.parquet", index=False)
+    soc_table(run).to_parquet(out_dir / "soc.parquet", index=False)
     info = {"wall_s": round(run.wall_s, 3), "sim_events": run.sim_events,
             "sim_hours_per_wall_s": round(run.scenario.duration_h / max(run.wall_s, 1e-9), 3)}
     (out_dir / "run_info.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
@@ -161,5 +194,11 @@ def summary(figures: dict[str, Any]) -> str:
         f"  blocked by traffic          {fmt(figures['blocked_time_pct'], ' %')}",
         f"  deadlocks detected          {figures['deadlocks_detected']}",
         f"  distance driven             {fmt(figures['distance_km'], ' km')}",
+        f"  availability                {fmt(figures['availability_pct'], ' %')}",
+        f"  charges / queue wait        {figures['charges']} / "
+        f"{fmt(figures['charging_queue_wait_mean_s'], ' s')}",
+        f"  incidents                   {figures['obstacle_pauses']} obstacle pauses, "
+        f"{figures['comm_losses']} link losses, errors {figures['errors_by_code'] or 'none'}, "
+        f"{figures['orders_failed']} orders failed",
     ]
     return "\n".join(lines)

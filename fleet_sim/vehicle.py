@@ -151,8 +151,10 @@ class Vehicle(Driver):
         if transition.guard is not None and not transition.guard(self, self.params):
             self.note("guard_failed", f"{event}: needs {transition.condition}")
             return False
-        self.recorder.event(self.env.now, self.id, event, self.state.value,
-                            transition.target.value, self.node, detail)
+        now = self.env.now
+        self.recorder.event(now, self.id, event, self.state.value, transition.target.value,
+                            self.node, detail)
+        self.recorder.soc_trace.append((now, self.id, round(self.soc_pct, 4)))
         self.state = transition.target
         return True
 
