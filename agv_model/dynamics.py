@@ -232,12 +232,14 @@ def simulate(track: Track, commands: Sequence[Command] = (),
 def _braking_speed(odo_m: float, v_mps: float, target_m: float, target_speed_mps: float,
                    decel: float, dt_s: float) -> float:
     """Highest speed at the end of this step from which braking at `decel` still reaches
-    `target_m` no faster than `target_speed_mps` (0 when even that is too late)."""
+    `target_m` no faster than `target_speed_mps`. Never below `target_speed_mps`: a step that
+    ends past the target only has to arrive there at that speed (and a stop, target speed 0,
+    is landed exactly by the step that comes to rest)."""
     c = odo_m + v_mps * dt_s / 2.0 - target_m - target_speed_mps ** 2 / (2.0 * decel)
     disc = (decel * dt_s) ** 2 - 8.0 * decel * c
     if disc < 0.0:
-        return 0.0
-    return max((-decel * dt_s + math.sqrt(disc)) / 2.0, 0.0)
+        return target_speed_mps
+    return max((-decel * dt_s + math.sqrt(disc)) / 2.0, target_speed_mps)
 
 
 class _Run:
