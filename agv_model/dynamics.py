@@ -382,8 +382,7 @@ class _Run:
         goal = self._speed_goal()
         self._steer(moving=self.v > 0.0 or goal > 0.0)
         if self.error:
-            goal = min(goal, _braking_speed(self.odo, self.v, self.odo, 0.0,
-                                            prm.decel_mps2, dt))
+            goal = 0.0  # brake at VEL_DEC to a stop and stay there
         v0 = self.v
         v1 = min(max(goal, v0 - prm.decel_mps2 * dt, 0.0), v0 + prm.accel_mps2 * dt)
         if v1 == 0.0 and v0 > 0.0:
