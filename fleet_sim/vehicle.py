@@ -154,11 +154,12 @@ class Vehicle(Driver):
         now = self.env.now
         self.recorder.event(now, self.id, event, self.state.value, transition.target.value,
                             self.node, detail)
-        self.recorder.soc_trace.append((now, self.id, round(self.soc_pct, 4)))
+        self.recorder.soc_trace.append((now, self.id, self.soc_pct))
         self.state = transition.target
         return True
 
     def start(self) -> None:
+        self.in_dead_spot = self.rssi_dbm < self.rules.link_min_rssi_dbm
         self.recorder.event(self.env.now, self.id, "Event_Power_On", "", State.BOOTING.value,
                             self.node)
         self.process = self.env.process(self.run())
@@ -202,6 +203,11 @@ class Vehicle(Driver):
         if self.needs_charge():
             yield from self._charge()
             return
+        if self.soc_pct <= self.rules.bat_low_pct:
+            # may not start moving (P_050) and may not charge: stand until the battery dies
+            yield self.env.timeout(
+                self.battery.seconds_until(self.env.now, self.rules.bat_critical_pct) + 1e-6)
+            self.fail_now("E_201")
         self.work = self.env.event()
         self.fleet.vehicle_idle(self)
         if self.order is not None:
@@ -347,6 +353,9 @@ class Vehicle(Driver):
         wait in Idle, and drive on when it is back (Error after 10 minutes)."""
         while True:
             if self.rules.comm_policy == "req_err_011":
+                if not self.fms_link:  # no route from the FMS: do not set off
+                    yield from self._wait_for_link()
+                    continue
                 yield from self.drive(goal, stop_early=lambda: not self.fms_link)
             else:
                 yield from self.drive(goal)
@@ -420,31 +429,35 @@ class Vehicle(Driver):
                 self.fail_now("E_202")
 
     def _obstacle(self, seen_s: float, where: str) -> Proc:
-        """An obstacle in front for `seen_s` seconds (4.2.3/4.2.4, P_005/P_006)."""
+        """An obstacle appears in front and stays within range for `seen_s` seconds.
+
+        Seen for less than 300 ms (4.2.3), it only slows the AGV through the detection zone
+        (P_005/P_006): braking to the creep speed and speeding up again cost time. Seen longer,
+        the AGV pauses 300 ms after it appeared and drives on 2000 ms after it has gone (4.2.4);
+        paused for 5 minutes, it raises E_101.
+        """
         rules = self.rules
         motion = self.traffic.motion
         v = max(self.speed_mps, min(self.profile.max_speed_mps, 1.0))
-        slow = min(rules.obstacle_slow_speed_mps, v)
-        # braking to the creep speed and back costs this much over cruising the same distance
-        extra = (v - slow) / motion.decel_mps2 + (v - slow) / motion.accel_mps2 \
-            - (v * v - slow * slow) * (1 / motion.decel_mps2 + 1 / motion.accel_mps2) / (2 * v)
         self._obstacle_near_s = seen_s
         if seen_s < rules.obstacle_pause_s:
+            slow = min(rules.obstacle_slow_speed_mps, v)
+            extra = (v - slow) / motion.decel_mps2 + (v - slow) / motion.accel_mps2 \
+                - (v * v - slow * slow) * (1 / motion.decel_mps2 + 1 / motion.accel_mps2) / (2 * v)
             self.note("obstacle_slowdown", f"{where}: seen {seen_s:.2f} s")
             yield self.env.timeout(extra + seen_s * (1 - slow / v))
             return
-        yield self.env.timeout(extra + rules.obstacle_pause_s)
+        yield self.env.timeout(rules.obstacle_pause_s)
         self.fire("Event_Obstacle_Detected", f"{where}: within 1.0 m for "
                                               f">= {rules.obstacle_pause_s * 1000:.0f} ms")
         self.recorder.obstacle_pauses += 1
-        paused = self.env.now
         wait = seen_s - rules.obstacle_pause_s + rules.obstacle_clear_s
         if wait >= rules.obstacle_timeout_s:
             yield self.env.timeout(rules.obstacle_timeout_s)
             self.fail_now("E_101")
         yield self.env.timeout(wait)
         self._obstacle_clear_s = rules.obstacle_clear_s
-        self.fire("Event_Obstacle_Cleared", f"paused {self.env.now - paused:.1f} s")
+        self.fire("Event_Obstacle_Cleared", f"paused {wait:.2f} s")
         yield self.env.timeout(v / (2 * motion.accel_mps2))  # speeding up again from a stop
 
     def _arrived(self, u: str, v: str, length_m: float, start_s: float) -> Proc:

@@ -1,0 +1,317 @@
+"""Batteries, charging, obstacles, the FMS link, faults and markers, run in the engine. Each
+timing rule of RSS-AGV-001 is shown on both sides of its threshold."""
+
+from __future__ import annotations
+
+import copy
+import itertools
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from fleet_sim.demand import TraceOrder
+from fleet_sim.engine import RunOutput, simulate
+from fleet_sim.layout import load_layout
+from fleet_sim.results import events_table, kpis, orders_table
+
+from .conftest import LAYOUTS, make_scenario, write_yaml
+
+Event = tuple[float, int, str, str, str, str, str]
+
+
+def tiny(tmp_path: Path, **changes: Any) -> Path:
+    """The tiny loop with a charger spur west of N1 and optional zones or markers."""
+    data = yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text())
+    data = copy.deepcopy(data)
+    data["nodes"].append({"id": "C", "x": 4, "y": 12, "kind": "charger"})
+    data["segments"].append({"from": "N1", "to": "C", "direction": "two_way"})
+    data["chargers"] = [{"id": "CHG", "node": "C", "power_kw": 1.0, "docking_s": 10}]
+    for node_id, marker in changes.pop("markers", {}).items():
+        next(n for n in data["nodes"] if n["id"] == node_id)["marker"] = marker
+    data.update(changes)
+    return write_yaml(tmp_path / "tiny.yaml", data)
+
+
+def run(layout_file: Path, trace: list[TraceOrder] | None = None, **fields: Any) -> RunOutput:
+    fields.setdefault("warmup_h", 0.0)
+    fields.setdefault("fleet", {"size": 1})
+    if trace is not None:
+        fields["demand"] = {"kind": "trace", "trace_csv": "unused.csv"}
+    scenario = make_scenario(str(layout_file), **fields)
+    return simulate(scenario, load_layout(layout_file), trace or [])
+
+
+def events(out: RunOutput, name: str) -> list[Event]:
+    return [e for e in out.recorder.events if e[2] == name]
+
+
+def error_events(out: RunOutput, code: str) -> list[Event]:
+    return [e for e in events(out, "Event_Critical_Error") if e[6].startswith(code)]
+
+
+ONE_ORDER = [TraceOrder(20.0, "PICK", "DROP")]
+EVERYWHERE = [-10.0, -10.0, 30.0, 30.0]
+
+
+# ---- obstacles: 300 ms, 2000 ms, 5 minutes -----------------------------------------------------
+def obstacle_run(tmp_path: Path, seen_s: float) -> RunOutput:
+    zone = {"id": "busy", "area_m": EVERYWHERE, "obstacle_rate_per_km": 1e9,
+            "obstacle_duration": {"dist": "fixed", "mean_s": seen_s}}
+    return run(tiny(tmp_path, zones=[zone]), ONE_ORDER, duration_h=0.5)
+
+
+def test_obstacle_seen_under_300_ms_only_slows(tmp_path: Path) -> None:
+    short = obstacle_run(tmp_path, 0.299)
+    assert not events(short, "Event_Obstacle_Detected")
+    assert len(events(short, "obstacle_slowdown")) >= 6
+    clear = run(tiny(tmp_path), ONE_ORDER, duration_h=0.5)
+    lead = short.recorder.orders[0].delivered_s - clear.recorder.orders[0].delivered_s  # type: ignore[operator]
+    assert lead > 6 * 0.9, "slowing in the detection zone costs time even without a pause"
+
+
+def test_obstacle_seen_300_ms_pauses_and_resumes_2000_ms_after_it_left(tmp_path: Path) -> None:
+    out = obstacle_run(tmp_path, 0.301)
+    paused = events(out, "Event_Obstacle_Detected")
+    cleared = events(out, "Event_Obstacle_Cleared")
+    assert len(paused) >= 6 and len(paused) == len(cleared)
+    assert out.recorder.obstacle_pauses == len(paused)
+    for p, c in zip(paused, cleared, strict=True):
+        # paused 300 ms after the obstacle appeared; it left 1 ms later; 2000 ms of clear path
+        assert c[0] - p[0] == pytest.approx(0.001 + 2.0, abs=1e-9)
+        assert (p[3], p[4], c[3], c[4]) == ("Moving", "Paused", "Paused", "Moving")
+
+
+def block_run(tmp_path: Path, until_s: float) -> RunOutput:
+    blocks = [{"from": "SW", "to": "S1", "at_s": 0.0, "duration_s": until_s}]
+    return run(tiny(tmp_path), ONE_ORDER, duration_h=1.0, incidents={"blocks": blocks})
+
+
+def test_e101_after_five_minutes_paused_and_not_before(tmp_path: Path) -> None:
+    long = block_run(tmp_path, 3000.0)
+    paused_at = events(long, "Event_Obstacle_Detected")[0][0]
+    assert error_events(long, "E_101")[0][0] == pytest.approx(paused_at + 300.0, abs=1e-9)
+    appeared = paused_at - 0.3
+    # the AGV drives on 2 s after the block is lifted; the pause lasts until then
+    for pause_s, errs in ((299.9, False), (300.1, True)):
+        out = block_run(tmp_path, appeared + 0.3 + pause_s - 2.0)
+        assert bool(error_events(out, "E_101")) is errs, pause_s
+        if not errs:
+            cleared = events(out, "Event_Obstacle_Cleared")[0][0]
+            assert cleared - paused_at == pytest.approx(pause_s, abs=1e-6)
+            assert out.recorder.orders[0].delivered_s is not None
+
+
+# ---- the FMS link: 60 s (4.2.11) and 10 minutes (Req.Err.011) ----------------------------------
+def test_60_second_timeout_policy(tmp_path: Path) -> None:
+    for duration, errs in ((59.9, False), (60.1, True)):
+        out = run(tiny(tmp_path), duration_h=0.2, rules={"comm_policy": "timeout_60s"},
+                  incidents={"link_losses": [{"agv": 0, "at_s": 50.0, "duration_s": duration}]})
+        found = error_events(out, "E_301")
+        assert bool(found) is errs, duration
+        if errs:
+            assert found[0][0] == pytest.approx(110.0)
+
+
+def link_run(tmp_path: Path, duration: float) -> RunOutput:
+    losses = [{"agv": 0, "at_s": 27.0, "duration_s": duration}]
+    return run(tiny(tmp_path), ONE_ORDER, duration_h=1.0, incidents={"link_losses": losses})
+
+
+def test_req_err_011_waits_at_the_next_tag_and_errs_after_10_minutes(tmp_path: Path) -> None:
+    long = link_run(tmp_path, 3000.0)
+    lost = events(long, "Event_Heartbeat_Lost")
+    assert len(lost) == 1 and (lost[0][3], lost[0][4]) == ("Moving", "Idle")
+    assert lost[0][5] in {"S1", "P", "SW"}  # stopped at a tag, not between tags
+    waiting_from = lost[0][0]
+    assert error_events(long, "E_301")[0][0] == pytest.approx(waiting_from + 600.0, abs=1e-9)
+    assert long.recorder.orders[0].delivered_s is None
+    for wait_s, errs in ((599.9, False), (600.1, True)):
+        out = link_run(tmp_path, waiting_from + wait_s - 27.0)
+        assert bool(error_events(out, "E_301")) is errs, wait_s
+        if not errs:  # the order it carries is not lost
+            assert events(out, "Event_Heartbeat_Restored")
+            assert out.recorder.orders[0].delivered_s is not None
+
+
+def test_a_lost_agv_takes_no_new_orders(tmp_path: Path) -> None:
+    out = run(tiny(tmp_path), [TraceOrder(30.0, "PICK", "DROP")], duration_h=0.2,
+              incidents={"link_losses": [{"agv": 0, "at_s": 10.0, "duration_s": 200.0}]})
+    assert out.recorder.orders[0].assigned_s == pytest.approx(210.0)
+
+
+def test_dead_spot_loses_the_link(tmp_path: Path) -> None:
+    dead = {"id": "cellar", "area_m": [10.0, 6.0, 20.0, 10.0], "rssi_dbm": -90.0}
+    out = run(tiny(tmp_path, zones=[dead]), ONE_ORDER, duration_h=1.0)
+    assert events(out, "dead_spot_in")
+    assert events(out, "Event_Heartbeat_Lost")
+    assert error_events(out, "E_301")  # stuck where there is no signal: an operator must come
+    assert kpis(out, events_table(out), orders_table(out))["comm_losses"] >= 1
+
+
+# ---- battery: 20 %, 95 %, 15 %, 10 % -------------------------------------------------------------
+def battery_run(tmp_path: Path, soc: float, **fields: Any) -> RunOutput:
+    fleet = {"size": 1, "vehicle": {"battery": {"initial_soc_pct": soc,
+                                                **fields.pop("battery", {})}}}
+    return run(tiny(tmp_path), fields.pop("trace", ONE_ORDER), fleet=fleet, **fields)
+
+
+def test_no_move_at_20_percent_only_above(tmp_path: Path) -> None:
+    off = {"enabled": False}
+    at = battery_run(tmp_path, 20.0 + 5 * 20 / 3600 * 100 / 960, duration_h=0.05, charging=off)
+    assert at.recorder.orders[0].assigned_s is None  # exactly 20 % at the order: refused
+    above = battery_run(tmp_path, 20.5, duration_h=0.05, charging=off)
+    assert above.recorder.orders[0].assigned_s == pytest.approx(20.0)
+
+
+def test_charging_until_above_95_percent(tmp_path: Path) -> None:
+    out = battery_run(tmp_path, 25.0, duration_h=2.0)
+    done = events(out, "Event_Charge_Complete")
+    assert len(done) == 1
+    soc_at = {(t, a): s for t, a, s in out.recorder.soc_trace}
+    assert 95.0 < soc_at[(done[0][0], 0)] <= 95.2
+    gone = events(out, "Event_Low_Battery") + events(out, "Event_Go_Charge")
+    assert gone and gone[0][4] == "Moving" and "to_charger" in gone[0][6]
+    arrived = events(out, "Event_Arrived_Charger")[0]
+    assert (arrived[3], arrived[4]) == ("Moving", "Charging")
+    # docking 10 s + the charge curve from the SOC on arrival + undocking 10 s
+    profile = out.scenario.fleet.vehicle.battery
+    soc_arrival = soc_at[(arrived[0], 0)]
+    expected = 10 + profile.charge_time_s(soc_arrival, 95.1, 1.0) + 10
+    assert done[0][0] - arrived[0] == pytest.approx(expected, abs=1e-6)
+
+
+def test_charger_serves_one_agv_at_a_time_and_queues(tmp_path: Path) -> None:
+    fleet = {"size": 3, "vehicle": {"battery": {"initial_soc_pct": 25.0}}}
+    out = run(tiny(tmp_path), duration_h=3.0, fleet=fleet)
+    spans = []
+    starts: dict[int, float] = {}
+    for t, agv, name, *_ in out.recorder.events:
+        if name == "Event_Arrived_Charger":
+            starts[agv] = t
+        elif name == "Event_Charge_Complete":
+            spans.append((starts.pop(agv), t))
+    assert len(spans) == 3
+    spans.sort()
+    for (_, end), (start, _) in itertools.pairwise(spans):
+        assert start >= end
+    figures = kpis(out, events_table(out), orders_table(out))
+    assert figures["charges"] == 3 and figures["charging_queue_wait_mean_s"] > 100
+
+
+def test_shutdown_below_10_percent_not_above(tmp_path: Path) -> None:
+    # 100 W idle on a 100 Wh battery: 0.5 % of charge lasts 18 s
+    battery = {"capacity_wh": 100.0, "idle_w": 100.0}
+    out = battery_run(tmp_path, 10.5, trace=[], duration_h=0.02, battery=battery,
+                      charging={"enabled": False}, incidents={"operator_response": {
+                          "dist": "fixed", "mean_s": 1000}})
+    shutdown = error_events(out, "E_201")
+    assert len(shutdown) == 1
+    assert shutdown[0][0] == pytest.approx(18.0, abs=1e-6)
+    assert all(s >= 10.0 - 1e-9 for t, _, s in out.recorder.soc_trace if t < 18.0)
+
+
+def test_safe_mode_when_no_link_low_battery_and_no_charger(tmp_path: Path) -> None:
+    dead = {"id": "cellar", "area_m": EVERYWHERE, "rssi_dbm": -90.0}
+    for soc, expected in ((14.0, "SafeMode"), (16.0, "Maintenance")):
+        layout = tiny(tmp_path, zones=[dead])
+        out = run(layout, [], duration_h=0.1,
+                  fleet={"size": 1, "start_nodes": ["S1"],
+                         "vehicle": {"battery": {"initial_soc_pct": soc}}},
+                  charging={"enabled": False}, dispatch={"park_idle": False},
+                  incidents={"faults": [{"agv": 0, "at_s": 30.0, "code": "E_999"}]},
+                  rules={"bat_low_pct": 12.0, "bat_critical_pct": 5.0})
+        after_error = [e for e in out.recorder.events if e[3] == "Error" != e[4]]
+        assert after_error and after_error[0][4] == expected, soc
+
+
+# ---- faults and recovery ----------------------------------------------------------------------
+def test_fault_operator_maintenance_and_back(tmp_path: Path) -> None:
+    out = run(tiny(tmp_path), [TraceOrder(20.0, "PICK", "DROP"), TraceOrder(40.0, "PICK", "DROP")],
+              duration_h=1.0, fleet={"size": 2},
+              incidents={"faults": [{"agv": 0, "at_s": 25.0, "code": "E_999"}],
+                         "operator_response": {"dist": "fixed", "mean_s": 120},
+                         "repair": {"dist": "fixed", "mean_s": 300}, "relocalise_s": 10})
+    path = [(e[0], e[2]) for e in out.recorder.events
+            if e[1] == 0 and e[2].startswith("Event_") and e[0] >= 25.0][:4]
+    assert [p[1] for p in path] == ["Event_Critical_Error", "Event_Switch_Manual",
+                                    "Event_Switch_Auto", path[3][1]]
+    assert path[1][0] - path[0][0] == pytest.approx(120.0)
+    assert path[2][0] - path[1][0] == pytest.approx(310.0)  # repair + position re-estimation
+    orders = out.recorder.orders
+    assert all(o.delivered_s is not None for o in orders)  # the first order was reassigned
+    assert orders[0].reassigned == 1 and orders[0].agv == 1
+
+
+def test_transfer_failure_loses_a_loaded_order_visibly(tmp_path: Path) -> None:
+    out = run(tiny(tmp_path), ONE_ORDER, duration_h=0.5,
+              incidents={"transfer_failure_prob": 1.0})
+    assert error_events(out, "E_102")
+    order = out.recorder.orders[0]
+    assert order.delivered_s is None
+    assert order.reassigned >= 1 or order.failed_s is not None
+
+
+# ---- markers (5.3) ----------------------------------------------------------------------------
+def test_markers(tmp_path: Path) -> None:
+    plain = run(tiny(tmp_path), ONE_ORDER, duration_h=0.3)
+    base = plain.recorder.orders[0].delivered_s
+    slow = run(tiny(tmp_path, markers={"S3": "speed_low", "N1": "speed_high"}), ONE_ORDER,
+               duration_h=0.3)
+    paused = run(tiny(tmp_path, markers={"E1": "pause"}), ONE_ORDER, duration_h=0.3)
+    spin = run(tiny(tmp_path, markers={"E1": "spin"}), ONE_ORDER, duration_h=0.3)
+    assert base is not None
+    # 0.2 m/s from S3 on instead of 1 m/s: far slower
+    assert slow.recorder.orders[0].delivered_s > base + 20  # type: ignore[operator]
+    extra_pause = paused.recorder.orders[0].delivered_s - base  # type: ignore[operator]
+    extra_spin = spin.recorder.orders[0].delivered_s - base  # type: ignore[operator]
+    assert extra_pause > 3.0 and extra_spin > 6.0  # the stop itself costs a little more
+    assert extra_spin - extra_pause == pytest.approx(6.0 - 3.0, abs=1e-9)
+    assert events(paused, "marker_pause") and events(spin, "marker_spin")
+
+
+# ---- everything at once -------------------------------------------------------------------------
+def test_long_run_with_every_incident_loses_no_order(warehouse_layout: object) -> None:
+    incidents = {
+        "obstacle_rate_per_km": 3.0,
+        "blocks": [{"from": "M020", "to": "M021", "at_s": 3600, "duration_s": 900}],
+        "link_loss_rate_per_h": 0.5,
+        "link_losses": [{"agv": 2, "at_s": 5000, "duration_s": 120}],
+        "internal_link_loss_rate_per_h": 0.3,
+        "internal_link_loss_duration": {"dist": "exponential", "mean_s": 60},
+        "mtbf_h": 12.0,
+        "transfer_failure_prob": 0.01,
+        "line_loss_per_km": 0.5,
+        "faults": [{"agv": 5, "at_s": 7000, "code": "E_999"}],
+    }
+    scenario = make_scenario("warehouse.yaml", duration_h=8, warmup_h=0.5, seed=13,
+                             fleet={"size": 12}, demand={"rate_per_hour": 80},
+                             incidents=incidents)
+    out = simulate(scenario, warehouse_layout)  # type: ignore[arg-type]
+    figures = kpis(out, events_table(out), orders_table(out))
+    assert figures["obstacle_pauses"] > 10 and figures["comm_losses"] > 2
+    assert set(figures["errors_by_code"]) == {"E_101", "E_102", "E_202", "E_301", "E_999"}
+    assert figures["warnings_by_code"]["E_001"] > 0 and figures["availability_pct"] < 100
+    assert figures["orders_completed"] > 400
+    # no order lost: each is delivered, failed on record, waiting or being served
+    in_hand = {v.order.id for v in out.vehicles if v.order is not None}
+    waiting = {o.id for o in out.recorder.orders
+               if o.assigned_s is None and o.delivered_s is None and o.failed_s is None}
+    for order in out.recorder.orders:
+        assert order.delivered_s is not None or order.failed_s is not None \
+            or order.id in in_hand or order.id in waiting, order
+    # every AGV's time in states adds up to the run
+    per_agv: dict[int, float] = defaultdict(float)
+    last: dict[int, tuple[float, str]] = {}
+    for t, agv, _, before, after, *_ in out.recorder.events:
+        if before == after:
+            continue
+        if agv in last:
+            per_agv[agv] += t - last[agv][0]
+        last[agv] = (t, after)
+    for agv, (t, _) in last.items():
+        per_agv[agv] += scenario.duration_s - t
+    assert all(total == pytest.approx(8 * 3600.0) for total in per_agv.values())
+    assert len(per_agv) == 12
