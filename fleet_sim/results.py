@@ -98,6 +98,8 @@ def kpis(run: RunOutput, events: pd.DataFrame, orders: pd.DataFrame) -> dict[str
     lead = in_window["lead_time_s"].to_numpy()
     busy_from = orders["assigned_s"].to_numpy(dtype=float, na_value=np.nan)
     busy_to = orders["delivered_s"].to_numpy(dtype=float, na_value=np.nan)
+    failed = orders["failed_s"].to_numpy(dtype=float, na_value=np.nan)
+    busy_to = np.where(np.isnan(busy_to), failed, busy_to)
     busy_to = np.where(np.isnan(busy_to), end, busy_to)
     busy = np.clip(busy_to, start, end) - np.clip(busy_from, start, end)
     busy_s = float(np.nansum(busy))

@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, NoReturn
 
+import networkx as nx
 import numpy as np
 import simpy
 
@@ -235,18 +236,25 @@ class Vehicle(Driver):
                         return
                 if self.order is not None:
                     return
-        # wait for work, a charging call, or the battery running down
+        # wait for work, a charging call, the battery running down, or (no link) 10 minutes
         threshold = max(self.charging.threshold_pct, self.rules.bat_low_pct) \
             if self.charging.enabled else self.rules.bat_critical_pct
         until_low = self.battery.seconds_until(self.env.now, threshold)
         events = [self.work]
         if math.isfinite(until_low):
             events.append(self.env.timeout(until_low + 1e-6))
+        lost = not self.fms_link
+        if lost:  # Req.Err.011: waiting and retrying; Error after 10 minutes
+            events += [self.link_changed, self.env.timeout(self.rules.reconnect_timeout_s)]
+        started = self.env.now
         yield self.env.any_of(events)
         if self.order is None:
             self.fleet.withdraw(self)
             if self.soc_pct < self.rules.bat_critical_pct:
                 self.fail_now("E_201")
+            if lost and not self.fms_link \
+                    and self.env.now - started >= self.rules.reconnect_timeout_s:
+                self.fail_now("E_301")
 
     def fail_now(self, code: str) -> NoReturn:
         """A fault found by the AGV's own process: raise it as an interrupt to itself."""
@@ -476,6 +484,22 @@ class Vehicle(Driver):
         if self.soc_pct < self.rules.bat_critical_pct:
             self.fail_now("E_201")
 
+    def _recovery_node(self) -> str:
+        """Where the operator puts the AGV back on the track: where it failed, or, if there is
+        no Wi-Fi there, the nearest node (by driving time) that has it."""
+        graph = self.traffic.graph
+        limit = self.rules.link_min_rssi_dbm
+
+        def has_link(node: str) -> bool:
+            return max((float(d["rssi_dbm"]) for _, _, d in graph.out_edges(node, data=True)),
+                       default=limit) >= limit
+
+        if has_link(self.node):
+            return self.node
+        times = nx.single_source_dijkstra_path_length(graph, self.node, weight="free_time_s")
+        good = [n for n in sorted(times, key=lambda n: (times[n], n)) if has_link(n)]
+        return good[0] if good else self.node
+
     # ---- faults and recovery -------------------------------------------------------------------
     def _recover(self, failure: Failure) -> Proc:
         """Error -> (operator) -> Maintenance -> (repair) -> Idle, or SafeMode -> rescue."""
@@ -519,6 +543,7 @@ class Vehicle(Driver):
         self.marker_speed_mps = None
         yield env.timeout(self.incidents.relocalise_s)
         if self.parked_in is None:
-            yield from self._reenter_track(self.node)
+            yield from self._reenter_track(self._recovery_node())
+            self.in_dead_spot = self.rssi_dbm < self.rules.link_min_rssi_dbm
         self.failing = False
         self.fire("Event_Switch_Auto", "back to AUTO, position re-estimated")
