@@ -315,3 +315,19 @@ def test_long_run_with_every_incident_loses_no_order(warehouse_layout: object) -
         per_agv[agv] += scenario.duration_s - t
     assert all(total == pytest.approx(8 * 3600.0) for total in per_agv.values())
     assert len(per_agv) == 12
+
+
+def test_opportunity_charging_while_idle(tmp_path: Path) -> None:
+    for opportunity, charges in ((False, 0), (True, 1)):
+        out = battery_run(tmp_path, 70.0, trace=[], duration_h=1.0,
+                          charging={"opportunity": opportunity, "opportunity_below_pct": 80})
+        assert len(events(out, "Event_Charge_Complete")) == charges, opportunity
+
+
+def test_scheduled_charging_calls_every_agv(tmp_path: Path) -> None:
+    out = run(tiny(tmp_path), [], duration_h=2.0, start_h=6.0,
+              fleet={"size": 2, "vehicle": {"battery": {"initial_soc_pct": 90.0}}},
+              charging={"schedule_h": [6.5]})
+    went = events(out, "Event_Go_Charge")
+    assert sorted(e[1] for e in went) == [0, 1]
+    assert min(e[0] for e in went) == pytest.approx(1800.0)
