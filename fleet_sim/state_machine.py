@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from fleet_sim.errors import SimulationError
+from fleet_sim.scenario import Rules
 from fleet_sim.states import State
 
 
@@ -67,27 +68,8 @@ class Facts(Protocol):
     def post_passed(self) -> bool: ...
 
 
-@dataclass(frozen=True)
-class Params:
-    """The thresholds guards use (RSS-AGV-001 4.2 and 7.1; configurable in the scenario)."""
-
-    bat_low_pct: float = 20.0
-    """P_050 BAT_LOW_TH: Idle -> Moving needs SOC above it (4.2.2)."""
-    charge_done_pct: float = 95.0
-    """4.2.10: Charging -> Idle needs SOC above it."""
-    safe_mode_soc_pct: float = 15.0
-    """4.2.14 / 6.3: SafeMode below this SOC (with no link and no charger)."""
-    safe_mode_rssi_dbm: float = -80.0
-    """4.2.14: SafeMode below this Wi-Fi signal."""
-    obstacle_pause_s: float = 0.3
-    """4.2.3: an obstacle within 1.0 m for >= 300 ms pauses the AGV."""
-    obstacle_clear_s: float = 2.0
-    """4.2.4: the path clear beyond 1.2 m for >= 2000 ms resumes it."""
-    stop_tolerance_mm: float = 10.0
-    """4.2.5 / 4.2.7: stop position within +/-10 mm at a station."""
-
-
-Guard = Callable[[Facts, Params], bool]
+Guard = Callable[[Facts, Rules], bool]
+"""A condition over the vehicle's facts and the scenario's thresholds (RSS-AGV-001 7.1)."""
 
 
 @dataclass(frozen=True)
@@ -104,7 +86,7 @@ class Transition:
     why: str = ""
 
 
-def _soc_above_low(f: Facts, p: Params) -> bool:
+def _soc_above_low(f: Facts, p: Rules) -> bool:
     return f.soc_pct > p.bat_low_pct and f.position_known
 
 

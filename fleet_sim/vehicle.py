@@ -41,7 +41,7 @@ from fleet_sim.error_codes import describe
 from fleet_sim.layout import MARKER_SPEED_MPS, Place
 from fleet_sim.records import Order, Recorder
 from fleet_sim.scenario import ChargingConfig, IncidentsConfig, Rules, Scenario
-from fleet_sim.state_machine import Params, transition_for
+from fleet_sim.state_machine import transition_for
 from fleet_sim.states import State
 from fleet_sim.traffic import Traffic
 
@@ -68,10 +68,6 @@ class Vehicle(Driver):
         self.charging: ChargingConfig = scenario.charging
         self.incidents: IncidentsConfig = scenario.incidents
         self.incident_rng = incident_rng
-        rules = scenario.rules
-        self.params = Params(rules.bat_low_pct, rules.charge_done_pct, rules.safe_mode_soc_pct,
-                             rules.safe_mode_rssi_dbm, rules.obstacle_pause_s,
-                             rules.obstacle_clear_s, rules.stop_tolerance_mm)
         self.battery = Battery(scenario.fleet.vehicle.battery, env.now)
         self.work: simpy.Event = env.event()
         self.loaded = False
@@ -149,7 +145,7 @@ class Vehicle(Driver):
         """Take the transition for `event` from the current state; False if its guard fails.
         An event with no transition from here raises InvalidTransition."""
         transition = transition_for(self.id, self.state, event)
-        if transition.guard is not None and not transition.guard(self, self.params):
+        if transition.guard is not None and not transition.guard(self, self.rules):
             self.note("guard_failed", f"{event}: needs {transition.condition}")
             return False
         now = self.env.now
