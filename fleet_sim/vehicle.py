@@ -85,7 +85,6 @@ class Vehicle(Driver):
         self.charge_due = False
         self.marker_speed_mps: float | None = None
         self.parking_target: Place | None = None
-        self.purpose = ""
 
     # ---- facts the guards read (fleet_sim.state_machine.Facts) --------------------------------
     @property
@@ -268,7 +267,6 @@ class Vehicle(Driver):
         if self.parked_in is not None:
             yield from self._unpark()
         assert order.pickup_node is not None and order.dropoff_node is not None
-        self.purpose = "to_pickup"
         yield from self._drive_to(order.pickup_node)
         order.pickup_arrival_s = self.env.now
         self.fire("Event_Arrived_Pickup", f"order {order.id}")
@@ -276,7 +274,6 @@ class Vehicle(Driver):
         self.loaded = True
         order.picked_s = self.env.now
         self.fleet.left_station(order.pickup_node)
-        self.purpose = "to_dropoff"
         self.fire("Event_Load_Complete", f"to_dropoff order {order.id}")
         yield from self._drive_to(order.dropoff_node)
         order.dropoff_arrival_s = self.env.now
@@ -330,7 +327,6 @@ class Vehicle(Driver):
         self.charger = place
         self.recorder.charge_waits.append((asked, self.env.now))
         self.charge_due = False
-        self.purpose = "to_charger"
         self.fire(trigger, f"to_charger {place.id} soc {self.soc_pct:.1f}")
         if self.parked_in is not None:
             yield from self._unpark()
