@@ -212,7 +212,6 @@ class Vehicle(Driver):
             place = self.fleet.reserve_parking(self)
             if place is not None:
                 self.parking_target = place
-                self.purpose = "to_parking"
                 self.fire("Event_Go_Park", f"to_parking {place.id}")
                 access = place.nodes[0]
                 yield from self.drive(access, stop_early=self._stop_parking_trip)
