@@ -20,7 +20,7 @@ CarriRo AD+ (carriro-ad-plus-serial-api-v1.4.ja.md)
 - resume: `ad_action: 14`, 一時停止からの再開 (Appendix C).
 - status: `status?` with the default status_cmd list (status?: mode, speed, dist, battery,
   ad_status, ad_pattern, ad_action, ad_landmark). The reply is timed while driving after assign;
-  its length follows the values (the document's example reply is 5 characters longer).
+  its length follows the values (the document's example reply is 4 characters, 2.3 ms, longer).
 KTM-02 (ktm-02-commands.ja.md, コントローラからKTM-02へ送信するコマンド)
 - assign: GoStraightAlongLineCmd (0x06) at speed 255 (全速力); the robot follows the line.
 - stop: StopCmd (0x16), not EmergencyStopCmd (0x09). The device's reply holds its ACK and the
