@@ -1,9 +1,9 @@
 """Builds the SimPy model of a scenario, runs it, and hands back the run's records.
 
 Random streams come from one `numpy.random.SeedSequence(seed)`, spawned in a fixed order
-(arrivals, handling times, traffic back-off per AGV, incidents per AGV), so the same scenario
-and seed give the same run, and runs that differ only in fleet size still share their order
-streams.
+(arrivals, handling times, traffic back-off per AGV, incidents per AGV, command link jitter), so
+the same scenario and seed give the same run, and runs that differ only in fleet size still
+share their order streams.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import simpy
 
+from fleet_sim.commands import CommandPath
 from fleet_sim.demand import Demand, TraceOrder
 from fleet_sim.fleet_manager import FleetManager
 from fleet_sim.incidents import start_incidents
@@ -59,8 +60,10 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
                     profile.turn_speed_mps)
     recorder = Recorder(scenario.warmup_s, scenario.duration_s, trace_occupancy=trace_occupancy)
     traffic = Traffic(env, layout, motion)
-    fleet = FleetManager(env, layout, traffic, scenario.dispatch, recorder)
-    arrivals, handling, backoff, incident = np.random.SeedSequence(scenario.seed).spawn(4)
+    arrivals, handling, backoff, incident, link = np.random.SeedSequence(scenario.seed).spawn(5)
+    commands = CommandPath(env, scenario.fleet.command_profile, scenario.fleet.status_poll_s,
+                           np.random.default_rng(link), recorder)
+    fleet = FleetManager(env, layout, traffic, scenario.dispatch, recorder, commands)
     vehicle_seeds = backoff.spawn(scenario.fleet.size)
     incident_seeds = incident.spawn(2 * scenario.fleet.size)
     vehicles = [

@@ -20,10 +20,13 @@ recorded as failed (its load is with the broken AGV).
 from __future__ import annotations
 
 from collections import Counter, deque
-from typing import TYPE_CHECKING
+from collections.abc import Generator
+from functools import partial
+from typing import TYPE_CHECKING, Any
 
 import simpy
 
+from fleet_sim.commands import CommandPath
 from fleet_sim.layout import Layout, Place
 from fleet_sim.records import Order, Recorder
 from fleet_sim.scenario import DispatchConfig
@@ -35,8 +38,13 @@ if TYPE_CHECKING:
 
 class FleetManager:
     def __init__(self, env: simpy.Environment, layout: Layout, traffic: Traffic,
-                 config: DispatchConfig, recorder: Recorder) -> None:
+                 config: DispatchConfig, recorder: Recorder, commands: CommandPath) -> None:
         self.env = env
+        self.commands = commands
+        self.offers: dict[int, int] = {}
+        """AGV id -> count of its offers to work; an offer noticed late counts if still current."""
+        self.assigning: set[int] = set()
+        """AGVs an order has been decided for, while the assign command is on its way."""
         self.layout = layout
         self.traffic = traffic
         self.config = config
@@ -56,11 +64,30 @@ class FleetManager:
         self._dispatch()
 
     def vehicle_idle(self, vehicle: Vehicle) -> None:
-        self.idle.append(vehicle)
-        self._dispatch()
+        """The AGV is free; the fleet manager knows at once, or at its next status poll."""
+        if vehicle.id in self.assigning:
+            return
+        offer = self.offers.get(vehicle.id, 0) + 1
+        self.offers[vehicle.id] = offer
+        delay = self.commands.notice_delay_s(vehicle.id)
+        if delay <= 0:
+            self._take_offer(vehicle, offer)
+        else:
+            self.env.process(self._notice(vehicle, offer, delay))
+
+    def _notice(self, vehicle: Vehicle, offer: int,
+                delay: float) -> Generator[simpy.Event, Any, None]:
+        yield self.env.timeout(delay)
+        self._take_offer(vehicle, offer)
+
+    def _take_offer(self, vehicle: Vehicle, offer: int) -> None:
+        if self.offers.get(vehicle.id) == offer and vehicle not in self.idle:
+            self.idle.append(vehicle)
+            self._dispatch()
 
     def withdraw(self, vehicle: Vehicle) -> None:
         """The AGV is no longer available for orders (charging, failed...)."""
+        self.offers[vehicle.id] = self.offers.get(vehicle.id, 0) + 1
         if vehicle in self.idle:
             self.idle.remove(vehicle)
 
@@ -113,7 +140,7 @@ class FleetManager:
             place = min(self.chargers_free, key=lambda c: (
                 self.traffic.travel_time_s(vehicle.dispatch_node, c.nodes[0]), c.id))
             self.chargers_free.remove(place)
-            event.succeed(place)
+            self.commands.send("assign", partial(event.succeed, place))
     def left_station(self, node: str) -> None:
         self.bound_for[node] -= 1
 
@@ -131,14 +158,20 @@ class FleetManager:
             order.dropoff_node = self._docking_node(self.layout.places[order.dropoff])
             order.agv = vehicle.id
             order.assigned_s = self.env.now
-            vehicle.order = order
-            vehicle.note("order_assigned", f"order {order.id} {order.pickup} -> {order.dropoff}")
-            if not vehicle.work.triggered:
-                vehicle.work.succeed()
+            self.assigning.add(vehicle.id)
+            self.commands.send("assign", partial(self._deliver, vehicle, order))
             changed = True
         if changed or not self.recorder.queue_trace \
                 or self.recorder.queue_trace[-1][1] != len(self.waiting):
             self.recorder.queue_trace.append((self.env.now, len(self.waiting)))
+
+    def _deliver(self, vehicle: Vehicle, order: Order) -> None:
+        """The assign command has reached the AGV."""
+        self.assigning.discard(vehicle.id)
+        vehicle.order = order
+        vehicle.note("order_assigned", f"order {order.id} {order.pickup} -> {order.dropoff}")
+        if not vehicle.work.triggered:
+            vehicle.work.succeed()
 
     def _choose(self, pickup_node: str) -> Vehicle | None:
         ready = [v for v in self.idle if v.fms_link]

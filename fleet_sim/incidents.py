@@ -9,6 +9,7 @@ starts (a loss shorter than that goes unnoticed, like an obstacle seen for less 
 from __future__ import annotations
 
 from collections.abc import Generator
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -42,7 +43,7 @@ def start_incidents(env: simpy.Environment, scenario: Scenario, vehicles: list[V
         if incidents.mtbf_h > 0:
             env.process(_random_faults(env, scenario, vehicle, rng))
     for hour in scenario.charging.schedule_h:
-        env.process(_charging_call(env, scenario, vehicles, hour))
+        env.process(_charging_call(env, scenario, vehicles, fleet, hour))
 
 
 def _link_loss(env: simpy.Environment, scenario: Scenario, vehicle: Vehicle,
@@ -108,13 +109,17 @@ def _fault_at(env: simpy.Environment, vehicle: Vehicle, at_s: float, code: str) 
 
 
 def _charging_call(env: simpy.Environment, scenario: Scenario, vehicles: list[Vehicle],
-                   hour: float) -> Proc:
+                   fleet: FleetManager, hour: float) -> Proc:
     """Every day at `hour`, every AGV goes to charge once it is free (scheduled charging)."""
     first = ((hour - scenario.start_h) % 24.0) * 3600.0
     yield env.timeout(first)
     while True:
         for vehicle in vehicles:
-            vehicle.charge_due = True
-            if not vehicle.work.triggered:
-                vehicle.work.succeed()
+            fleet.commands.send("stop", partial(_call_to_charge, vehicle))
         yield env.timeout(24 * 3600.0)
+
+
+def _call_to_charge(vehicle: Vehicle) -> None:
+    vehicle.charge_due = True
+    if not vehicle.work.triggered:
+        vehicle.work.succeed()

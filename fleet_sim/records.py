@@ -55,6 +55,8 @@ class Recorder:
     """(asked_s, charger_assigned_s) per charging."""
     obstacle_pauses: int = 0
     comm_losses: int = 0
+    commands_sent: int = 0
+    command_retries: int = 0
     errors: list[tuple[float, int, str, str]] = field(default_factory=list)
     """(time_s, agv, code, level) of every Error."""
     warnings: Counter[str] = field(default_factory=Counter)

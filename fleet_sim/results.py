@@ -138,6 +138,8 @@ def kpis(run: RunOutput, events: pd.DataFrame, orders: pd.DataFrame) -> dict[str
         "charges": len(charge_waits),
         "charging_queue_wait_mean_s": _round(float(np.mean(charge_waits))) if charge_waits
         else None,
+        "commands_sent": rec.commands_sent,
+        "command_retries": rec.command_retries,
         "obstacle_pauses": rec.obstacle_pauses,
         "comm_losses": rec.comm_losses,
         "errors_by_code": dict(sorted(errors.items())),

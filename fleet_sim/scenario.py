@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from agv_model.profile import profile_names
 from fleet_sim.battery import BatteryProfile
 from fleet_sim.confparse import build, read_yaml, to_plain
 from fleet_sim.distributions import Duration
@@ -67,6 +68,12 @@ class FleetConfig:
     vehicle: VehicleProfile = VehicleProfile()
     start_nodes: tuple[str, ...] = ()
     """Where AGVs start, one node each; empty: inside the parking areas, filled in file order."""
+    command_profile: str | None = None
+    """agv_model vehicle profile whose protocol and link carry the fleet manager's commands
+    (rss-agv-001, carriro-ad-plus, ktm-02, tabo, agv-3); none: commands take no time."""
+    status_poll_s: float = 0.0
+    """The fleet manager polls each AGV this often and learns it is free at the next poll;
+    0: AGVs report at once."""
 
     def check(self, file: str, element: str) -> None:
         if self.size < 1:
@@ -74,6 +81,12 @@ class FleetConfig:
         if self.start_nodes and len(self.start_nodes) < self.size:
             raise InputError(file, f"{element}.start_nodes", list(self.start_nodes),
                              f"at least one start node per AGV ({self.size})")
+        if self.status_poll_s < 0:
+            raise InputError(file, f"{element}.status_poll_s", self.status_poll_s,
+                             "a period >= 0 s")
+        if self.command_profile is not None and self.command_profile not in profile_names():
+            raise InputError(file, f"{element}.command_profile", self.command_profile,
+                             f"one of {', '.join(profile_names())}")
         if len(set(self.start_nodes)) != len(self.start_nodes):
             raise InputError(file, f"{element}.start_nodes", list(self.start_nodes),
                              "distinct nodes (one AGV per node)")

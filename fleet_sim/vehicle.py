@@ -370,6 +370,7 @@ class Vehicle(Driver):
             if left <= 0:
                 self.fail_now("E_301")
             yield self.link_changed | self.env.timeout(left)
+        yield from self.fleet.commands.wait("resume")
         if not self.fire("Event_Heartbeat_Restored", "link back"):
             # may not move on (SOC at or below P_050): charge first, then resume the trip
             yield from self._charge()
