@@ -14,6 +14,8 @@ from pathlib import Path
 
 from fleet_sim.errors import FleetSimError
 
+MAX_WARNINGS = 4
+
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fleet-sim", description=__doc__.splitlines()[0])
@@ -175,10 +177,13 @@ def _sweep(args: argparse.Namespace) -> int:
           f"{done} finished in all, {len(outcome.failed)} failed in this sweep")
     for failure in outcome.failed:
         print(f"  failed: {failure.run_id} ({failure.status}): {failure.error}")
-    for check in check_targets(summary, experiment.factor_names, experiment.spec.targets):
-        warning = check.warning()
-        if warning:
-            print(f"  warning: {warning}")
+    warnings = [w for w in (c.warning() for c in check_targets(
+        summary, experiment.factor_names, experiment.spec.targets)) if w]
+    for warning in warnings[:MAX_WARNINGS]:
+        print(f"  warning: {warning}")
+    if len(warnings) > MAX_WARNINGS:
+        print(f"  ... and {len(warnings) - MAX_WARNINGS} more intervals too wide to decide "
+              "(all in the report); `fleet-sim size` adds replications where it matters")
     print(f"  summary      {out / 'summary.parquet'}  (one row per run)")
     print(f"  statistics   {out / 'stats.parquet'}  (mean and 95 % CI per design point)")
     print(f"  SQL          {out / 'sweep.duckdb'}  (tables summary, stats; views orders, "
