@@ -337,7 +337,7 @@ def _sample_runs(data: ReportData, recommended: dict[str, int | None]) -> list[s
         first = ok.sort_values(data.others).iloc[0]
         for name in data.others:
             pick = pick[pick[name] == first[name]]
-        key = data.series_key(first.to_dict())
+        key = data.series_key({str(k): v for k, v in first.to_dict().items()})
     else:
         key = ""
     rec = recommended.get(key)
@@ -389,14 +389,18 @@ def section_incidents(data: ReportData, recommended: dict[str, int | None]) -> S
     sec = Section("Incidents")
     ok = data.ok
     counts = _incident_counts(data)
-    if counts is not None and data.x:
-        merged = ok[["run_id", data.x, *data.others]].merge(counts, on="run_id", how="left")
-        kinds = [k for k in INCIDENT_EVENTS if k in merged.columns]
+    if data.x:
+        merged = ok[["run_id", data.x, *data.others]]
+        if "deadlocks_detected" in ok:
+            merged = merged.assign(deadlocks=ok["deadlocks_detected"].fillna(0))
+        if counts is not None:
+            merged = merged.merge(counts, on="run_id", how="left")
+        kinds = [k for k in ("deadlocks", *INCIDENT_EVENTS[1:]) if k in merged.columns]
         if kinds:
-            merged[kinds] = merged[kinds].fillna(0)
+            merged = merged.assign(**{k: merged[k].fillna(0) for k in kinds})
             first = merged
             for name in data.others:
-                first = first[first[name] == merged[name].iloc[0]]
+                first = first[first[name] == merged.sort_values(data.others)[name].iloc[0]]
             mean = first.groupby(data.x)[kinds].mean().reset_index()
             sec.figures.append(_figure("incidents", "Incidents against " + data.x,
                                        figs.incidents(mean, data.x)))

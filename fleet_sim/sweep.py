@@ -187,8 +187,9 @@ def node_waits(occupancy: Sequence[tuple[str, str, int, float, float]], events: 
         nodes = group["node"].to_numpy()
         for node in nodes[(ends >= start_s) & (ends <= end_s)]:
             passes[node] = passes.get(node, 0) + 1
-        # standing at nodes[i] from its arrival until the next departure (or the end)
-        stand_from, stand_to = ends, np.append(starts[1:], end_s)
+        # standing at nodes[i] from its arrival until the next departure (a wait still going
+        # on at the end of the run is not counted, as the engine does not count it either)
+        stand_from, stand_to = ends[:-1], starts[1:]
         sp_from, sp_to = spells.get(int(str(agv)), (np.empty(0), np.empty(0)))
         if len(sp_from) == 0:
             continue
@@ -358,10 +359,9 @@ class LocalPool:
                             continue
                         result = _crashed(spec, runs_dir)
                     except Exception as exc:  # the run function itself failed to report
-                        result = RunResult(spec.run_id, FAILED, 0.0,
-                                           f"{type(exc).__name__}: {exc}")
-                        record_failure(runs_dir / spec.run_id, FAILED, result.error,
-                                       traceback.format_exc(), 0.0)
+                        result = _failed_outside(spec, runs_dir, FAILED,
+                                                 f"{type(exc).__name__}: {exc}",
+                                                 traceback.format_exc())
                     results.append(result)
                     on_result(result)
                 if broken:
@@ -386,9 +386,20 @@ def run_local(specs: Sequence[RunSpec], runs_dir: Path, workers: int,
 def _crashed(spec: RunSpec, runs_dir: Path) -> RunResult:
     message = ("the worker process running it died without a Python exception "
                "(killed, out of memory, or a crash in native code)")
-    record_failure(runs_dir / spec.run_id, CRASHED, message, "", 0.0)
+    _failed_outside(spec, runs_dir, CRASHED, message, "")
     shutil.rmtree(runs_dir / spec.run_id / ".partial", ignore_errors=True)
     return RunResult(spec.run_id, CRASHED, 0.0, message)
+
+
+def _failed_outside(spec: RunSpec, runs_dir: Path, status: str, message: str,
+                    trace: str) -> RunResult:
+    """Record a run that failed outside the run function (which may never have started)."""
+    run_dir = runs_dir / spec.run_id
+    run_dir.mkdir(parents=True, exist_ok=True)
+    if not (run_dir / "spec.json").exists():
+        _write_json_atomic(run_dir / "spec.json", spec.as_json())
+    record_failure(run_dir, status, message, trace, 0.0)
+    return RunResult(spec.run_id, status, 0.0, message)
 
 
 def run_serial(specs: Sequence[RunSpec], runs_dir: Path, on_result: Callable[[RunResult], None],
@@ -461,9 +472,9 @@ class DaskPool:
                 if type(exc).__name__ == "KilledWorker":
                     result = _crashed(spec, runs_dir)
                 else:
-                    result = RunResult(spec.run_id, FAILED, 0.0, f"{type(exc).__name__}: {exc}")
-                    record_failure(runs_dir / spec.run_id, FAILED, result.error,
-                                   "".join(traceback.format_exception(exc)), 0.0)
+                    result = _failed_outside(spec, runs_dir, FAILED,
+                                             f"{type(exc).__name__}: {exc}",
+                                             "".join(traceback.format_exception(exc)))
             results.append(result)
             on_result(result)
         return results
