@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: run test bench clean
+.PHONY: run shift test bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -12,8 +12,19 @@ $(STAMP): pyproject.toml
 	$(VENV)/bin/pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# Main job: a one-shift run of the realistic warehouse, KPIs printed, run directory under results/.
+STUDY := experiments/warehouse_sizing.yaml
+STUDY_OUT := results/warehouse_sizing
+
+# Main job: how many AGVs does the bundled warehouse need? Sweep the fleet-size grid, search the
+# smallest fleet that meets the targets with 95 % confidence, write the report. Resumable: run
+# it again after an interruption and finished runs are kept.
 run: $(STAMP)
+	$(VENV)/bin/fleet-sim sweep $(STUDY) --out $(STUDY_OUT)
+	$(VENV)/bin/fleet-sim size $(STUDY) --out $(STUDY_OUT)
+	$(VENV)/bin/fleet-sim report $(STUDY_OUT)
+
+# One 8-hour shift of the warehouse with 12 AGVs, KPIs printed.
+shift: $(STAMP)
 	$(VENV)/bin/fleet-sim run experiments/warehouse_shift.yaml --out results/warehouse_shift
 
 # The whole test suite, ruff and mypy included.
@@ -22,6 +33,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(VENV)/bin/python bench/engine_scaling.py
+	$(VENV)/bin/python bench/sweep_scaling.py
 
 clean:
 	rm -rf $(VENV)

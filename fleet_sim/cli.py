@@ -14,6 +14,8 @@ from pathlib import Path
 
 from fleet_sim.errors import FleetSimError
 
+MAX_WARNINGS = 4
+
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fleet-sim", description=__doc__.splitlines()[0])
@@ -37,6 +39,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     emu.add_argument("protocol", help="carriro, ktm02, tabo or agv3")
     emu.add_argument("--profile", help="vehicle profile (default: the one for the protocol)")
     emu.add_argument("--seed", type=int, help="seed of the link jitter")
+    swp = sub.add_parser("sweep", help="run every run of an experiment (resumable)")
+    swp.add_argument("experiment", type=Path, help="experiment YAML file")
+    _runner_options(swp)
+
+    size = sub.add_parser("size", help="smallest fleet that meets the experiment's targets")
+    size.add_argument("experiment", type=Path, help="experiment YAML file")
+    _runner_options(size)
+
+    rep = sub.add_parser("report", help="HTML and PDF report of a sweep or sizing results folder")
+    rep.add_argument("results", type=Path, help="results folder of `sweep` or `size`")
+    rep.add_argument("--no-pdf", action="store_true", help="write the HTML report only")
 
     args = parser.parse_args(argv)
     try:
@@ -44,6 +57,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _run(args)
         if args.command == "emulate":
             return _emulate(args)
+        if args.command == "sweep":
+            return _sweep(args)
+        if args.command == "size":
+            return _size(args)
+        if args.command == "report":
+            return _report(args)
         return _layout(args)
     except FleetSimError as exc:
         print(f"fleet-sim: error: {exc}", file=sys.stderr)
@@ -125,6 +144,92 @@ class _Progress:
     def done(self) -> None:
         if self.tty:
             sys.stderr.write("\n")
+
+
+def _runner_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--workers", type=int, default=0,
+                        help="worker processes (default: one per core)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run on the Dask cluster at ADDRESS (tcp://host:8786), or 'local' "
+                             "for a local Dask cluster of --workers processes")
+    parser.add_argument("--out", type=Path,
+                        help="results folder (default: results/<experiment name>)")
+    parser.add_argument("--quiet", action="store_true", help="no progress display")
+
+
+def _check_workers(args: argparse.Namespace) -> None:
+    from fleet_sim.errors import InputError
+
+    if args.workers < 0:
+        raise InputError("--workers", "workers", args.workers, "an integer >= 0 (0: one per core)")
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from fleet_sim.experiment import load_experiment
+    from fleet_sim.stats import check_targets
+    from fleet_sim.sweep import default_out, sweep
+
+    _check_workers(args)
+    experiment = load_experiment(args.experiment)
+    out = args.out or default_out(experiment)
+    runs = experiment.runs()
+    where = f"Dask cluster {args.scheduler}" if args.scheduler else \
+        f"{args.workers or 'one per core'} worker processes"
+    print(f"sweep {experiment.name}: {len(experiment.points)} design points x "
+          f"{experiment.spec.replications} replications = {len(runs)} runs on {where}")
+    outcome = sweep(experiment, out, args.workers, args.scheduler, args.quiet)
+    import pandas as pd
+
+    summary = pd.read_parquet(out / "summary.parquet")
+    done = int((summary["status"] == "ok").sum()) if len(summary) else 0
+    print(f"  {len(outcome.results)} runs made, {outcome.skipped} already finished; "
+          f"{done} finished in all, {len(outcome.failed)} failed in this sweep")
+    for failure in outcome.failed:
+        print(f"  failed: {failure.run_id} ({failure.status}): {failure.error}")
+    warnings = [w for w in (c.warning() for c in check_targets(
+        summary, experiment.factor_names, experiment.spec.targets)) if w]
+    for warning in warnings[:MAX_WARNINGS]:
+        print(f"  warning: {warning}")
+    if len(warnings) > MAX_WARNINGS:
+        print(f"  ... and {len(warnings) - MAX_WARNINGS} more intervals too wide to decide "
+              "(all in the report); `fleet-sim size` adds replications where it matters")
+    print(f"  summary      {out / 'summary.parquet'}  (one row per run)")
+    print(f"  statistics   {out / 'stats.parquet'}  (mean and 95 % CI per design point)")
+    print(f"  SQL          {out / 'sweep.duckdb'}  (tables summary, stats; views orders, "
+          "events, node_waits)")
+    return 1 if outcome.failed else 0
+
+
+def _size(args: argparse.Namespace) -> int:
+    from fleet_sim.experiment import load_experiment
+    from fleet_sim.sizing import size_fleet
+    from fleet_sim.sweep import default_out
+
+    _check_workers(args)
+    experiment = load_experiment(args.experiment)
+    out = args.out or default_out(experiment)
+    print(f"size {experiment.name}: targets "
+          + ", ".join(t.describe() for t in experiment.spec.targets))
+    results = size_fleet(experiment, out, args.workers, args.scheduler, args.quiet)
+    for result in results:
+        est = result.estimate
+        print(f"  analytic estimate: {est.agvs:.2f} AGVs at the mean demand, "
+              f"{est.agvs_at_peak:.2f} at the peak ({est.cycle_s:.1f} s per order: "
+              f"{est.empty_travel_s:.1f} s empty + {est.loaded_travel_s:.1f} s loaded travel + "
+              f"{est.handling_s:.1f} s handling; {est.demand_per_hour:.1f} orders/h)")
+        print(f"  simulation: {result.statement()}")
+    print(f"  sizing       {out / 'sizing.json'}")
+    return 0
+
+
+def _report(args: argparse.Namespace) -> int:
+    from fleet_sim.report import write_report
+
+    html, pdf = write_report(args.results, pdf=not args.no_pdf)
+    print(f"report: {html.resolve()}")
+    if pdf is not None:
+        print(f"        {pdf.resolve()}")
+    return 0
 
 
 def _layout(args: argparse.Namespace) -> int:

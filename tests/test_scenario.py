@@ -31,7 +31,12 @@ def test_vehicle_defaults_are_the_specs_parameters() -> None:
 
 
 def test_bundled_scenarios_load() -> None:
+    from fleet_sim.experiment import load_experiment
+
     for path in sorted((ROOT / "experiments").glob("*.yaml")):
+        if "scenario" in (yaml.safe_load(path.read_text(encoding="utf-8")) or {}):
+            load_experiment(path, check_kpis=False)  # an experiment file (fleet_sim.experiment)
+            continue
         scenario = load_scenario(path)
         load_layout_for(scenario, str(path))
 

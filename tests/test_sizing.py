@@ -1,0 +1,55 @@
+"""Fleet sizing on the tiny loop, where the answer is known by hand (see test_engine): one AGV
+needs 2 x 32.6267 s of travel + 20 s pick + 30 s drop = 115.2533 s per order, so it carries
+31.2 orders/h; at 45 orders/h one AGV cannot keep up and two can."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from fleet_sim.experiment import load_experiment
+from fleet_sim.scenario import load_scenario
+from fleet_sim.sizing import analytic_estimate, size_fleet
+
+from .conftest import ROOT
+from .test_engine import HALF_LOOP_S
+
+EXPERIMENT = ROOT / "experiments" / "tiny_loop_sizing.yaml"
+
+
+def test_analytic_estimate_is_the_hand_computed_cycle(tiny_layout: object) -> None:
+    scenario = load_scenario(ROOT / "experiments" / "tiny_loop.yaml",
+                             {"demand.rate_per_hour": 45, "warmup_h": 0.5, "duration_h": 4})
+    estimate = analytic_estimate(scenario, tiny_layout)  # type: ignore[arg-type]
+    assert estimate.loaded_travel_s == pytest.approx(HALF_LOOP_S, abs=1e-9)
+    assert estimate.empty_travel_s == pytest.approx(HALF_LOOP_S, abs=1e-9)
+    assert estimate.handling_s == 50.0
+    assert estimate.cycle_s == pytest.approx(115.2533, abs=1e-4)
+    assert estimate.capacity_per_agv_per_hour == pytest.approx(3600 / 115.2533, rel=1e-6)
+    assert estimate.agvs == pytest.approx(45 * 115.2533 / 3600, rel=1e-6)  # 1.44
+    assert estimate.minimum == 2
+    half = analytic_estimate(scenario, tiny_layout, availability=0.5)  # type: ignore[arg-type]
+    assert half.agvs == pytest.approx(2 * estimate.agvs)
+
+
+def test_size_search_finds_the_known_answer(tmp_path: Path) -> None:
+    experiment = load_experiment(EXPERIMENT)
+    out = tmp_path / "sizing"
+    (result,) = size_fleet(experiment, out, workers=2, quiet=True)
+    assert result.recommended == 2
+    assert result.evaluations[2].verdict == "meets"
+    assert result.evaluations[1].verdict == "fails"  # and one AGV is shown to fail
+    assert set(result.evaluations) == {1, 2}  # started at the estimate: no blind grid
+    assert result.evaluations[1].replications == experiment.spec.replications  # clear: no more
+    through = result.evaluations[1].checks[0]
+    assert through.interval.high < 98 * 31.3 / 45  # one AGV carries ~31 of 45 orders/h
+    document = json.loads((out / "sizing.json").read_text())
+    (group,) = document["groups"]
+    assert group["recommended"] == 2
+    assert group["estimate"]["cycle_s"] == pytest.approx(115.2533, abs=1e-4)
+    assert group["statement"].startswith("2 AGVs meet every target with 95 % confidence")
+    runs = {p.name for p in (out / "runs").iterdir()}
+    assert {f"fleet.size=1__r{r:02d}" for r in range(3)} <= runs
+    assert not any(name.startswith("fleet.size=3") for name in runs)

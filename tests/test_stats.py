@@ -1,0 +1,104 @@
+"""Statistics against values computed by hand (t quantiles from tables)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from fleet_sim.experiment import Target
+from fleet_sim.stats import (
+    check_targets,
+    decide,
+    mean_ci,
+    paired_differences,
+    point_stats,
+    replications_needed,
+    t_quantile,
+)
+
+T_3DF = 3.182446  # two-sided 95 %, 3 degrees of freedom (any t table)
+T_2DF = 4.302653
+
+
+def test_t_quantiles_match_the_table() -> None:
+    assert t_quantile(4) == pytest.approx(T_3DF, abs=1e-6)
+    assert t_quantile(3) == pytest.approx(T_2DF, abs=1e-6)
+    assert t_quantile(1000) == pytest.approx(1.962339, abs=1e-5)
+
+
+def test_mean_and_interval_by_hand() -> None:
+    ci = mean_ci([1.0, 2.0, 3.0, 4.0])
+    sd = math.sqrt(((1.5**2) * 2 + (0.5**2) * 2) / 3)  # 1.290994
+    assert (ci.n, ci.mean, ci.sd) == (4, 2.5, pytest.approx(sd))
+    assert ci.half_width == pytest.approx(T_3DF * sd / 2, rel=1e-6)  # 2.054260
+    assert ci.half_width == pytest.approx(2.054260, abs=1e-6)
+    assert (ci.low, ci.high) == (pytest.approx(0.445740, abs=1e-6),
+                                 pytest.approx(4.554260, abs=1e-6))
+    one = mean_ci([5.0])
+    assert one.mean == 5.0 and math.isnan(one.half_width)
+    assert mean_ci([1.0, np.nan, 3.0]).n == 2
+
+
+def test_decisions_against_targets() -> None:
+    values = np.array([1.0, 2.0, 3.0, 4.0])  # 95 % CI 0.4457 .. 4.5543 (see above)
+    assert decide(values, Target("k", at_least=0.4)) == "meets"
+    assert decide(values, Target("k", at_least=4.6)) == "fails"
+    assert decide(values, Target("k", at_least=3.0)) == "undecided"
+    assert decide(values, Target("k", at_most=4.6)) == "meets"
+    assert decide(values, Target("k", at_most=0.4)) == "fails"
+    assert decide(values, Target("k", at_most=2.0)) == "undecided"
+    assert decide(np.array([1.0, np.nan]), Target("k", at_most=100)) == "fails"
+
+
+def test_replications_needed_by_hand() -> None:
+    sd = math.sqrt(5 / 3)  # of 1, 2, 3, 4
+    # t(27 df) * sd / sqrt(28) = 0.5006 > 0.5 ; t(28 df) * sd / sqrt(29) = 0.4911 < 0.5
+    assert replications_needed(sd, 0.5, 4) == 29
+    assert replications_needed(sd, -0.5, 4) == 29  # the side does not matter
+    assert replications_needed(sd, 0.0, 4) is None  # mean on the bound: none decides
+    assert replications_needed(0.0, 1.0, 3) == 3
+
+
+def summary_frame() -> pd.DataFrame:
+    # fleet.size 1 and 2, replications 0..2; kpi x; one failed run that must be ignored
+    return pd.DataFrame({
+        "run_id": ["a", "b", "c", "d", "e", "f", "g"],
+        "status": ["ok"] * 6 + ["failed"],
+        "fleet.size": [1, 1, 1, 2, 2, 2, 2],
+        "replication": [0, 1, 2, 0, 1, 2, 3],
+        "x": [10.0, 12.0, 14.0, 11.0, 15.0, 14.0, 999.0],
+    })
+
+
+def test_point_stats_per_level() -> None:
+    stats = point_stats(summary_frame(), ["fleet.size"]).set_index(["fleet.size", "kpi"])
+    one = stats.loc[(1, "x")]
+    assert one["n"] == 3 and one["mean"] == pytest.approx(12.0)
+    assert one["half_width"] == pytest.approx(T_2DF * 2.0 / math.sqrt(3), rel=1e-6)
+    two = stats.loc[(2, "x")]
+    assert two["n"] == 3 and two["mean"] == pytest.approx(40 / 3)  # the failed run is out
+
+
+def test_paired_differences_by_replication() -> None:
+    diffs = paired_differences(summary_frame(), "fleet.size", ["fleet.size"], ["x"])
+    row = diffs.iloc[0]
+    assert (row["from_level"], row["to_level"], row["pairs"]) == (1, 2, 3)
+    # differences 1, 3, 0: mean 4/3, sd 1.527525, half-width t(2) * sd / sqrt(3)
+    assert row["mean_diff"] == pytest.approx(4 / 3)
+    assert row["half_width"] == pytest.approx(T_2DF * 1.527525 / math.sqrt(3), rel=1e-6)
+
+
+def test_wide_interval_warning_says_how_many_replications() -> None:
+    frame = pd.DataFrame({"status": ["ok"] * 4, "fleet.size": [3] * 4,
+                          "replication": [0, 1, 2, 3], "x": [1.0, 2.0, 3.0, 4.0]})
+    checks = check_targets(frame, ["fleet.size"], [Target("x", at_least=3.0),
+                                                   Target("x", at_least=0.1)])
+    assert [c.decision for c in checks] == ["undecided", "meets"]
+    warning = checks[0].warning()
+    assert warning is not None
+    assert "fleet.size=3" in warning and "straddles" in warning
+    assert "about 29 replications" in warning
+    assert checks[1].warning() is None

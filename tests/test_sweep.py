@@ -1,0 +1,193 @@
+"""Sweeps: seeding, paired streams, crashing runs, resume after a kill, Dask, DuckDB."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import duckdb
+import pandas as pd
+import pytest
+
+from fleet_sim.experiment import Experiment, load_experiment
+from fleet_sim.sweep import CRASHED, FAILED, OK, execute_run, node_waits, sweep
+
+from . import sweep_helpers
+from .conftest import ROOT, write_yaml
+
+TINY = str(ROOT / "experiments" / "tiny_loop.yaml")
+
+
+def tiny_experiment(tmp_path: Path, name: str = "tiny", **fields: Any) -> Experiment:
+    data: dict[str, Any] = {"name": name, "scenario": TINY,
+                            "overrides": {"duration_h": 1.5, "warmup_h": 0.25,
+                                          "demand.rate_per_hour": 45},
+                            "factors": {"fleet.size": [1, 2, 3]}, "replications": 2,
+                            "master_seed": 11,
+                            "targets": [{"kpi": "throughput_pct_of_demand", "at_least": 98}],
+                            **fields}
+    return load_experiment(write_yaml(tmp_path / f"{name}.yaml", data))
+
+
+def kpis(run_dir: Path) -> dict[str, Any]:
+    figures = json.loads((run_dir / "kpis.json").read_text())
+    figures.pop("wall_s")
+    return figures
+
+
+def test_same_seed_same_results(tmp_path: Path) -> None:
+    spec = tiny_experiment(tmp_path).runs()[3]
+    for out in ("a", "b"):
+        assert execute_run(spec, str(tmp_path / out)).status == OK
+    first, second = tmp_path / "a" / spec.run_id, tmp_path / "b" / spec.run_id
+    assert kpis(first) == kpis(second)
+    for table in ("orders.parquet", "events.parquet", "node_waits.parquet"):
+        assert (first / table).read_bytes() == (second / table).read_bytes()
+
+
+def test_replications_share_order_streams_across_fleet_sizes(tmp_path: Path) -> None:
+    exp = tiny_experiment(tmp_path)
+    runs = {(r.factor_dict()["fleet.size"], r.replication): r for r in exp.runs()}
+    orders = {}
+    for key in ((1, 0), (3, 0), (3, 1)):
+        execute_run(runs[key], str(tmp_path))
+        frame = pd.read_parquet(tmp_path / runs[key].run_id / "orders.parquet")
+        orders[key] = frame[["created_s", "pickup", "dropoff", "pickup_handling_s"]]
+    # same replication: the same orders at the same times, whatever the fleet
+    pd.testing.assert_frame_equal(orders[(1, 0)], orders[(3, 0)])
+    # another replication: other orders
+    assert not orders[(3, 0)]["created_s"].equals(orders[(3, 1)]["created_s"])
+    assert kpis(tmp_path / runs[(1, 0)].run_id)["throughput_per_hour"] < \
+        kpis(tmp_path / runs[(3, 0)].run_id)["throughput_per_hour"]
+
+
+def test_failing_and_crashing_runs_are_recorded_and_resume_completes(tmp_path: Path) -> None:
+    exp = tiny_experiment(tmp_path)
+    out = tmp_path / "out"
+    stream = io.StringIO()
+    outcome = sweep(exp, out, workers=2, run_fn=sweep_helpers.flaky_run, stream=stream)
+    status = {r.run_id: r.status for r in outcome.results}
+    assert status[sweep_helpers.CRASH] == CRASHED
+    assert status[sweep_helpers.FAIL] == FAILED
+    assert sum(s == OK for s in status.values()) == 4  # every other run finished
+    error = json.loads((out / "runs" / sweep_helpers.FAIL / "error.json").read_text())
+    assert "boom" in error["error"] and "RuntimeError" in error["traceback"]
+    crash = json.loads((out / "runs" / sweep_helpers.CRASH / "error.json").read_text())
+    assert crash["status"] == CRASHED and "died" in crash["error"]
+    summary = pd.read_parquet(out / "summary.parquet").set_index("run_id")
+    assert len(summary) == 6
+    assert summary.loc[sweep_helpers.CRASH, "status"] == CRASHED
+    assert "1 failed" in stream.getvalue() and "runs 6/6 done, 2 failed" in stream.getvalue()
+    finished = {p: p.stat().st_mtime_ns for p in (out / "runs").glob("*/kpis.json")}
+    assert len(finished) == 4
+
+    again = sweep(exp, out, workers=2, stream=io.StringIO())
+    assert again.skipped == 4 and {r.run_id for r in again.results} == {
+        sweep_helpers.CRASH, sweep_helpers.FAIL}
+    assert all(r.status == OK for r in again.results)
+    assert {p: p.stat().st_mtime_ns for p in finished} == finished  # never recomputed
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert (summary["status"] == OK).all() and len(summary) == 6
+    assert not (out / "runs" / sweep_helpers.FAIL / "error.json").exists()
+
+
+def test_sweep_killed_midway_resumes_without_losing_runs(tmp_path: Path) -> None:
+    path = write_yaml(tmp_path / "long.yaml", {
+        "name": "long", "scenario": TINY,
+        "overrides": {"duration_h": 10, "warmup_h": 0.5, "demand.rate_per_hour": 45},
+        "factors": {"fleet.size": [2, 3, 4]}, "replications": 5, "master_seed": 3})
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "fleet_sim.cli", "sweep", str(path), "--out", str(out),
+               "--workers", "2"]
+    proc = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + 120
+    try:
+        while len(list(out.glob("runs/*/kpis.json"))) < 3:
+            assert proc.poll() is None, "the sweep ended before it could be interrupted"
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # the sweep and its workers, mid-run
+        proc.wait()
+    finished = {p: (p.stat().st_mtime_ns, p.read_bytes())
+                for p in out.glob("runs/*/kpis.json")}
+    assert 3 <= len(finished) < 15
+    result = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert f"{len(finished)} of 15 runs already finished" in result.stderr
+    assert {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in finished} == finished
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert len(summary) == 15 and (summary["status"] == OK).all()
+    assert not list(out.glob("runs/*/.partial"))
+    for run_dir in out.glob("runs/*"):  # every run complete, whenever it finished
+        assert {"config.resolved.yaml", "events.parquet", "orders.parquet", "spec.json",
+                "node_waits.parquet", "run_info.json"} <= {p.name for p in run_dir.iterdir()}
+
+
+def test_dask_cluster_gives_the_same_results_and_duckdb_queries_them(tmp_path: Path) -> None:
+    distributed = pytest.importorskip("dask.distributed")
+    exp = tiny_experiment(tmp_path, factors={"fleet.size": [1, 2]})
+    local = sweep(exp, tmp_path / "local", workers=2, quiet=True)
+    assert len(local.results) == 4
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       dashboard_address=None)
+    try:
+        remote = sweep(exp, tmp_path / "dask", scheduler=cluster.scheduler_address, quiet=True)
+    finally:
+        cluster.close()
+    assert sorted(r.status for r in remote.results) == [OK] * 4
+    for spec in exp.runs():
+        assert kpis(tmp_path / "local" / "runs" / spec.run_id) == \
+            kpis(tmp_path / "dask" / "runs" / spec.run_id)
+    con = duckdb.connect(str(tmp_path / "dask" / "sweep.duckdb"), read_only=True)
+    try:
+        rows = con.execute(
+            'SELECT s."fleet.size", count(*), sum(o.delivered_s IS NOT NULL) FROM orders o '
+            "JOIN summary s USING (run_id) GROUP BY 1 ORDER BY 1").fetchall()
+        summary = pd.read_parquet(tmp_path / "dask" / "summary.parquet")
+        by_size = summary.groupby("fleet.size")[["orders_created", "orders_completed"]].sum()
+        assert rows == [(n, int(by_size.loc[n, "orders_created"]),
+                         int(by_size.loc[n, "orders_completed"])) for n in (1, 2)]
+        events = con.execute("SELECT count(DISTINCT run_id) FROM events").fetchone()
+        assert events == (4,)
+        stats = con.execute("SELECT n FROM stats WHERE kpi = 'throughput_per_hour'").fetchall()
+        assert stats == [(2,), (2,)]
+    finally:
+        con.close()
+
+
+def test_node_waits_add_up_to_the_engine_blocked_time(tmp_path: Path) -> None:
+    from fleet_sim.engine import simulate
+    from fleet_sim.experiment import layout_for
+    from fleet_sim.results import events_table
+    from fleet_sim.scenario import load_scenario
+
+    scenario = load_scenario(TINY, {"fleet.size": 3, "duration_h": 3, "warmup_h": 0.5,
+                                    "demand.rate_per_hour": 45, "seed": 5})
+    run = simulate(scenario, layout_for(scenario, TINY), trace_occupancy=True)
+    waits = node_waits(run.recorder.occupancy, events_table(run), scenario.warmup_s,
+                       scenario.duration_s)
+    assert run.recorder.blocked_s > 100  # a run with traffic worth checking
+    assert waits["wait_s"].sum() == pytest.approx(run.recorder.blocked_s, rel=1e-3)
+    assert set(waits["node"]) <= set(run.layout.graph.nodes)
+    assert waits.loc[waits["node"] == "P", "passes"].item() > 0
+
+
+def test_results_folder_of_another_experiment_is_refused(tmp_path: Path) -> None:
+    from fleet_sim.sweep import SweepError
+
+    out = tmp_path / "out"
+    sweep(tiny_experiment(tmp_path, factors={"fleet.size": [1]}, replications=1), out,
+          workers=1, quiet=True)
+    other = tiny_experiment(tmp_path, factors={"fleet.size": [1]}, replications=1,
+                            master_seed=12)
+    with pytest.raises(SweepError, match="another seed"):
+        sweep(other, out, workers=1, quiet=True)
