@@ -20,9 +20,9 @@ Decisions, where the issue is silent:
 * The heat map shows the mean seconds per hour that AGVs with work to do stood waiting at each
   node (fleet_sim.sweep.node_waits), over the replications of the recommended fleet (else the
   largest fleet run).
-* Charging: the runs' charging KPIs (``state_charging_pct`` and any ``charger_*``/``soc_*`` KPI)
-  against fleet size, and SOC traces of a few AGVs when the events carry a ``soc_pct`` column. A
-  run without charging says so instead of drawing empty axes.
+* Charging: the runs' charging KPIs (``state_charging_pct``, ``charges``, the charger queue wait
+  and any ``charger_*``/``soc_*`` KPI) against fleet size, and SOC traces of a few AGVs from the
+  run's ``soc.parquet``. A run without charging says so instead of drawing empty axes.
 """
 
 from __future__ import annotations
@@ -300,7 +300,8 @@ def section_charging(data: ReportData, series: dict[str, pd.DataFrame],
     sec = Section("Charging and battery")
     ok = data.ok
     kpis = [c for c in kpi_columns(ok, data.factors)
-            if c == "state_charging_pct" or c.startswith(("charger_", "soc_", "battery_"))]
+            if c in ("state_charging_pct", "charges", "charging_queue_wait_mean_s")
+            or c.startswith(("charger_", "soc_", "battery_"))]
     active = [k for k in kpis if float(ok[k].fillna(0).abs().max()) > 0]
     if not active:
         sec.body.append("<p>No run spent time charging or reported a battery figure: these "
@@ -313,10 +314,13 @@ def section_charging(data: ReportData, series: dict[str, pd.DataFrame],
                                                    recommended)))
     sample = _sample_runs(data, recommended)
     for run_id in sample[:1]:
-        events = data.out_dir / "runs" / run_id / "events.parquet"
-        if not events.exists():
+        run_dir = data.out_dir / "runs" / run_id
+        table = run_dir / "soc.parquet"
+        if not table.exists():
+            table = run_dir / "events.parquet"
+        if not table.exists():
             continue
-        frame = pd.read_parquet(events)
+        frame = pd.read_parquet(table)
         if "soc_pct" in frame.columns:
             agvs = sorted(frame["agv"].unique())[:4]
             traces = frame[frame["agv"].isin(agvs)][["time_s", "agv", "soc_pct"]].dropna()
