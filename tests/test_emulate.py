@@ -12,7 +12,7 @@ import signal
 import subprocess
 import sys
 import tty
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import IO
 
 import numpy as np
@@ -25,7 +25,7 @@ from agv_model.profile import load_profile
 from agv_model.protocols import get_device
 from fleet_sim.cli import main
 
-from .conftest import ROOT, golden_bytes
+from .conftest import ROOT, golden_bytes, golden_hex
 
 GUARD_S = 15.0  # against hangs only
 PORT_TIMEOUT_S = 5.0  # set once: changing a setting later makes pyserial re-apply parity,
@@ -40,16 +40,29 @@ def first_line(stream: IO[str]) -> str:
 
 
 @pytest.fixture
-def emulator() -> Iterator[subprocess.Popen[str]]:
-    proc = subprocess.Popen([sys.executable, "-m", "fleet_sim.cli", "emulate", "carriro"],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    yield proc
-    if proc.poll() is None:
-        proc.kill()
-        proc.wait(GUARD_S)
-    assert proc.stdout is not None and proc.stderr is not None
-    proc.stdout.close()
-    proc.stderr.close()
+def start_emulator() -> Iterator[Callable[[str], subprocess.Popen[str]]]:
+    """Starts `fleet-sim emulate PROTOCOL` as a subprocess; kills whatever is left at the end."""
+    procs: list[subprocess.Popen[str]] = []
+
+    def start(protocol: str) -> subprocess.Popen[str]:
+        procs.append(subprocess.Popen(
+            [sys.executable, "-m", "fleet_sim.cli", "emulate", protocol], cwd=ROOT,
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+        return procs[-1]
+
+    yield start
+    for proc in procs:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(GUARD_S)
+        assert proc.stdout is not None and proc.stderr is not None
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+@pytest.fixture
+def emulator(start_emulator: Callable[[str], subprocess.Popen[str]]) -> subprocess.Popen[str]:
+    return start_emulator("carriro")
 
 
 def carriro_port(path: str) -> serial.Serial:
@@ -77,6 +90,56 @@ def test_carriro_over_a_pseudo_terminal(emulator: subprocess.Popen[str],
     errors = emulator.stderr.read()
     assert "Traceback" not in errors
     assert "19200 8E1, 11 bits per character" in errors
+
+
+PARITY = {"none": serial.PARITY_NONE, "even": serial.PARITY_EVEN, "odd": serial.PARITY_ODD}
+
+
+def profile_port(path: str, protocol: str) -> serial.Serial:
+    """The port opened as a controller would for `protocol`'s default profile."""
+    link = choose_profile(protocol).link
+    return serial.Serial(path, baudrate=link.baud, bytesize=link.data_bits,
+                         parity=PARITY[link.parity], stopbits=link.stop_bits,
+                         timeout=PORT_TIMEOUT_S)
+
+
+# One documented command per protocol and the exact bytes it is answered with.
+KTM02_STATUS_IDLE = bytes([0xAA, 0x03, 0x08, 0x00,  # SendStatusCmd 0x03, 8 bytes
+                           0x02,  # the device's second frame (the ACK was its first)
+                           0xB7, 0x00,  # verify: aa+03+08+00+02+00 = 0xb7 (sum16)
+                           0x00])  # robot state IDLE
+EXCHANGES = {
+    # RequestStatusCmd -> ACK of frame 1, then SendStatusCmd (ktm02.py, decision 3)
+    "ktm02": (golden_hex("ktm02", "host_request_status"),
+              golden_hex("ktm02", "device_ack") + KTM02_STATUS_IDLE),
+    # GBI -> gbi:NNN, battery 100 % by default
+    "tabo": (golden_bytes("tabo", "GBI_100.in"), golden_bytes("tabo", "GBI_100.out")),
+    # *IDN? -> AGV-3
+    "agv3": (golden_bytes("agv3", "idn.in"), golden_bytes("agv3", "idn.out")),
+}
+WIRE = {"ktm02": "115200 8N1, 10 bits per character", "tabo": "115200 8N1, 10 bits per character",
+        "agv3": "9600 8N1, 10 bits per character"}
+
+
+@pytest.mark.parametrize("protocol", sorted(EXCHANGES))
+def test_each_protocol_over_a_pseudo_terminal(
+        start_emulator: Callable[[str], subprocess.Popen[str]], protocol: str) -> None:
+    emulator = start_emulator(protocol)
+    assert emulator.stdout is not None and emulator.stderr is not None
+    path = first_line(emulator.stdout)
+    assert path.startswith("/dev/")
+    request, reply = EXCHANGES[protocol]
+    with profile_port(path, protocol) as port:
+        port.write(request)
+        assert port.read(len(reply)) == reply
+        assert port.in_waiting == 0
+    emulator.send_signal(signal.SIGTERM)
+    assert emulator.wait(GUARD_S) == 0
+    errors = emulator.stderr.read()
+    assert "Traceback" not in errors
+    assert f"({protocol}, profile {choose_profile(protocol).name})" in errors
+    assert WIRE[protocol] in errors
+    assert "warning" not in errors  # the port was opened with the profile's settings
 
 
 def test_unknown_protocol_is_one_line_and_exit_2(capsys: pytest.CaptureFixture[str]) -> None:

@@ -274,6 +274,32 @@ def test_device_naks_junk_with_id_0_and_carries_on(host: Ktm02Codec) -> None:
     ]
 
 
+def test_a_junk_run_gets_one_nak_however_its_bytes_arrive(host: Ktm02Codec) -> None:
+    """Found by the property tests: junk fed one byte at a time (as `fleet-sim emulate` feeds
+    the device) was NAKed once per byte, junk in one piece once."""
+    junk = b"\x00\x11\x22"
+    stop = host.encode(KtmCommand("StopCmd", frame_id=3))
+    whole, bytewise = Ktm02Device(), Ktm02Device()
+    whole.receive(junk + stop, 0.0)
+    for i, byte in enumerate(junk + stop):
+        bytewise.receive(bytes([byte]), i * 0.0001)
+    for device in (whole, bytewise):
+        out = [Ktm02Codec().decode(d) for _, d in device.poll(1.0)]
+        assert [(r.name, r.args) for r in out] == [
+            ("ControllerNakCmd", (0, ErrorKind.UNKNOWN_COMMAND_ERROR)),
+            ("ControllerAckCmd", (3,)),
+        ]
+
+
+def test_junk_after_a_pause_is_a_new_run(host: Ktm02Codec) -> None:
+    device = Ktm02Device(frame_timeout_s=0.1)
+    device.receive(b"\x00", 0.0)
+    device.receive(b"\x01", 0.05)  # within the frame timeout: the same run
+    device.receive(b"\x02", 0.5)  # later: a new run
+    out = [Ktm02Codec().decode(d) for _, d in device.poll(1.0)]
+    assert [r.args for r in out] == [(0, ErrorKind.UNKNOWN_COMMAND_ERROR)] * 2
+
+
 def test_device_naks_a_frame_that_does_not_complete_in_time(host: Ktm02Codec) -> None:
     device = Ktm02Device(frame_timeout_s=0.1)
     device.receive(host.encode(KtmCommand("StopCmd", frame_id=4))[:5], 2.0)

@@ -19,7 +19,10 @@ Decisions where the document is silent or unclear:
    0を含まない"). ACK/NAK parameter 1 is the frame number answered; 0 when it cannot be known
    ("0はNAKを返す時，コマンドIDがわからないときに使われる"): junk bytes, a bad size field, a
    frame number of 0, or a timeout before byte ``[4]`` arrived. A frame with a bad verify code is
-   answered with the frame number it carries (the host needs it to resend).
+   answered with the frame number it carries (the host needs it to resend). A run of junk (bytes
+   up to the next start byte) gets one NAK however the bytes arrive: junk that follows junk
+   within ``frame_timeout_s`` continues its run. A serial port hands bytes over in any grouping
+   (the emulator one at a time), and the answer must not depend on it.
 3. The device ACKs every frame it accepts, then sends the data a request asks for
    (RequestStatusCmd -> SendStatusCmd, RequestMomentarySpeedCmd/RequestAveragedSpeedCmd ->
    SendSpeedCmd, RequestDistanceCmd -> SendDistanceCmd, RequestImagePackageCmd ->
@@ -499,6 +502,7 @@ class Ktm02Device(Device):
         self._outbox = Outbox()
         self._buffer = bytearray()
         self._partial_since_s: float | None = None
+        self._junk_until_s: float | None = None  # junk arriving by then continues a NAKed run
         self._busy_until_s = 0.0
         self._motion = _Motion()
         self._odometer = _Odometer()
@@ -513,10 +517,17 @@ class Ktm02Device(Device):
             self._partial_since_s = now_s
         self._buffer += data
         while self._buffer:
+            if self._buffer[0] == START_BYTE:
+                self._junk_until_s = None
+            elif self._junk_until_s is not None and now_s <= self._junk_until_s:
+                self._drop_junk(now_s)  # more of a run already answered
+                continue
             try:
                 frames = self.codec.unframe(self._buffer)
             except ProtocolError:
                 self._answer(now_s, 0, ErrorKind.UNKNOWN_COMMAND_ERROR)
+                if not self._buffer:  # the junk ran to the end of what has arrived
+                    self._junk_until_s = now_s + self.frame_timeout_s
                 continue
             if not frames:
                 break
@@ -533,6 +544,12 @@ class Ktm02Device(Device):
 
     def next_output_s(self) -> float | None:
         return earliest(self._outbox.next_time_s(), *self._event_times())
+
+    def _drop_junk(self, now_s: float) -> None:
+        end = self._buffer.find(START_BYTE)
+        del self._buffer[: end if end >= 0 else len(self._buffer)]
+        if not self._buffer:
+            self._junk_until_s = now_s + self.frame_timeout_s
 
     # -- simulation-facing state -----------------------------------------------------------
 
