@@ -32,6 +32,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     lay.add_argument("--png", type=Path, help="where to draw it (default: results/<name>.png)")
     lay.add_argument("--max-speed", type=float, default=None,
                      help="vehicle top speed in m/s to check speed limits against")
+    lay.add_argument("--sumo", type=Path, metavar="DIR",
+                     help="also export it as a SUMO network (plain XML, net.xml, vType) to DIR")
 
     emu = sub.add_parser("emulate", help="serve a virtual vehicle on a pseudo-terminal")
     emu.add_argument("protocol", help="carriro, ktm02, tabo or agv3")
@@ -147,6 +149,12 @@ def _layout(args: argparse.Namespace) -> int:
     png = args.png or Path("results") / f"{layout.name}.png"
     draw_layout(layout, png)
     print(f"  drawing      {png}")
+    if args.sumo is not None:
+        from fleet_sim.sumo_export import export
+
+        network = export(layout, args.sumo)
+        print(f"  SUMO network {network.net_file} (+ plain .nod/.edg/.con.xml, "
+              f"{network.vtype_file.name})")
     return 0
 
 
