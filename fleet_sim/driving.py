@@ -3,7 +3,9 @@
 Standing at a node, the AGV takes the next node (waiting if it must), then tries to take the node
 after it; with it, it may pass through the next node at the highest speed from which it could
 still stop at the one after; without it, it brakes to stop at the next node. Each hop's time is
-closed form (fleet_sim.kinematics). See fleet_sim.traffic and docs/engine.md for the rules.
+closed form (fleet_sim.kinematics), or, when the traffic has a motion backend
+(`motion: sumo`, fleet_sim.sumo_motion), the time SUMO takes to drive it. See fleet_sim.traffic
+and docs/engine.md for the rules.
 
 `Driver` is the base of `fleet_sim.vehicle.Vehicle`; the hooks `_speed_cap_mps`, `_travel` and
 `_arrived` let the vehicle add markers, obstacles, battery use and slow modes to each hop.
@@ -71,6 +73,10 @@ class Driver:
         self.failing = False
         self.state = State.BOOTING
         self.process: simpy.Process | None = None
+        self._leg: simpy.Event | None = None
+        """The motion backend's event for the hop under way."""
+        self._moved = 0.0
+        """Share of the hop under way already driven (see `_move`)."""
         traffic.vehicles[agv_id] = self
 
     def note(self, event: str, detail: str = "") -> None:
@@ -91,8 +97,40 @@ class Driver:
         return None
 
     def _travel(self, u: str, v: str, time_s: float) -> Proc:
-        """Spend the hop's driving time (the vehicle adds obstacles here)."""
-        yield self.env.timeout(time_s)
+        """Drive the hop (the vehicle adds obstacles here). `time_s` is the closed-form
+        driving time (0 with a motion backend, which times the hop itself)."""
+        yield from self._move(u, v, time_s, 1.0)
+
+    # ---- motion: closed form, or a backend ------------------------------------------------
+    def _move(self, u: str, v: str, time_s: float, share: float) -> Proc:
+        """Drive on until `share` of the hop u -> v is behind the AGV."""
+        backend = self.traffic.motion_backend
+        if backend is None:
+            yield self.env.timeout(time_s * (share - self._moved))
+        elif share >= 1.0:
+            assert self._leg is not None
+            yield self._leg
+        else:
+            yield backend.reach(self.id, u, v, share)
+        self._moved = share
+
+    def _pause(self, seconds: float, speed_mps: float = 0.0) -> Proc:
+        """Lose `seconds` where the AGV is (line search, obstacle): with a backend, the AGV
+        is held at `speed_mps` meanwhile and speeds up again on its own afterwards."""
+        backend = self.traffic.motion_backend
+        if backend is not None:
+            backend.hold(self.id, speed_mps)
+        try:
+            yield self.env.timeout(seconds)
+        finally:
+            if backend is not None:
+                backend.release(self.id)
+
+    def _halt(self) -> None:
+        """A fault stops the AGV where it is."""
+        self.speed_mps = 0.0
+        if self.traffic.motion_backend is not None:
+            self.traffic.motion_backend.halt(self.id)
 
     def _arrived(self, u: str, v: str, length_m: float, start_s: float) -> Proc:
         """After each hop (the vehicle adds battery use and markers here)."""
@@ -128,6 +166,8 @@ class Driver:
             self._release_corridor(cid)
         self.parked_in = place
         self.prev = None
+        if self.traffic.motion_backend is not None:
+            self.traffic.motion_backend.off_track(self.id)
 
     def _leave_track(self) -> None:
         """Off the tape (into a parking bay, or taken off by an operator): let go of all."""
@@ -137,6 +177,8 @@ class Driver:
         for cid in list(self.corridors):
             self._release_corridor(cid)
         self.prev, self.speed_mps = None, 0.0
+        if self.traffic.motion_backend is not None:
+            self.traffic.motion_backend.off_track(self.id)
 
     def _reenter_track(self, access: str) -> Proc:
         """Back onto the tape at `access`, once it (and its corridor) is free."""
@@ -193,7 +235,13 @@ class Driver:
             raise SimulationError(f"AGV {self.id} about to enter corridor {corridor.id} "
                                   f"({u} -> {nxt}) without holding it")
         cap = self._speed_cap_mps()
-        if cap is None:
+        backend = self.traffic.motion_backend
+        self._moved = 0.0
+        if backend is not None:  # the backend times the hop; the AGV passes through nxt
+            after = self.ahead[1].node if v_end_max > 0 and len(self.ahead) > 1 else None
+            self._leg = backend.hop(self.id, self.prev, u, nxt, after, cap)
+            time_s = v_end = 0.0
+        elif cap is None:
             time_s, v_end = self.traffic.hop(self.prev, u, nxt, self.speed_mps, v_end_max)
         else:
             pieces: tuple[Piece, ...] = tuple(
@@ -204,6 +252,13 @@ class Driver:
                                      motion.accel_mps2, motion.decel_mps2)
         start = self.env.now
         yield from self._travel(u, nxt, time_s)
+        if self._leg is not None:
+            if self._moved < 1.0:  # a _travel override that did not drive to the end
+                yield from self._move(u, nxt, time_s, 1.0)
+            speed = self._leg.value
+            assert isinstance(speed, float)
+            v_end = speed
+            self._leg = None
         length = self.traffic.graph.edges[u, nxt]["length_m"]
         self.recorder.drove(start, self.env.now, length)
         if self.recorder.trace_occupancy:

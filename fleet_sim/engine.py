@@ -19,7 +19,7 @@ from fleet_sim.commands import CommandPath
 from fleet_sim.demand import Demand, TraceOrder
 from fleet_sim.fleet_manager import FleetManager
 from fleet_sim.incidents import start_incidents
-from fleet_sim.kinematics import Motion
+from fleet_sim.kinematics import Motion, MotionBackend
 from fleet_sim.layout import Layout
 from fleet_sim.records import Recorder
 from fleet_sim.scenario import Scenario
@@ -40,6 +40,12 @@ class Model:
     vehicles: list[Vehicle]
     demand: Demand
     recorder: Recorder
+    motion_backend: MotionBackend | None = None
+
+    def close(self) -> None:
+        """Release what the run holds outside Python (the SUMO simulation, if any)."""
+        if self.motion_backend is not None:
+            self.motion_backend.close()
 
 
 @dataclass
@@ -60,6 +66,10 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
                     profile.turn_speed_mps)
     recorder = Recorder(scenario.warmup_s, scenario.duration_s, trace_occupancy=trace_occupancy)
     traffic = Traffic(env, layout, motion)
+    if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
+        from fleet_sim.sumo_motion import SumoMotion
+
+        traffic.motion_backend = SumoMotion(env, layout, scenario, profile.turn_speed_mps)
     arrivals, handling, backoff, incident, link = np.random.SeedSequence(scenario.seed).spawn(5)
     commands = CommandPath(env, scenario.fleet.command_profile, scenario.fleet.status_poll_s,
                            np.random.default_rng(link), recorder)
@@ -81,7 +91,7 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     for v in vehicles:
         v.start()
     demand.start()
-    return Model(env, traffic, fleet, vehicles, demand, recorder)
+    return Model(env, traffic, fleet, vehicles, demand, recorder, traffic.motion_backend)
 
 
 def _place(vehicles: list[Vehicle], scenario: Scenario, layout: Layout,
@@ -102,10 +112,13 @@ def simulate(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (
     wall_start = time.perf_counter()
     model = build_model(scenario, layout, trace, trace_occupancy)
     end = scenario.duration_s
-    for step in range(1, PROGRESS_STEPS + 1):
-        model.env.run(until=end * step / PROGRESS_STEPS)
-        if progress is not None:
-            progress(model.env.now, end)
+    try:
+        for step in range(1, PROGRESS_STEPS + 1):
+            model.env.run(until=end * step / PROGRESS_STEPS)
+            if progress is not None:
+                progress(model.env.now, end)
+    finally:
+        model.close()
     sim_events = next(model.env._eid)  # SimPy's count of scheduled events
     return RunOutput(scenario, layout, model.recorder, model.vehicles, sim_events,
                      time.perf_counter() - wall_start)

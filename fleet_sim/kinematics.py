@@ -11,6 +11,10 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    import simpy
 
 Piece = tuple[float, float]
 """(length_m, speed_limit_mps) of one stretch of uniform speed limit."""
@@ -24,6 +28,34 @@ class Motion:
     accel_mps2: float
     decel_mps2: float
     turn_speed_mps: float
+
+
+class MotionBackend(Protocol):
+    """Moves AGVs instead of the closed form (fleet_sim.sumo_motion.SumoMotion): the driver
+    asks it for each hop and waits for the events it hands back; locks stay with the driver."""
+
+    def hop(self, agv_id: int, prev: str | None, u: str, v: str, after: str | None,
+            cap_mps: float | None) -> simpy.Event:
+        """Start driving u -> v (on to `after` without stopping, or stop at v if None); the
+        event fires with the speed at v when the AGV gets there."""
+
+    def reach(self, agv_id: int, u: str, v: str, share: float) -> simpy.Event:
+        """An event that fires when `share` of the current hop u -> v is behind the AGV."""
+
+    def hold(self, agv_id: int, speed_mps: float) -> None:
+        """Keep the AGV at or below `speed_mps` (0: brake to a stop) until `release`."""
+
+    def release(self, agv_id: int) -> None:
+        """Let the AGV drive its plan again after `hold`."""
+
+    def halt(self, agv_id: int) -> None:
+        """A fault: brake to a stop and forget the hop under way."""
+
+    def off_track(self, agv_id: int) -> None:
+        """The AGV left the track (parking bay, operator): take it out of the simulation."""
+
+    def close(self) -> None:
+        """End the simulation behind the backend."""
 
 
 def piece_time(length_m: float, v_in: float, v_limit: float, v_out: float,

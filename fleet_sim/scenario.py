@@ -348,6 +348,25 @@ class IncidentsConfig:
 
 
 @dataclass(frozen=True)
+class SumoConfig:
+    """Settings of the SUMO motion backend (used when `motion` is ``sumo``)."""
+
+    step_length_s: float = 0.1
+    """SUMO's time step; SUMO and SimPy advance together in steps of this length."""
+    tau_s: float = 1.0
+    """Krauss time headway (assumed): at 1 m/s the following gap is min_gap_m + 1.0 m,
+    P_005's 1.5 m detection distance."""
+
+    def check(self, file: str, element: str) -> None:
+        if not 0 < self.step_length_s <= 1.0:
+            raise InputError(file, f"{element}.step_length_s", self.step_length_s,
+                             "a time step in (0, 1] s")
+        if self.tau_s < self.step_length_s:
+            raise InputError(file, f"{element}.tau_s", self.tau_s,
+                             f"a headway >= step_length_s ({self.step_length_s} s)")
+
+
+@dataclass(frozen=True)
 class Scenario:
     layout: str
     """Layout file, relative to the scenario file."""
@@ -366,6 +385,12 @@ class Scenario:
     rules: Rules = Rules()
     charging: ChargingConfig = ChargingConfig()
     incidents: IncidentsConfig = IncidentsConfig()
+    motion: Literal["closed_form", "sumo"] = "closed_form"
+    """How AGVs move between nodes: closed_form (exact trapezoidal profiles per hop,
+    fleet_sim.kinematics) or sumo (SUMO's car-following model through libsumo,
+    fleet_sim.sumo_motion, stepping with SimPy; dispatching, states, charging, incidents and
+    traffic locks stay in the SimPy model). See docs/sumo.md."""
+    sumo: SumoConfig = SumoConfig()
     base_dir: str = field(default=".", metadata={"key": "_base_dir"}, compare=False)
 
     def check(self, file: str, element: str) -> None:

@@ -28,7 +28,7 @@ import networkx as nx
 import simpy
 from simpy.resources.resource import Request
 
-from fleet_sim.kinematics import Motion, Piece, stop_entry_speed, traverse
+from fleet_sim.kinematics import Motion, MotionBackend, Piece, stop_entry_speed, traverse
 from fleet_sim.layout import Corridor, Layout
 
 if TYPE_CHECKING:
@@ -92,6 +92,8 @@ class Traffic:
         """Counts changes of lock ownership and waits: a blocked AGV that sees the same count
         as at its last look has nothing new to find."""
         self.vehicles: dict[int, Vehicle] = {}
+        self.motion_backend: MotionBackend | None = None
+        """Moves the AGVs when set (`motion: sumo`); None: closed-form hops."""
         self._known_cycles: set[frozenset[int]] = set()
         for _, _, data in self.graph.edges(data=True):
             data["free_time_s"] = data["length_m"] / min(data["speed_limit_mps"],

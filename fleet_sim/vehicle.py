@@ -414,17 +414,17 @@ class Vehicle(Driver):
         if rate > 0 and rng.random() < 1.0 - math.exp(-rate * length / 1000.0):
             share = float(rng.random())
             duration = edge["obstacle_duration"] or self.incidents.obstacle_duration
-            yield self.env.timeout(time_s * share)
+            yield from self._move(u, v, time_s, share)
             yield from self._obstacle(duration.sample(rng), f"on {u} -> {v}")
-            yield self.env.timeout(time_s * (1 - share))
+            yield from self._move(u, v, time_s, 1.0)
         else:
-            yield self.env.timeout(time_s)
+            yield from self._move(u, v, time_s, 1.0)
         line_rate = self.incidents.line_loss_per_km
         if line_rate > 0 and rng.random() < 1.0 - math.exp(-line_rate * length / 1000.0):
             if rng.random() < self.incidents.line_found_prob:
                 self.recorder.warning("E_001")
                 self.note("line_lost", f"found again within {self.rules.line_keep_heading_m} m")
-                yield self.env.timeout(self.incidents.line_search_s)
+                yield from self._pause(self.incidents.line_search_s)
             else:
                 self.fail_now("E_202")
 
@@ -440,6 +440,9 @@ class Vehicle(Driver):
         motion = self.traffic.motion
         v = max(self.speed_mps, min(self.profile.max_speed_mps, 1.0))
         self._obstacle_near_s = seen_s
+        if self.traffic.motion_backend is not None:
+            yield from self._obstacle_held(seen_s, where)
+            return
         if seen_s < rules.obstacle_pause_s:
             slow = min(rules.obstacle_slow_speed_mps, v)
             extra = (v - slow) / motion.decel_mps2 + (v - slow) / motion.accel_mps2 \
@@ -459,6 +462,27 @@ class Vehicle(Driver):
         self._obstacle_clear_s = rules.obstacle_clear_s
         self.fire("Event_Obstacle_Cleared", f"paused {wait:.2f} s")
         yield self.env.timeout(v / (2 * motion.accel_mps2))  # speeding up again from a stop
+
+    def _obstacle_held(self, seen_s: float, where: str) -> Proc:
+        """`_obstacle` with a motion backend: the same rules, but the backend brakes the AGV
+        (to the creep speed, or to a stop) and speeds it up again, so the time lost is its
+        own, and AGVs behind it close up."""
+        rules = self.rules
+        if seen_s < rules.obstacle_pause_s:
+            self.note("obstacle_slowdown", f"{where}: seen {seen_s:.2f} s")
+            yield from self._pause(seen_s, rules.obstacle_slow_speed_mps)
+            return
+        yield from self._pause(rules.obstacle_pause_s, rules.obstacle_slow_speed_mps)
+        self.fire("Event_Obstacle_Detected", f"{where}: within 1.0 m for "
+                                              f">= {rules.obstacle_pause_s * 1000:.0f} ms")
+        self.recorder.obstacle_pauses += 1
+        wait = seen_s - rules.obstacle_pause_s + rules.obstacle_clear_s
+        if wait >= rules.obstacle_timeout_s:
+            yield from self._pause(rules.obstacle_timeout_s)
+            self.fail_now("E_101")
+        yield from self._pause(wait)
+        self._obstacle_clear_s = rules.obstacle_clear_s
+        self.fire("Event_Obstacle_Cleared", f"paused {wait:.2f} s")
 
     def _arrived(self, u: str, v: str, length_m: float, start_s: float) -> Proc:
         self.battery.drive(self.env.now, length_m, self.loaded)
@@ -497,7 +521,7 @@ class Vehicle(Driver):
         """Error -> (operator) -> Maintenance -> (repair) -> Idle, or SafeMode -> rescue."""
         env = self.env
         self.fleet.withdraw(self)
-        self.speed_mps = 0.0
+        self._halt()
         self.error_code = failure.code
         level, text = describe(failure.code)
         self.recorder.errors.append((env.now, self.id, failure.code, level))
