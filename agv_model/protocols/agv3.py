@@ -42,7 +42,15 @@ from dataclasses import dataclass
 from typing import Literal
 
 from agv_model.protocols._sim import Outbox, SimClock, earliest
-from agv_model.protocols.base import Codec, Command, Device, ProtocolError, Reply, register
+from agv_model.protocols.base import (
+    Codec,
+    Command,
+    Device,
+    ProtocolError,
+    Reply,
+    ascii_text,
+    register,
+)
 
 PROTOCOL = "agv3"
 TERMINATOR = b"\r\n"  # Syntax, footnote 1
@@ -207,10 +215,7 @@ class Agv3Codec(Codec):
 
     @staticmethod
     def _text(frame: bytes) -> str:
-        try:
-            return frame.decode("ascii")
-        except UnicodeDecodeError as err:
-            raise ProtocolError(PROTOCOL, frame, "ASCII text (Syntax, footnote 1)") from err
+        return ascii_text(PROTOCOL, frame, "ASCII text (Syntax, footnote 1)")
 
 
 # -- virtual device ----------------------------------------------------------------------------

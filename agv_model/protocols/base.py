@@ -32,6 +32,14 @@ class ProtocolError(ValueError):
         super().__init__(f"{protocol}: got {data!r}; expected {expected}")
 
 
+def ascii_text(protocol: str, frame: bytes, expected: str = "ASCII text") -> str:
+    """The frame as text, for the ASCII protocols; anything else is a ProtocolError."""
+    try:
+        return frame.decode("ascii")
+    except UnicodeDecodeError as err:
+        raise ProtocolError(protocol, frame, expected) from err
+
+
 @dataclass(frozen=True)
 class Command:
     """A host -> vehicle command. `kind` says whether it reads, writes or acts."""

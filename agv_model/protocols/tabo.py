@@ -61,7 +61,15 @@ from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 from agv_model.protocols._sim import Outbox, SimClock, earliest
-from agv_model.protocols.base import Codec, Command, Device, ProtocolError, Reply, register
+from agv_model.protocols.base import (
+    Codec,
+    Command,
+    Device,
+    ProtocolError,
+    Reply,
+    ascii_text,
+    register,
+)
 
 PROTOCOL = "tabo"
 TERMINATOR = b"\n"
@@ -241,10 +249,7 @@ class TaboCodec(Codec):
 
     @staticmethod
     def _text(frame: bytes) -> str:
-        try:
-            return frame.decode("ascii")
-        except UnicodeDecodeError as err:
-            raise ProtocolError(PROTOCOL, frame, "ASCII text") from err
+        return ascii_text(PROTOCOL, frame, "ASCII text")
 
 
 # -- virtual device ----------------------------------------------------------------------------
