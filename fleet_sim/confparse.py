@@ -135,7 +135,7 @@ def build(cls: type[T], data: Any, file: str, path: str = "") -> T:
     fields = {f.metadata.get("key", f.name): f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     for key in data:
         if key not in fields:
-            known = ", ".join(sorted(fields))
+            known = ", ".join(sorted(k for k in fields if not k.startswith("_")))
             raise InputError(file, f"{path + '.' if path else ''}{key}", data[key],
                              f"no such key here (known keys: {known})")
     kwargs: dict[str, Any] = {}

@@ -425,6 +425,10 @@ def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> 
     if data is not None and not isinstance(data, dict):
         raise InputError(str(path), "top level", data, "a mapping")
     data = dict(data or {})
+    if "scenario" in data and "factors" in data:
+        raise InputError(str(path), "top level", "an experiment file (scenario, factors...)",
+                         "a scenario file; run experiments with `fleet-sim sweep` or "
+                         "`fleet-sim size`")
     if "_base_dir" in data:
         raise InputError(str(path), "_base_dir", data["_base_dir"], "no such key (it is internal)")
     for dotted, value in (overrides or {}).items():

@@ -126,3 +126,16 @@ def test_scenario_type_is_a_dataclass() -> None:
     assert dataclasses.is_dataclass(Scenario)
     text = yaml.safe_dump(resolved(load_scenario(ROOT / "experiments" / "warehouse_shift.yaml")))
     assert "rate_per_hour: 90" in text
+
+
+def test_an_experiment_file_is_not_a_scenario() -> None:
+    with pytest.raises(InputError, match=r"expected a scenario file; run experiments with "
+                                         r"`fleet-sim sweep`"):
+        load_scenario(ROOT / "experiments" / "warehouse_sizing.yaml")
+
+
+def test_known_keys_do_not_list_internal_ones(tmp_path: Path) -> None:
+    path = write_yaml(tmp_path / "s.yaml", {"layout": "x.yaml", "colour": "red"})
+    with pytest.raises(InputError) as info:
+        load_scenario(path)
+    assert "_base_dir" not in str(info.value) and "known keys: charging" in str(info.value)

@@ -45,6 +45,14 @@ def test_a_fault_while_driving_is_recovered_under_sumo() -> None:
     assert figures["orders_completed"] >= 20
 
 
+def _python(code: str) -> subprocess.CompletedProcess[str]:
+    """Run `code` in a fresh interpreter (libsumo: one simulation per process); it must pass."""
+    result = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                            text=True, timeout=120, check=False)
+    assert result.returncode == 0, result.stderr
+    return result
+
+
 def test_closed_form_runs_never_load_libsumo() -> None:
     code = ("import sys\n"
             "from tests.conftest import make_scenario, LAYOUTS\n"
@@ -53,9 +61,7 @@ def test_closed_form_runs_never_load_libsumo() -> None:
             "simulate(make_scenario(duration_h=0.1, warmup_h=0.0),"
             " load_layout(LAYOUTS / 'tiny_loop.yaml'))\n"
             "print('libsumo' in sys.modules)\n")
-    result = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
-                            text=True, timeout=120, check=False)
-    assert result.returncode == 0, result.stderr
+    result = _python(code)
     assert result.stdout.strip() == "False"
 
 
@@ -74,9 +80,7 @@ def test_one_sumo_simulation_per_process() -> None:
             "first.close()\n"
             "build_model(scenario, layout).close()\n"
             "print('again ok')\n")
-    result = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
-                            text=True, timeout=120, check=False)
-    assert result.returncode == 0, result.stderr
+    result = _python(code)
     assert "refused: a SUMO simulation is already running" in result.stdout
     assert "again ok" in result.stdout
 
