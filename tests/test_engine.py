@@ -267,3 +267,23 @@ def test_orders_are_never_lost(warehouse_layout: Layout) -> None:
     delivered = {o.id for o in model.recorder.orders if o.delivered_s is not None}
     assert waiting | serving | delivered == {o.id for o in model.recorder.orders}
     assert not waiting & serving and not serving & delivered and not waiting & delivered
+
+
+def test_giving_way_keeps_the_main_loop_flowing(warehouse_layout: Layout) -> None:
+    """25 busy AGVs queue on the loop for busy aisles and full sidings. Without the give-way rule
+    (and without re-planning) they lock the loop solid within the first hour; with it, AGVs that
+    block others circulate and the warehouse keeps delivering."""
+    def deliveries_after_first_hour(give_way_after_s: float) -> tuple[int, int]:
+        scenario = make_scenario("warehouse.yaml", duration_h=3, warmup_h=0, seed=7,
+                                 fleet={"size": 25}, demand={"rate_per_hour": 187.5},
+                                 charging={"enabled": False},
+                                 traffic={"give_way_after_s": give_way_after_s,
+                                          "replan_after_s": 1e9})
+        run = simulate(scenario, warehouse_layout)
+        late = sum(1 for o in run.recorder.orders
+                   if o.delivered_s is not None and o.delivered_s > 3600)
+        return late, sum(1 for e in run.recorder.events if e[2] == "circulate")
+
+    assert deliveries_after_first_hour(1e9) == (0, 0)
+    late, circulated = deliveries_after_first_hour(10.0)
+    assert late > 250 and circulated > 100
