@@ -1,6 +1,7 @@
 """Study (a): the fleet engine's closed-form hop times against the time-stepped vehicle model.
 
-The engine (fleet_sim.traffic.Traffic.hop / pass_speed_mps, fleet_sim.kinematics) times each hop
+The engine (fleet_sim.sim.traffic.control.Traffic.hop / pass_speed_mps,
+fleet_sim.model.kinematics) times each hop
 u -> v with a trapezoidal speed profile: a branch curve of `turn_length_m` (layout default 1.0 m)
 at the turn speed, then the segment limit; at an intermediate node it passes no faster than lets
 it stop at the next one. Here routes on a small rectangular loop are timed both ways, hop by hop:
@@ -36,9 +37,9 @@ sys.path.insert(0, str(ROOT))
 from agv_model.dynamics import Drive, Trace, VehicleParams, simulate  # noqa: E402
 from agv_model.dynamics_plot import plot_trace  # noqa: E402
 from agv_model.track import Arc, Marker, Piece, Straight, TagType, Track  # noqa: E402
-from fleet_sim.kinematics import Motion  # noqa: E402
-from fleet_sim.layout import Layout, load_layout  # noqa: E402
-from fleet_sim.traffic import Traffic  # noqa: E402
+from fleet_sim.config.layout import Layout, load_layout  # noqa: E402
+from fleet_sim.model.kinematics import Motion  # noqa: E402
+from fleet_sim.sim.traffic.control import Traffic  # noqa: E402
 
 # Node positions of the study loop (counter-clockwise, so every corner is a left turn). The
 # bottom side's hops are 0.5, 1, 2, 5, 10, 20 and 1.5 m; the corners give turn hops of 1 m

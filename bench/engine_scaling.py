@@ -22,8 +22,8 @@ import simpy
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from fleet_sim.engine import simulate  # noqa: E402
-from fleet_sim.scenario import load_layout_for, load_scenario  # noqa: E402
+from fleet_sim.config.scenario import load_layout_for, load_scenario  # noqa: E402
+from fleet_sim.sim.engine import simulate  # noqa: E402
 
 SHIFT_H = 8.0
 ORDERS_PER_AGV_HOUR = 7.5

@@ -16,9 +16,9 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from fleet_sim.engine import simulate  # noqa: E402
-from fleet_sim.results import events_table, kpis, orders_table  # noqa: E402
-from fleet_sim.scenario import load_layout_for, load_scenario  # noqa: E402
+from fleet_sim.analysis.results import events_table, kpis, orders_table  # noqa: E402
+from fleet_sim.config.scenario import load_layout_for, load_scenario  # noqa: E402
+from fleet_sim.sim.engine import simulate  # noqa: E402
 
 BASE: dict[str, Any] = {"layout": "../layouts/warehouse.yaml", "fleet.size": 12,
                         "demand.rate_per_hour": 90, "demand.profile": [], "duration_h": 8}

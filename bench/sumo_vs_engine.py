@@ -24,7 +24,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from fleet_sim.crosscheck import crosscheck  # noqa: E402
+from fleet_sim.study.crosscheck import crosscheck  # noqa: E402
 
 SCENARIO = ROOT / "experiments" / "warehouse_shift.yaml"
 
@@ -34,9 +34,9 @@ def sumo_alone(agvs: int, hours: float, step_s: float, seed: int = 1) -> dict[st
     import networkx as nx
     import numpy as np
 
-    from fleet_sim.layout import load_layout
-    from fleet_sim.sumo_export import VTYPE_ID, edge_id, export
-    from fleet_sim.sumo_motion import load_libsumo
+    from fleet_sim.config.layout import load_layout
+    from fleet_sim.sim.motion.sumo import load_libsumo
+    from fleet_sim.sim.motion.sumo_network import VTYPE_ID, edge_id, export
 
     layout = load_layout(ROOT / "layouts" / "warehouse.yaml")
     rng = np.random.default_rng(seed)

@@ -88,11 +88,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from fleet_sim.engine import simulate
+    from fleet_sim.analysis.results import summary, write_run
+    from fleet_sim.config.scenario import load_layout_for, load_scenario
+    from fleet_sim.config.trace import load_trace
     from fleet_sim.errors import InputError
-    from fleet_sim.results import summary, write_run
-    from fleet_sim.scenario import load_layout_for, load_scenario
-    from fleet_sim.trace import load_trace
+    from fleet_sim.sim.engine import simulate
 
     overrides: dict[str, object] = {}
     if args.agvs is not None:
@@ -177,9 +177,9 @@ def _check_workers(args: argparse.Namespace) -> None:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from fleet_sim.experiment import load_experiment
-    from fleet_sim.stats import check_targets
-    from fleet_sim.sweep import default_out, sweep
+    from fleet_sim.analysis.stats import check_targets
+    from fleet_sim.config.experiment import load_experiment
+    from fleet_sim.study.sweep import default_out, sweep
 
     _check_workers(args)
     experiment = load_experiment(args.experiment)
@@ -213,9 +213,9 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def _size(args: argparse.Namespace) -> int:
-    from fleet_sim.experiment import load_experiment
-    from fleet_sim.sizing import size_fleet
-    from fleet_sim.sweep import default_out
+    from fleet_sim.config.experiment import load_experiment
+    from fleet_sim.study.sizing import size_fleet
+    from fleet_sim.study.sweep import default_out
 
     _check_workers(args)
     experiment = load_experiment(args.experiment)
@@ -235,7 +235,7 @@ def _size(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from fleet_sim.report import write_report
+    from fleet_sim.report.html import write_report
 
     html, pdf = write_report(args.results, pdf=not args.no_pdf)
     print(f"report: {html.resolve()}")
@@ -245,8 +245,8 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def _layout(args: argparse.Namespace) -> int:
-    from fleet_sim.layout import load_layout
-    from fleet_sim.layout_plot import draw_layout
+    from fleet_sim.config.layout import load_layout
+    from fleet_sim.report.layout_plot import draw_layout
 
     layout = load_layout(args.layout, max_speed_mps=args.max_speed)
     kinds: dict[str, int] = {}
@@ -265,7 +265,7 @@ def _layout(args: argparse.Namespace) -> int:
     draw_layout(layout, png)
     print(f"  drawing      {png}")
     if args.sumo is not None:
-        from fleet_sim.sumo_export import export
+        from fleet_sim.sim.motion.sumo_network import export
 
         network = export(layout, args.sumo)
         print(f"  SUMO network {network.net_file} (+ plain .nod/.edg/.con.xml, "
@@ -275,9 +275,9 @@ def _layout(args: argparse.Namespace) -> int:
 
 def _crosscheck(args: argparse.Namespace) -> int:
     """One table per fleet size: KPIs and wall time of each backend, and SUMO's difference."""
-    from fleet_sim.crosscheck import crosscheck, table
+    from fleet_sim.config.scenario import load_layout_for, load_scenario
     from fleet_sim.errors import InputError
-    from fleet_sim.scenario import load_layout_for, load_scenario
+    from fleet_sim.study.crosscheck import crosscheck, table
 
     base: dict[str, object] = {}
     if args.hours is not None:

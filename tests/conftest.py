@@ -15,9 +15,9 @@ import serial
 import yaml
 
 from agv_model.protocols import Device
-from fleet_sim.confparse import build
-from fleet_sim.layout import Layout, load_layout
-from fleet_sim.scenario import Scenario
+from fleet_sim.config.confparse import build
+from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.config.scenario import Scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 LAYOUTS = ROOT / "layouts"

@@ -7,11 +7,11 @@ import itertools
 import pytest
 
 from agv_model.fleet_commands import CommandTiming
-from fleet_sim.demand import TraceOrder
-from fleet_sim.engine import simulate
+from fleet_sim.analysis.results import events_table, kpis, orders_table
+from fleet_sim.config.layout import Layout
+from fleet_sim.config.trace import TraceOrder
 from fleet_sim.errors import InputError
-from fleet_sim.layout import Layout
-from fleet_sim.results import events_table, kpis, orders_table
+from fleet_sim.sim.engine import simulate
 
 from .conftest import make_scenario
 from .test_engine import DROP_S, HALF_LOOP_S, K_TO_P_S, PICK_S

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from fleet_sim.crosscheck import crosscheck, table
+from fleet_sim.study.crosscheck import crosscheck, table
 
 from .conftest import LAYOUTS, ROOT, write_yaml
 

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from fleet_sim.demand import TraceOrder
-from fleet_sim.engine import build_model, simulate
-from fleet_sim.layout import Layout, load_layout
-from fleet_sim.results import events_table, kpis, orders_table, write_run
+from fleet_sim.analysis.results import events_table, kpis, orders_table, write_run
+from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.config.trace import TraceOrder
+from fleet_sim.sim.engine import build_model, simulate
 
 from .conftest import DATA, make_scenario, write_yaml
 
@@ -108,7 +108,7 @@ def test_no_two_agvs_share_a_node_or_segment(warehouse_layout: Layout) -> None:
     """Invariant over a long random run: node holds and segment traversals never overlap."""
     scenario = make_scenario("warehouse.yaml", duration_h=3, warmup_h=0.0, seed=5,
                              fleet={"size": 20}, demand={"rate_per_hour": 150})
-    run = simulate(scenario, warehouse_layout, trace_occupancy=True)
+    run = simulate(scenario, warehouse_layout, record_occupancy=True)
     spans: dict[tuple[str, str], list[tuple[float, float, int]]] = defaultdict(list)
     for kind, key, agv, t0, t1 in run.recorder.occupancy:
         assert t1 >= t0
@@ -143,7 +143,7 @@ def test_gap_to_the_agv_ahead_is_kept(tmp_path: Path) -> None:
     scenario = make_scenario(str(layout_file), duration_h=1, warmup_h=0.0, seed=2,
                              fleet={"size": 3, "vehicle": {"length_m": 1.2, "min_gap_m": 0.6}},
                              demand={"rate_per_hour": 120})
-    run = simulate(scenario, load_layout(layout_file), trace_occupancy=True)
+    run = simulate(scenario, load_layout(layout_file), record_occupancy=True)
     hops: dict[int, list[tuple[float, float, str, str]]] = defaultdict(list)
     for kind, key, agv, t0, t1 in run.recorder.occupancy:
         if kind == "segment":

@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 import pytest
 
+from fleet_sim.config.experiment import load_experiment, replication_seed, run_id
 from fleet_sim.errors import InputError
-from fleet_sim.experiment import load_experiment, replication_seed, run_id
 
 from .conftest import ROOT, write_yaml
 

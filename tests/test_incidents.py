@@ -12,10 +12,11 @@ from typing import Any
 import pytest
 import yaml
 
-from fleet_sim.demand import TraceOrder
-from fleet_sim.engine import RunOutput, simulate
-from fleet_sim.layout import load_layout
-from fleet_sim.results import events_table, kpis, orders_table
+from fleet_sim.analysis.results import events_table, kpis, orders_table
+from fleet_sim.config.layout import load_layout
+from fleet_sim.config.trace import TraceOrder
+from fleet_sim.model.battery import charge_time_s
+from fleet_sim.sim.engine import RunOutput, simulate
 
 from .conftest import LAYOUTS, make_scenario, write_yaml
 
@@ -170,7 +171,7 @@ def test_charging_until_above_95_percent(tmp_path: Path) -> None:
     out = battery_run(tmp_path, 25.0, duration_h=2.0)
     done = events(out, "Event_Charge_Complete")
     assert len(done) == 1
-    soc_at = {(t, a): s for t, a, s in out.recorder.soc_trace}
+    soc_at = {(t, a): s for t, a, s in out.recorder.soc_samples}
     assert 95.0 < soc_at[(done[0][0], 0)] <= 95.2
     gone = events(out, "Event_Low_Battery") + events(out, "Event_Go_Charge")
     assert gone and gone[0][4] == "Moving" and "to_charger" in gone[0][6]
@@ -179,7 +180,7 @@ def test_charging_until_above_95_percent(tmp_path: Path) -> None:
     # docking 10 s + the charge curve from the SOC on arrival + undocking 10 s
     profile = out.scenario.fleet.vehicle.battery
     soc_arrival = soc_at[(arrived[0], 0)]
-    expected = 10 + profile.charge_time_s(soc_arrival, 95.1, 1.0) + 10
+    expected = 10 + charge_time_s(profile, soc_arrival, 95.1, 1.0) + 10
     assert done[0][0] - arrived[0] == pytest.approx(expected, abs=1e-6)
 
 
@@ -210,7 +211,7 @@ def test_shutdown_below_10_percent_not_above(tmp_path: Path) -> None:
     shutdown = error_events(out, "E_201")
     assert len(shutdown) == 1
     assert shutdown[0][0] == pytest.approx(18.0, abs=1e-6)
-    assert all(s >= 10.0 - 1e-9 for t, _, s in out.recorder.soc_trace if t < 18.0)
+    assert all(s >= 10.0 - 1e-9 for t, _, s in out.recorder.soc_samples if t < 18.0)
 
 
 def test_safe_mode_when_no_link_low_battery_and_no_charger(tmp_path: Path) -> None:

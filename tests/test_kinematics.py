@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fleet_sim.kinematics import piece_time, stop_entry_speed, traverse
+from fleet_sim.model.kinematics import piece_time, stop_entry_speed, traverse
 
 
 def gridded_time(pieces: list[tuple[float, float]], v_in: float, v_end: float, accel: float,

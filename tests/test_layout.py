@@ -10,8 +10,8 @@ import networkx as nx
 import pytest
 import yaml
 
+from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.errors import InputError
-from fleet_sim.layout import Layout, load_layout
 
 from .conftest import LAYOUTS, write_yaml
 

@@ -1,9 +1,10 @@
-"""ruff and mypy run as part of the tests."""
+"""ruff, mypy and the import contract (import-linter) run as part of the tests."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 from .conftest import ROOT
 
@@ -17,4 +18,11 @@ def test_ruff() -> None:
 def test_mypy() -> None:
     result = subprocess.run([sys.executable, "-m", "mypy"], cwd=ROOT, capture_output=True,
                             text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_import_contract() -> None:
+    """The direction of imports in pyproject.toml's [tool.importlinter] holds."""
+    lint = Path(sys.executable).with_name("lint-imports")
+    result = subprocess.run([str(lint), "--no-cache"], cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 0, result.stdout + result.stderr

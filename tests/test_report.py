@@ -12,10 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from fleet_sim.experiment import load_experiment
-from fleet_sim.report import write_report
-from fleet_sim.sizing import size_fleet
-from fleet_sim.sweep import sweep
+from fleet_sim.config.experiment import load_experiment
+from fleet_sim.report.html import write_report
+from fleet_sim.study.sizing import size_fleet
+from fleet_sim.study.sweep import sweep
 
 from .conftest import LAYOUTS, write_yaml
 

@@ -8,15 +8,15 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fleet_sim.errors import InputError
-from fleet_sim.scenario import (
+from fleet_sim.config.scenario import (
     Scenario,
     VehicleProfile,
     load_layout_for,
     load_scenario,
     resolved,
 )
-from fleet_sim.trace import load_trace
+from fleet_sim.config.trace import load_trace
+from fleet_sim.errors import InputError
 
 from .conftest import LAYOUTS, ROOT, write_yaml
 
@@ -31,11 +31,11 @@ def test_vehicle_defaults_are_the_specs_parameters() -> None:
 
 
 def test_bundled_scenarios_load() -> None:
-    from fleet_sim.experiment import load_experiment
+    from fleet_sim.config.experiment import load_experiment
 
     for path in sorted((ROOT / "experiments").glob("*.yaml")):
         if "scenario" in (yaml.safe_load(path.read_text(encoding="utf-8")) or {}):
-            load_experiment(path, check_kpis=False)  # an experiment file (fleet_sim.experiment)
+            load_experiment(path, check_kpis=False)  # an experiment file
             continue
         scenario = load_scenario(path)
         load_layout_for(scenario, str(path))

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from fleet_sim.experiment import load_experiment
-from fleet_sim.scenario import load_scenario
-from fleet_sim.sizing import analytic_estimate, size_fleet
+from fleet_sim.config.experiment import load_experiment
+from fleet_sim.config.scenario import load_scenario
+from fleet_sim.study.sizing import analytic_estimate, size_fleet
 
 from .conftest import ROOT
 from .test_engine import HALF_LOOP_S

@@ -9,11 +9,11 @@ from dataclasses import dataclass
 
 import pytest
 
-from fleet_sim.engine import Model, build_model
-from fleet_sim.layout import Layout
-from fleet_sim.state_machine import TABLE, TRANSITIONS, InvalidTransition
-from fleet_sim.states import State
-from fleet_sim.vehicle import Vehicle
+from fleet_sim.config.layout import Layout
+from fleet_sim.model.state_machine import TABLE, TRANSITIONS, InvalidTransition
+from fleet_sim.model.states import State
+from fleet_sim.sim.agents.vehicle import Vehicle
+from fleet_sim.sim.engine import Model, build_model
 
 from .conftest import make_scenario
 
@@ -142,7 +142,7 @@ BREAK_GUARD: dict[str, Callable[[Vehicle], None]] = {
 @pytest.mark.parametrize("transition", TRANSITIONS, ids=lambda t: f"{t.source}-{t.event}")
 def test_each_transition(harness: Harness, transition: object, monkeypatch: pytest.MonkeyPatch,
                          tiny_layout: Layout) -> None:
-    from fleet_sim.state_machine import Transition
+    from fleet_sim.model.state_machine import Transition
     assert isinstance(transition, Transition)
     agv = harness.agv
     agv.model_charger = tiny_layout.places["PICK"]  # type: ignore[attr-defined]

@@ -8,8 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fleet_sim.experiment import Target
-from fleet_sim.stats import (
+from fleet_sim.analysis.stats import (
     check_targets,
     decide,
     mean_ci,
@@ -18,6 +17,7 @@ from fleet_sim.stats import (
     replications_needed,
     t_quantile,
 )
+from fleet_sim.config.experiment import Target
 
 T_3DF = 3.182446  # two-sided 95 %, 3 degrees of freedom (any t table)
 T_2DF = 4.302653

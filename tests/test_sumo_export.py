@@ -11,10 +11,10 @@ from pathlib import Path
 
 import pytest
 
+from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.config.vehicle import VehicleProfile
 from fleet_sim.errors import InputError
-from fleet_sim.layout import Layout, load_layout
-from fleet_sim.scenario import VehicleProfile
-from fleet_sim.sumo_export import edge_id, export, read_edges
+from fleet_sim.sim.motion.sumo_network import edge_id, export, read_edges
 
 from .conftest import LAYOUTS, ROOT, write_yaml
 

@@ -1,6 +1,6 @@
 """`motion: sumo`: every bundled scenario runs, runs repeat, faults and obstacles work, libsumo
 stays out of closed-form runs, and bad settings are named. Every SUMO run here is in its own
-process (fleet_sim.crosscheck.run_isolated), as libsumo requires."""
+process (fleet_sim.study.crosscheck.run_isolated), as libsumo requires."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import sys
 
 import pytest
 
-from fleet_sim.crosscheck import run_isolated
 from fleet_sim.errors import InputError
+from fleet_sim.study.crosscheck import run_isolated
 
 from .conftest import ROOT, make_scenario
 
@@ -56,8 +56,8 @@ def _python(code: str) -> subprocess.CompletedProcess[str]:
 def test_closed_form_runs_never_load_libsumo() -> None:
     code = ("import sys\n"
             "from tests.conftest import make_scenario, LAYOUTS\n"
-            "from fleet_sim.layout import load_layout\n"
-            "from fleet_sim.engine import simulate\n"
+            "from fleet_sim.config.layout import load_layout\n"
+            "from fleet_sim.sim.engine import simulate\n"
             "simulate(make_scenario(duration_h=0.1, warmup_h=0.0),"
             " load_layout(LAYOUTS / 'tiny_loop.yaml'))\n"
             "print('libsumo' in sys.modules)\n")
@@ -67,8 +67,8 @@ def test_closed_form_runs_never_load_libsumo() -> None:
 
 def test_one_sumo_simulation_per_process() -> None:
     code = ("from tests.conftest import make_scenario, LAYOUTS\n"
-            "from fleet_sim.layout import load_layout\n"
-            "from fleet_sim.engine import build_model\n"
+            "from fleet_sim.config.layout import load_layout\n"
+            "from fleet_sim.sim.engine import build_model\n"
             "from fleet_sim.errors import SimulationError\n"
             "layout = load_layout(LAYOUTS / 'tiny_loop.yaml')\n"
             "scenario = make_scenario(duration_h=0.1, warmup_h=0.0, motion='sumo')\n"

@@ -16,8 +16,8 @@ import duckdb
 import pandas as pd
 import pytest
 
-from fleet_sim.experiment import Experiment, load_experiment
-from fleet_sim.sweep import CRASHED, FAILED, OK, execute_run, node_waits, sweep
+from fleet_sim.config.experiment import Experiment, load_experiment
+from fleet_sim.study.sweep import CRASHED, FAILED, OK, execute_run, node_waits, sweep
 
 from . import sweep_helpers
 from .conftest import ROOT, write_yaml
@@ -165,14 +165,14 @@ def test_dask_cluster_gives_the_same_results_and_duckdb_queries_them(tmp_path: P
 
 
 def test_node_waits_add_up_to_the_engine_blocked_time(tmp_path: Path) -> None:
-    from fleet_sim.engine import simulate
-    from fleet_sim.experiment import layout_for
-    from fleet_sim.results import events_table
-    from fleet_sim.scenario import load_scenario
+    from fleet_sim.analysis.results import events_table
+    from fleet_sim.config.experiment import layout_for
+    from fleet_sim.config.scenario import load_scenario
+    from fleet_sim.sim.engine import simulate
 
     scenario = load_scenario(TINY, {"fleet.size": 3, "duration_h": 3, "warmup_h": 0.5,
                                     "demand.rate_per_hour": 45, "seed": 5})
-    run = simulate(scenario, layout_for(scenario, TINY), trace_occupancy=True)
+    run = simulate(scenario, layout_for(scenario, TINY), record_occupancy=True)
     waits = node_waits(run.recorder.occupancy, events_table(run), scenario.warmup_s,
                        scenario.duration_s)
     assert run.recorder.blocked_s > 100  # a run with traffic worth checking
@@ -182,7 +182,7 @@ def test_node_waits_add_up_to_the_engine_blocked_time(tmp_path: Path) -> None:
 
 
 def test_results_folder_of_another_experiment_is_refused(tmp_path: Path) -> None:
-    from fleet_sim.sweep import SweepError
+    from fleet_sim.study.sweep import SweepError
 
     out = tmp_path / "out"
     sweep(tiny_experiment(tmp_path, factors={"fleet.size": [1]}, replications=1), out,

@@ -1,0 +1,1 @@
+"""Run records -> KPIs, tables and statistics."""

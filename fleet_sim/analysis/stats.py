@@ -1,0 +1,217 @@
+"""Statistics across replications: means, 95 % confidence intervals, paired differences, and
+whether an interval is narrow enough to decide against a target.
+
+Decisions, where the issue is silent:
+
+* Intervals are two-sided Student t intervals of the mean over replications (n - 1 degrees of
+  freedom); with one replication there is no interval (NaN).
+* A design point *meets* a target with 95 % confidence when the whole 95 % interval lies on the
+  good side of the bound, *fails* it when the whole interval lies on the bad side, and is
+  *undecided* otherwise. (Each side is thus a one-sided test at 2.5 %; several targets are not
+  adjusted for multiplicity: every one of them must be met on its own.) A replication with no
+  value for a target's KPI (such as a p95 lead time when nothing was delivered) fails it.
+* Replications needed to decide: the smallest n with t(n-1) * s / sqrt(n) < |mean - bound|, with
+  the sample standard deviation s as it stands; none when the mean sits on the bound.
+* Paired differences compare adjacent levels of one factor with every other factor held fixed,
+  replication by replication (the same seed, so common random numbers cancel shared noise).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from scipy.special import stdtrit
+
+from fleet_sim.config.experiment import Target
+
+CONFIDENCE = 0.95
+NOT_KPIS = {"replication", "seed", "point", "agvs_requested"}
+MAX_REPLICATIONS_ADVISED = 10_000
+
+
+@dataclass(frozen=True)
+class Interval:
+    n: int
+    mean: float
+    sd: float
+    half_width: float
+
+    @property
+    def low(self) -> float:
+        return self.mean - self.half_width
+
+    @property
+    def high(self) -> float:
+        return self.mean + self.half_width
+
+
+def t_quantile(n: int, confidence: float = CONFIDENCE) -> float:
+    """Two-sided Student t quantile for n observations (n - 1 degrees of freedom)."""
+    return float(stdtrit(n - 1, 0.5 + confidence / 2))
+
+
+def mean_ci(values: Sequence[float] | np.ndarray, confidence: float = CONFIDENCE) -> Interval:
+    """Mean and half-width of the Student t interval of `values` (NaNs dropped)."""
+    x = np.asarray(values, dtype=float)
+    x = x[~np.isnan(x)]
+    n = len(x)
+    if n == 0:
+        return Interval(0, math.nan, math.nan, math.nan)
+    mean = float(x.mean())
+    if n == 1:
+        return Interval(1, mean, math.nan, math.nan)
+    sd = float(x.std(ddof=1))
+    return Interval(n, mean, sd, t_quantile(n, confidence) * sd / math.sqrt(n))
+
+
+def decide(values: Sequence[float] | np.ndarray, target: Target) -> str:
+    """'meets', 'fails' or 'undecided': where the 95 % interval lies against the bound."""
+    x = np.asarray(values, dtype=float)
+    if len(x) == 0:
+        return "undecided"
+    if np.isnan(x).any():
+        return "fails"  # a replication without a value (nothing delivered) cannot meet it
+    ci = mean_ci(x)
+    if ci.n < 2:
+        return "undecided"
+    good_low, good_high = (ci.low, ci.high) if target.higher_is_better else (-ci.high, -ci.low)
+    bound = target.bound if target.higher_is_better else -target.bound
+    if good_low >= bound:
+        return "meets"
+    if good_high < bound:
+        return "fails"
+    return "undecided"
+
+
+def replications_needed(sd: float, distance: float, n_now: int = 2,
+                        confidence: float = CONFIDENCE) -> int | None:
+    """Smallest n >= max(2, n_now) whose interval half-width is below `distance`; None if the
+    mean sits on the bound (no n decides) or more than MAX_REPLICATIONS_ADVISED would be needed."""
+    distance = abs(distance)
+    if distance == 0 or math.isnan(distance) or math.isnan(sd):
+        return None
+    n = max(2, n_now)
+    while n <= MAX_REPLICATIONS_ADVISED:
+        if t_quantile(n, confidence) * sd / math.sqrt(n) < distance:
+            return n
+        n += 1
+    return None
+
+
+def kpi_columns(summary: pd.DataFrame, factor_names: Sequence[str]) -> list[str]:
+    """Numeric KPI columns of a sweep summary."""
+    skip = set(factor_names) | NOT_KPIS
+    return [c for c in summary.columns
+            if c not in skip and pd.api.types.is_numeric_dtype(summary[c])
+            and not pd.api.types.is_bool_dtype(summary[c])]
+
+
+def _ok(summary: pd.DataFrame) -> pd.DataFrame:
+    if "status" not in summary.columns:
+        return summary
+    return summary[summary["status"] == "ok"]
+
+
+def point_stats(summary: pd.DataFrame, factor_names: Sequence[str]) -> pd.DataFrame:
+    """Long table: one row per design point and KPI with n, mean, sd and the 95 % interval."""
+    ok = _ok(summary)
+    columns = [*factor_names, "kpi", "n", "mean", "sd", "half_width", "ci_low", "ci_high"]
+    if ok.empty:
+        return pd.DataFrame({c: pd.Series(dtype="float64") for c in columns})
+    rows: list[dict[str, Any]] = []
+    kpis = kpi_columns(ok, factor_names)
+    groups = ok.groupby(list(factor_names), sort=True, dropna=False) if factor_names \
+        else [((), ok)]
+    for key, group in groups:
+        values = key if isinstance(key, tuple) else (key,)
+        for kpi in kpis:
+            ci = mean_ci(group[kpi].to_numpy(dtype=float, na_value=np.nan))
+            rows.append({**dict(zip(factor_names, values, strict=True)), "kpi": kpi,
+                         "n": ci.n, "mean": ci.mean, "sd": ci.sd, "half_width": ci.half_width,
+                         "ci_low": ci.low, "ci_high": ci.high})
+    return pd.DataFrame(rows, columns=columns)
+
+
+def paired_differences(summary: pd.DataFrame, factor: str, factor_names: Sequence[str],
+                       kpis: Sequence[str]) -> pd.DataFrame:
+    """Adjacent levels of `factor`, others fixed: mean and 95 % CI of (next - this) per KPI,
+    over the replications both levels ran."""
+    ok = _ok(summary)
+    others = [f for f in factor_names if f != factor]
+    columns = [*others, "kpi", "from_level", "to_level", "pairs", "mean_diff", "half_width",
+               "ci_low", "ci_high"]
+    rows: list[dict[str, Any]] = []
+    groups = ok.groupby(others, sort=True, dropna=False) if others else [((), ok)]
+    for key, group in groups:
+        fixed = dict(zip(others, key if isinstance(key, tuple) else (key,), strict=True))
+        levels = sorted(group[factor].dropna().unique())
+        for a, b in itertools.pairwise(levels):
+            left = group[group[factor] == a].set_index("replication")
+            right = group[group[factor] == b].set_index("replication")
+            common = left.index.intersection(right.index)
+            for kpi in kpis:
+                diff = (right.loc[common, kpi].astype(float) - left.loc[common, kpi].astype(float))
+                ci = mean_ci(diff.to_numpy(dtype=float, na_value=np.nan))
+                rows.append({**fixed, "kpi": kpi, "from_level": a, "to_level": b,
+                             "pairs": ci.n, "mean_diff": ci.mean, "half_width": ci.half_width,
+                             "ci_low": ci.low, "ci_high": ci.high})
+    return pd.DataFrame(rows, columns=columns)
+
+
+@dataclass(frozen=True)
+class TargetCheck:
+    """One design point against one target."""
+
+    point: dict[str, Any]
+    target: Target
+    decision: str
+    interval: Interval
+    needed: int | None
+    """Replications that would decide an undecided point (None: none would, or decided)."""
+
+    def warning(self) -> str | None:
+        if self.decision != "undecided":
+            return None
+        where = ", ".join(f"{k}={v}" for k, v in self.point.items()) or "the scenario"
+        ci = self.interval
+        if ci.n < 2:
+            return (f"{where}: {self.target.describe()} cannot be decided from {ci.n} "
+                    "replication: run at least 2")
+        text = (f"{where}: the 95 % CI of {self.target.kpi} [{ci.low:.4g}, {ci.high:.4g}] "
+                f"straddles the target ({self.target.describe()}) with {ci.n} replications")
+        if self.needed is None:
+            return text + "; the mean sits on the bound, so more replications will not decide it"
+        return text + f"; about {self.needed} replications would narrow it enough to decide"
+
+
+def check_targets(summary: pd.DataFrame, factor_names: Sequence[str],
+                  targets: Sequence[Target]) -> list[TargetCheck]:
+    """Every design point against every target."""
+    ok = _ok(summary)
+    checks: list[TargetCheck] = []
+    if ok.empty:
+        return checks
+    groups = ok.groupby(list(factor_names), sort=True, dropna=False) if factor_names \
+        else [((), ok)]
+    for key, group in groups:
+        point = dict(zip(factor_names, key if isinstance(key, tuple) else (key,), strict=True))
+        for target in targets:
+            values = group[target.kpi].to_numpy(dtype=float, na_value=np.nan) \
+                if target.kpi in group else np.array([np.nan])
+            checks.append(target_check(point, target, values))
+    return checks
+
+
+def target_check(point: dict[str, Any], target: Target, values: np.ndarray) -> TargetCheck:
+    decision = decide(values, target)
+    ci = mean_ci(values)
+    needed = None
+    if decision == "undecided" and ci.n >= 2:
+        needed = replications_needed(ci.sd, ci.mean - target.bound, ci.n + 1)
+    return TargetCheck(point, target, decision, ci, needed)

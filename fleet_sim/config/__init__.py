@@ -1,0 +1,1 @@
+"""User-written files: layout, scenario, experiment, trace (validated models, loaders)."""

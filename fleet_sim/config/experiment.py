@@ -1,0 +1,445 @@
+"""Experiment files -> a validated design: every run of a study, with its factors and seed.
+
+An experiment file names a base scenario, the factors to vary (any scenario field by its dotted
+path, such as ``fleet.size`` or ``demand.rate_per_hour``), a design, the number of replications,
+a master seed and the targets a planner must meet. Example::
+
+    name: warehouse_sizing
+    scenario: warehouse_shift.yaml          # relative to this file
+    overrides: {warmup_h: 0.25}             # set in every run
+    factors:
+      fleet.size: [6, 8, 10, 12]            # levels (full factorial or Latin hypercube)
+      demand.rate_per_hour: {min: 80, max: 120}   # a range (Latin hypercube only)
+    design: full_factorial                  # or latin_hypercube, with `samples`
+    replications: 4
+    master_seed: 2024
+    targets:
+      - {kpi: throughput_pct_of_demand, at_least: 98}
+      - {kpi: lead_time_p95_s, at_most: 600}
+    sizing: {min_agvs: 4, max_agvs: 20, max_replications: 12}
+
+Decisions, where the issue is silent:
+
+* Seeds. Replication r of every design point runs with the seed
+  ``SeedSequence(master_seed, spawn_key=(r,))`` (the same child as
+  ``SeedSequence(master_seed).spawn(n)[r]``), reduced to a 32-bit integer for the scenario's
+  ``seed``. The same replication index gets the same seed at every factor level (common random
+  numbers), so comparisons between levels are paired; replications added later (by the sizing
+  search) get the seeds they would have had in a larger experiment. ``seed`` may not be a factor.
+* Validation builds a real scenario for every design point (so a bad dotted path, a bad level or
+  a combination the layout cannot hold, such as more AGVs than parking places, is an error naming
+  the experiment file, the factor and the level), and checks every target's KPI against the KPIs
+  of a very short real run, so a misspelt KPI fails before hours of simulation.
+* Run ids are readable and depend only on the factor values and the replication
+  (``fleet.size=8__r03``), so a sweep and a sizing search over the same experiment share their
+  runs, and adding levels later does not rename finished runs.
+* A Latin hypercube draws `samples` points; a factor given as levels is sampled by stratified
+  index over its levels, one given as ``{min, max}`` uniformly within its stratum (rounded for
+  ``integer: true``). Its random stream is ``SeedSequence(master_seed, spawn_key=(2**32,))``, apart
+  from every replication's.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+import tempfile
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from fleet_sim.config.confparse import build, read_yaml, to_plain
+from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.config.scenario import Scenario, check_against_layout, load_scenario
+from fleet_sim.config.trace import TraceOrder
+from fleet_sim.errors import InputError
+
+FLEET = "fleet.size"
+"""The factor the sizing search varies."""
+
+DERIVED_KPIS = ("demand_per_hour", "throughput_pct_of_demand", "orders_open_at_end", "wall_s")
+"""KPIs the experiment layer adds to the engine's (see fleet_sim.study.sweep)."""
+
+LHS_STREAM = 2**32
+
+
+@dataclass(frozen=True)
+class Range:
+    """A continuous (or integer) factor range, for Latin hypercube designs."""
+
+    min: float
+    max: float
+    integer: bool = False
+
+    def check(self, file: str, element: str) -> None:
+        if not self.min < self.max:
+            raise InputError(file, f"{element}.max", self.max, f"a number > min ({self.min})")
+
+
+@dataclass(frozen=True)
+class Target:
+    """A KPI bound that every recommended configuration must meet."""
+
+    kpi: str
+    at_least: float | None = None
+    at_most: float | None = None
+
+    def check(self, file: str, element: str) -> None:
+        if (self.at_least is None) == (self.at_most is None):
+            raise InputError(file, element, {"kpi": self.kpi}, "exactly one of at_least, at_most")
+
+    @property
+    def bound(self) -> float:
+        value = self.at_least if self.at_least is not None else self.at_most
+        assert value is not None
+        return value
+
+    @property
+    def higher_is_better(self) -> bool:
+        return self.at_least is not None
+
+    def describe(self) -> str:
+        return f"{self.kpi} {'>=' if self.higher_is_better else '<='} {self.bound:g}"
+
+    def met_by(self, value: float) -> bool:
+        return value >= self.bound if self.higher_is_better else value <= self.bound
+
+
+@dataclass(frozen=True)
+class SizingConfig:
+    """The fleet-size search of `fleet-sim size`."""
+
+    min_agvs: int | None = None
+    """Smallest fleet to consider; default: the lowest fleet.size level, else 1."""
+    max_agvs: int | None = None
+    """Largest fleet to consider; default: the highest fleet.size level, else 50."""
+    max_replications: int = 12
+    """Replications a close decision may grow to, from the experiment's `replications`."""
+    agv_availability: float = 1.0
+    """Share of each AGV-hour available for orders, for the analytic estimate (charging,
+    breaks); 1.0 while the runs model no charging."""
+
+    def check(self, file: str, element: str) -> None:
+        if self.min_agvs is not None and self.min_agvs < 1:
+            raise InputError(file, f"{element}.min_agvs", self.min_agvs, "an integer >= 1")
+        if (self.min_agvs is not None and self.max_agvs is not None
+                and self.max_agvs < self.min_agvs):
+            raise InputError(file, f"{element}.max_agvs", self.max_agvs,
+                             f"an integer >= min_agvs ({self.min_agvs})")
+        if self.max_replications < 2:
+            raise InputError(file, f"{element}.max_replications", self.max_replications,
+                             "an integer >= 2 (a confidence interval needs two)")
+        if not 0 < self.agv_availability <= 1:
+            raise InputError(file, f"{element}.agv_availability", self.agv_availability,
+                             "a share in (0, 1]")
+
+
+@dataclass(frozen=True)
+class ExperimentSpec:
+    """The experiment file as written (before the design is expanded)."""
+
+    scenario: str
+    """Base scenario file, relative to the experiment file."""
+    name: str = "experiment"
+    description: str = ""
+    overrides: dict[str, Any] = field(default_factory=dict)
+    """Scenario fields (dotted paths) set in every run."""
+    factors: dict[str, Any] = field(default_factory=dict)
+    """Dotted scenario path -> list of levels, or {min, max, integer} (Latin hypercube)."""
+    design: Literal["full_factorial", "latin_hypercube"] = "full_factorial"
+    samples: int = 0
+    """Design points of a Latin hypercube."""
+    replications: int = 3
+    master_seed: int = 1
+    targets: tuple[Target, ...] = ()
+    sizing: SizingConfig = SizingConfig()
+
+    def check(self, file: str, element: str) -> None:
+        if self.replications < 1:
+            raise InputError(file, "replications", self.replications, "an integer >= 1")
+        if self.master_seed < 0:
+            raise InputError(file, "master_seed", self.master_seed, "an integer >= 0")
+        if self.design == "latin_hypercube" and self.samples < 1:
+            raise InputError(file, "samples", self.samples,
+                             "an integer >= 1 (design points of the Latin hypercube)")
+        if self.design == "full_factorial" and self.samples:
+            raise InputError(file, "samples", self.samples,
+                             "no samples for a full-factorial design (every level combination "
+                             "runs)")
+        if not re.fullmatch(r"[A-Za-z0-9_.-]+", self.name):
+            raise InputError(file, "name", self.name,
+                             "letters, digits, '_', '.', '-' (it names the results folder)")
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run: a design point, a replication and its seed. Picklable, sent to workers."""
+
+    run_id: str
+    point: int
+    factors: tuple[tuple[str, Any], ...]
+    replication: int
+    seed: int
+    scenario_file: str
+    overrides: tuple[tuple[str, Any], ...]
+    """Every override of the base scenario: the experiment's, the factors', the seed."""
+
+    def factor_dict(self) -> dict[str, Any]:
+        return dict(self.factors)
+
+    def override_dict(self) -> dict[str, Any]:
+        return dict(self.overrides)
+
+    def as_json(self) -> dict[str, Any]:
+        return {"run_id": self.run_id, "point": self.point, "factors": self.factor_dict(),
+                "replication": self.replication, "seed": self.seed,
+                "scenario_file": self.scenario_file, "overrides": self.override_dict()}
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A loaded, validated experiment: the spec, where it came from, and its design points."""
+
+    spec: ExperimentSpec
+    file: Path
+    points: tuple[tuple[tuple[str, Any], ...], ...]
+    """Design points in run order: each a tuple of (dotted path, value) in factor order."""
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def scenario_file(self) -> Path:
+        p = Path(self.spec.scenario)
+        return (p if p.is_absolute() else self.file.parent / p).resolve()
+
+    @property
+    def factor_names(self) -> list[str]:
+        return list(self.spec.factors)
+
+    def run(self, factors: Mapping[str, Any], replication: int, point: int = -1) -> RunSpec:
+        """The run of design point `factors` (any factor values) at `replication`."""
+        seed = replication_seed(self.spec.master_seed, replication)
+        overrides = {**self.spec.overrides, **factors, "seed": seed}
+        return RunSpec(run_id(factors, replication), point, tuple(factors.items()), replication,
+                       seed, str(self.scenario_file), tuple(overrides.items()))
+
+    def runs(self) -> list[RunSpec]:
+        """Every run of the design: each point times each replication."""
+        return [self.run(dict(point), r, i) for i, point in enumerate(self.points)
+                for r in range(self.spec.replications)]
+
+    def scenario(self, factors: Mapping[str, Any] | None = None) -> Scenario:
+        """The base scenario with the experiment's overrides (and `factors`) applied."""
+        return load_scenario(self.scenario_file, {**self.spec.overrides, **(factors or {})})
+
+    def resolved(self) -> dict[str, Any]:
+        """The experiment with every default written out and paths made absolute."""
+        plain = to_plain(self.spec)
+        assert isinstance(plain, dict)
+        plain["scenario"] = str(self.scenario_file)
+        plain["experiment_file"] = str(self.file.resolve())
+        return plain
+
+
+def replication_seed(master_seed: int, replication: int) -> int:
+    """The scenario seed of replication `replication`: the same at every factor level."""
+    child = np.random.SeedSequence(master_seed, spawn_key=(replication,))
+    return int(child.generate_state(1, np.uint32)[0])
+
+
+def run_id(factors: Mapping[str, Any], replication: int) -> str:
+    """A readable, stable folder name for a run, from its factor values and replication."""
+    parts = [f"{path}={_fmt(value)}" for path, value in sorted(factors.items())]
+    text = "__".join([*parts, f"r{replication:02d}"])
+    text = re.sub(r"[^A-Za-z0-9_.=+-]", "-", text)
+    if len(text) > 120:
+        import hashlib
+        digest = hashlib.sha1(text.encode()).hexdigest()[:12]
+        text = f"p{digest}__r{replication:02d}"
+    return text
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, (list, tuple, dict)):
+        return re.sub(r"\s+", "", str(value))
+    return str(value)
+
+
+def load_experiment(path: str | Path, check_kpis: bool = True) -> Experiment:
+    """Read and validate an experiment file; every error names the file and the element."""
+    path = Path(path)
+    file = str(path)
+    data = read_yaml(path)
+    spec = build(ExperimentSpec, data, file)
+    scenario_file = Path(spec.scenario)
+    if not scenario_file.is_absolute():
+        scenario_file = path.parent / scenario_file
+    if not scenario_file.exists():
+        raise InputError(file, "scenario", spec.scenario,
+                         f"an existing scenario file (looked for {scenario_file})")
+    for key in spec.overrides:
+        _check_path(file, f"overrides.{key}", key)
+    levels: dict[str, list[Any]] = {}
+    ranges: dict[str, Range] = {}
+    for key, value in spec.factors.items():
+        _check_path(file, f"factors.{key}", key)
+        if key in spec.overrides:
+            raise InputError(file, f"factors.{key}", value,
+                             "a field not also set in overrides (the factor varies it)")
+        if isinstance(value, list):
+            if not value:
+                raise InputError(file, f"factors.{key}", value, "a list of at least one level")
+            if len({repr(v) for v in value}) != len(value):
+                raise InputError(file, f"factors.{key}", value, "distinct levels")
+            levels[key] = value
+        elif isinstance(value, Mapping):
+            if spec.design != "latin_hypercube":
+                raise InputError(file, f"factors.{key}", value,
+                                 "a list of levels ({min, max} ranges need design: "
+                                 "latin_hypercube)")
+            ranges[key] = build(Range, value, file, f"factors.{key}")
+        else:
+            raise InputError(file, f"factors.{key}", value,
+                             "a list of levels, or {min, max} for a Latin hypercube")
+    if spec.design == "full_factorial":
+        points = full_factorial(levels)
+    else:
+        points = latin_hypercube(levels, ranges, spec.samples, spec.master_seed,
+                                 list(spec.factors))
+    experiment = Experiment(spec, path, tuple(tuple(p.items()) for p in points))
+    _check_scenarios(experiment, levels)
+    if check_kpis and spec.targets:
+        known = known_kpis(experiment)
+        for i, target in enumerate(spec.targets):
+            if target.kpi not in known:
+                raise InputError(file, f"targets[{i}].kpi", target.kpi,
+                                 "a KPI of the runs (" + ", ".join(sorted(known)) + ")")
+    return experiment
+
+
+def _check_path(file: str, element: str, key: str) -> None:
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*", key):
+        raise InputError(file, element, key, "a dotted scenario path such as fleet.size")
+    if key in ("seed", "layout"):
+        why = ("seeds come from master_seed and the replication" if key == "seed"
+               else "one layout per experiment: set it in the scenario")
+        raise InputError(file, element, key, f"another scenario field ({why})")
+
+
+def full_factorial(levels: Mapping[str, list[Any]]) -> list[dict[str, Any]]:
+    """Every combination of levels, the last factor varying fastest."""
+    names = list(levels)
+    return [dict(zip(names, combo, strict=True))
+            for combo in itertools.product(*(levels[n] for n in names))]
+
+
+def latin_hypercube(levels: Mapping[str, list[Any]], ranges: Mapping[str, Range], samples: int,
+                    master_seed: int, order: list[str]) -> list[dict[str, Any]]:
+    """`samples` points; each factor's range (or level list) cut into `samples` strata, each
+    stratum used once, strata paired at random across factors."""
+    rng = np.random.default_rng(np.random.SeedSequence(master_seed, spawn_key=(LHS_STREAM,)))
+    points: list[dict[str, Any]] = [{} for _ in range(samples)]
+    for name in order:
+        u = (rng.permutation(samples) + rng.random(samples)) / samples
+        for i in range(samples):
+            if name in ranges:
+                r = ranges[name]
+                if r.integer:
+                    lo, hi = math.ceil(r.min), math.floor(r.max)
+                    value: Any = int(min(hi, lo + math.floor(u[i] * (hi - lo + 1))))
+                else:
+                    value = float(r.min + u[i] * (r.max - r.min))
+            else:
+                choices = levels[name]
+                value = choices[min(len(choices) - 1, int(u[i] * len(choices)))]
+            points[i][name] = value
+    return points
+
+
+@lru_cache(maxsize=8)
+def cached_layout(path: str, max_speed_mps: float) -> Layout:
+    """Layouts are read once per process (a sweep builds many scenarios on one layout)."""
+    return load_layout(path, max_speed_mps=max_speed_mps)
+
+
+def layout_for(scenario: Scenario, scenario_file: str) -> Layout:
+    """The scenario's layout (cached), checked against the scenario."""
+    layout_path = scenario.path(scenario.layout)
+    if not layout_path.exists():
+        raise InputError(scenario_file, "layout", scenario.layout,
+                         f"an existing layout file (looked for {layout_path})")
+    layout = cached_layout(str(layout_path.resolve()), scenario.fleet.vehicle.max_speed_mps)
+    check_against_layout(scenario, layout, scenario_file)
+    return layout
+
+
+def _check_scenarios(experiment: Experiment, levels: Mapping[str, list[Any]]) -> None:
+    """Build a real scenario for each level alone, then for every design point."""
+    file = str(experiment.file)
+    try:
+        base = experiment.scenario()
+        layout_for(base, str(experiment.scenario_file))
+    except InputError as exc:
+        raise InputError(file, "overrides" if experiment.spec.overrides else "scenario",
+                         exc.value, f"{exc.expected} (scenario field {exc.element}, "
+                         f"in {exc.file})") from None
+    for name, values in levels.items():
+        for i, value in enumerate(values):
+            try:
+                experiment.scenario({name: value})
+            except InputError as exc:
+                raise InputError(file, f"factors.{name}[{i}]", value,
+                                 f"a valid scenario field: {exc.element}: got {exc.value!r}; "
+                                 f"expected {exc.expected}") from None
+    for point in experiment.points:
+        factors = dict(point)
+        try:
+            scenario = experiment.scenario(factors)
+            layout_for(scenario, str(experiment.scenario_file))
+        except InputError as exc:
+            where = ", ".join(f"{k}={v}" for k, v in factors.items())
+            raise InputError(file, f"design point ({where})", exc.value,
+                             f"{exc.expected} (scenario field {exc.element})") from None
+
+
+def known_kpis(experiment: Experiment) -> set[str]:
+    """The KPI names a run of this experiment reports: from a very short real run."""
+    from fleet_sim.analysis.results import write_run
+    from fleet_sim.sim.engine import simulate
+
+    scenario = load_scenario(experiment.scenario_file,
+                             {**experiment.spec.overrides, "duration_h": 0.01, "warmup_h": 0.0})
+    layout = layout_for(scenario, str(experiment.scenario_file))
+    run = simulate(scenario, layout, load_trace_for(scenario, layout))
+    with tempfile.TemporaryDirectory() as tmp:
+        figures = write_run(run, Path(tmp))
+    return {k for k, v in figures.items() if not isinstance(v, str)} | set(DERIVED_KPIS)
+
+
+def load_trace_for(scenario: Scenario, layout: Layout) -> list[TraceOrder]:
+    """The scenario's order trace, or no orders for Poisson demand."""
+    if scenario.demand.kind != "trace":
+        return []
+    from fleet_sim.config.trace import load_trace
+
+    assert scenario.demand.trace_csv is not None
+    return load_trace(scenario.path(scenario.demand.trace_csv), layout)
+
+
+def iter_levels(experiment: Experiment, name: str) -> Iterator[Any]:
+    """The distinct values factor `name` takes in the design, in first-seen order."""
+    seen: set[str] = set()
+    for point in experiment.points:
+        value = dict(point)[name]
+        if repr(value) not in seen:
+            seen.add(repr(value))
+            yield value

@@ -1,0 +1,433 @@
+"""Layout files -> a validated networkx graph of nodes (RFID tags, junctions, stations, chargers,
+parking) and segments (magnetic-tape paths between them).
+
+The file format is described in docs/layout-format.md. Every problem found while loading names
+the file, the element (``segments[12].to``), the bad value and what was expected.
+
+Modelling decisions written down here because the engine relies on them:
+
+* A station's capacity is its number of docking nodes: one AGV per node at a time, as everywhere.
+* A parking area is an off-track buffer of ``capacity`` AGVs reached through its access node: an
+  AGV inside holds no node, so parked AGVs never block traffic.
+* Two-way segments form *corridors*: maximal chains of two-way segments between junctions (nodes
+  that also have one-way segments or meet three or more two-way segments). An AGV must hold a
+  corridor before it enters it (single-track rule), which rules out head-on deadlocks by
+  construction. A dead-end spur to a charger is a corridor too.
+* The turn an AGV makes at a node comes from the geometry of its incoming and outgoing segments
+  (left, right, straight, reverse); a segment's ``branch`` key overrides it for AGVs entering it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import networkx as nx
+
+from fleet_sim.config.confparse import build, read_yaml
+from fleet_sim.config.distributions import Duration
+from fleet_sim.errors import InputError
+
+NodeKind = Literal["tag", "junction", "station", "charger", "parking"]
+Branch = Literal["auto", "straight", "left", "right"]
+Turn = Literal["straight", "left", "right", "reverse"]
+
+STRAIGHT_WITHIN_DEG = 30.0
+"""Heading changes smaller than this are driven straight (no branch speed limit)."""
+REVERSE_BEYOND_DEG = 150.0
+"""Heading changes larger than this are a reversal: the AGV must stop at the node first."""
+
+
+Marker = Literal["speed_low", "speed_mid", "speed_high", "location", "spin", "pause"]
+MARKER_SPEED_MPS = {"speed_low": 0.2, "speed_mid": 0.5, "speed_high": 1.0}
+"""RSS-AGV-001 5.3: TYPE_SPD 0x01/0x02/0x03 set the speed to 0.2/0.5/1.0 m/s."""
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    id: str
+    x: float
+    y: float
+    kind: NodeKind = "tag"
+    marker: Marker | None = None
+    """RFID marker action (RSS-AGV-001 5.3): speed tags, location correction, spin, pause."""
+
+
+@dataclass(frozen=True)
+class SegmentSpec:
+    from_node: str = field(metadata={"key": "from"})
+    to_node: str = field(metadata={"key": "to"})
+    length_m: float | None = None
+    speed_limit_mps: float | None = None
+    direction: Literal["one_way", "two_way"] = "one_way"
+    branch: Branch = "auto"
+    rssi_dbm: float | None = None
+    """Wi-Fi signal on the segment; default: its zone's, else defaults.rssi_dbm."""
+
+
+@dataclass(frozen=True)
+class StationSpec:
+    id: str
+    kind: Literal["pickup", "dropoff"]
+    nodes: tuple[str, ...]
+    handling: Duration = field(default_factory=lambda: Duration("fixed", mean_s=20.0))
+
+
+@dataclass(frozen=True)
+class ChargerSpec:
+    id: str
+    node: str
+    power_kw: float = 3.0
+    docking_s: float = 30.0
+
+
+@dataclass(frozen=True)
+class ParkingSpec:
+    id: str
+    node: str
+    capacity: int = 1
+
+
+@dataclass(frozen=True)
+class LayoutDefaults:
+    speed_limit_mps: float = 1.0
+    turn_length_m: float = 1.0
+    """Length of the curve after a branch node, driven at the vehicle's turn speed (assumed)."""
+    rssi_dbm: float = -55.0
+    """Assumed: good Wi-Fi coverage where nothing else is said."""
+
+
+@dataclass(frozen=True)
+class ZoneSpec:
+    """An area of the floor (x_min, y_min, x_max, y_max in metres) whose segments (by their
+    midpoint) get their own Wi-Fi signal or obstacle rate."""
+
+    id: str
+    area_m: tuple[float, float, float, float]
+    rssi_dbm: float | None = None
+    obstacle_rate_per_km: float | None = None
+    obstacle_duration: Duration | None = None
+
+
+@dataclass(frozen=True)
+class LayoutSpec:
+    name: str
+    nodes: tuple[NodeSpec, ...]
+    segments: tuple[SegmentSpec, ...]
+    stations: tuple[StationSpec, ...]
+    parking: tuple[ParkingSpec, ...]
+    chargers: tuple[ChargerSpec, ...] = ()
+    description: str = ""
+    defaults: LayoutDefaults = LayoutDefaults()
+    zones: tuple[ZoneSpec, ...] = ()
+
+
+@dataclass(frozen=True)
+class Corridor:
+    """A chain of two-way segments that one AGV at a time may occupy."""
+
+    id: int
+    members: frozenset[str]
+    """Nodes inside the corridor (its junction ends are not members)."""
+    segments: frozenset[tuple[str, str]]
+    """Both directions of every segment in the corridor."""
+
+
+@dataclass(frozen=True)
+class Place:
+    """A station, charger or parking area as the engine sees it."""
+
+    id: str
+    kind: Literal["pickup", "dropoff", "charger", "parking"]
+    nodes: tuple[str, ...]
+    capacity: int
+    handling: Duration | None = None
+    power_kw: float = 0.0
+    docking_s: float = 0.0
+
+
+class Layout:
+    """A loaded, validated layout: the graph plus its places and corridors."""
+
+    def __init__(self, spec: LayoutSpec, file: str, graph: nx.DiGraph,
+                 corridors: list[Corridor]) -> None:
+        self.spec = spec
+        self.file = file
+        self.name = spec.name
+        self.graph = graph
+        self.corridors = corridors
+        self._corridor_of: dict[tuple[str, str], Corridor] = {
+            seg: c for c in corridors for seg in c.segments
+        }
+        self._corridor_at: dict[str, Corridor] = {n: c for c in corridors for n in c.members}
+        places: list[Place] = []
+        for s in spec.stations:
+            places.append(Place(s.id, s.kind, s.nodes, len(s.nodes), handling=s.handling))
+        for c in spec.chargers:
+            places.append(Place(c.id, "charger", (c.node,), 1, power_kw=c.power_kw,
+                                docking_s=c.docking_s))
+        for p in spec.parking:
+            places.append(Place(p.id, "parking", (p.node,), p.capacity))
+        self.places: dict[str, Place] = {p.id: p for p in places}
+        self.pickups = [p for p in places if p.kind == "pickup"]
+        self.dropoffs = [p for p in places if p.kind == "dropoff"]
+        self.chargers = [p for p in places if p.kind == "charger"]
+        self.parking = [p for p in places if p.kind == "parking"]
+        self.turn_length_m = spec.defaults.turn_length_m
+        self.markers = {n.id: n.marker for n in spec.nodes if n.marker is not None}
+
+    def corridor_of(self, u: str, v: str) -> Corridor | None:
+        return self._corridor_of.get((u, v))
+
+    def corridor_at(self, node: str) -> Corridor | None:
+        """The corridor that `node` lies inside (not at the junction end of), if any."""
+        return self._corridor_at.get(node)
+
+    def position(self, node: str) -> tuple[float, float]:
+        data = self.graph.nodes[node]
+        return float(data["x"]), float(data["y"])
+
+    def turn(self, prev: str | None, node: str, nxt: str) -> Turn:
+        """The turn an AGV arriving at `node` from `prev` makes to leave towards `nxt`."""
+        forced = self.graph.edges[node, nxt]["branch"]
+        if forced != "auto":
+            return forced  # type: ignore[no-any-return]
+        if prev is None:
+            return "straight"
+        if prev == nxt:
+            return "reverse"
+        ax, ay = self.position(prev)
+        bx, by = self.position(node)
+        cx, cy = self.position(nxt)
+        h1 = math.atan2(by - ay, bx - ax)
+        h2 = math.atan2(cy - by, cx - bx)
+        diff = math.degrees((h2 - h1 + math.pi) % (2 * math.pi) - math.pi)
+        if abs(diff) < STRAIGHT_WITHIN_DEG:
+            return "straight"
+        if abs(diff) > REVERSE_BEYOND_DEG:
+            return "reverse"
+        return "left" if diff > 0 else "right"
+
+    @property
+    def total_length_m(self) -> float:
+        """Length of tape, counting a two-way segment once."""
+        seen: set[frozenset[str]] = set()
+        total = 0.0
+        for u, v, data in self.graph.edges(data=True):
+            key = frozenset((u, v))
+            if key not in seen:
+                seen.add(key)
+                total += data["length_m"]
+        return total
+
+
+def load_layout(path: str | Path, max_speed_mps: float | None = None) -> Layout:
+    """Load and validate a layout file. `max_speed_mps` is the fleet's top speed, if known."""
+    path = Path(path)
+    file = str(path)
+    spec = build(LayoutSpec, read_yaml(path), file)
+    return layout_from_spec(spec, file, max_speed_mps)
+
+
+def layout_from_spec(spec: LayoutSpec, file: str, max_speed_mps: float | None = None) -> Layout:
+    graph = _build_graph(spec, file, max_speed_mps)
+    _check_places(spec, file, graph)
+    _check_connectivity(spec, file, graph)
+    return Layout(spec, file, graph, _find_corridors(graph))
+
+
+def _build_graph(spec: LayoutSpec, file: str, max_speed_mps: float | None) -> nx.DiGraph:
+    graph = nx.DiGraph()
+    first_index: dict[str, int] = {}
+    for i, node in enumerate(spec.nodes):
+        if node.id in first_index:
+            raise InputError(file, f"nodes[{i}].id", node.id,
+                             f"a unique node id (nodes[{first_index[node.id]}] has it already)")
+        first_index[node.id] = i
+        graph.add_node(node.id, x=node.x, y=node.y, kind=node.kind, index=i)
+    if spec.defaults.speed_limit_mps <= 0:
+        raise InputError(file, "defaults.speed_limit_mps", spec.defaults.speed_limit_mps,
+                         "a speed > 0 m/s")
+    if spec.defaults.turn_length_m < 0:
+        raise InputError(file, "defaults.turn_length_m", spec.defaults.turn_length_m,
+                         "a length >= 0 m")
+    for i, seg in enumerate(spec.segments):
+        where = f"segments[{i}]"
+        for key, node_id in (("from", seg.from_node), ("to", seg.to_node)):
+            if node_id not in first_index:
+                raise InputError(file, f"{where}.{key}", node_id, "the id of a node in `nodes`")
+        if seg.from_node == seg.to_node:
+            raise InputError(file, f"{where}.to", seg.to_node,
+                             f"a node other than its `from` ({seg.from_node})")
+        a = spec.nodes[first_index[seg.from_node]]
+        b = spec.nodes[first_index[seg.to_node]]
+        straight_m = math.hypot(b.x - a.x, b.y - a.y)
+        length = seg.length_m if seg.length_m is not None else straight_m
+        if length <= 0:
+            what = "length_m" if seg.length_m is not None else "length_m (from the coordinates)"
+            raise InputError(file, f"{where}.{what}", length, "a length > 0 m")
+        if length < straight_m - 1e-6:
+            raise InputError(file, f"{where}.length_m", length,
+                             f"at least the straight distance {straight_m:.3f} m between "
+                             f"{seg.from_node} and {seg.to_node}")
+        limit = seg.speed_limit_mps if seg.speed_limit_mps is not None \
+            else spec.defaults.speed_limit_mps
+        if limit <= 0:
+            raise InputError(file, f"{where}.speed_limit_mps", limit, "a speed > 0 m/s")
+        if max_speed_mps is not None and limit > max_speed_mps + 1e-9:
+            raise InputError(file, f"{where}.speed_limit_mps", limit,
+                             f"at most the vehicle's maximum speed {max_speed_mps} m/s")
+        ends = [(seg.from_node, seg.to_node)]
+        if seg.direction == "two_way":
+            ends.append((seg.to_node, seg.from_node))
+        for u, v in ends:
+            if graph.has_edge(u, v):
+                other = graph.edges[u, v]["index"]
+                raise InputError(file, where, f"{seg.from_node} -> {seg.to_node}",
+                                 f"one segment per pair of nodes (segments[{other}] already "
+                                 f"joins {u} -> {v})")
+            branch = seg.branch if (u, v) == (seg.from_node, seg.to_node) else "auto"
+            graph.add_edge(u, v, length_m=length, speed_limit_mps=limit,
+                           two_way=seg.direction == "two_way", branch=branch, index=i,
+                           rssi_dbm=seg.rssi_dbm, obstacle_rate_per_km=None,
+                           obstacle_duration=None)
+    _apply_zones(spec, file, graph)
+    for node in spec.nodes:
+        if graph.out_degree(node.id) == 0:
+            raise InputError(file, f"nodes[{first_index[node.id]}]", node.id,
+                             "a node with a way out (no segment leaves it)")
+    return graph
+
+
+def _apply_zones(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None:
+    """Segments take their zone's signal and obstacle rate (the first zone holding their
+    midpoint); a segment's own rssi_dbm wins; the layout default fills the rest."""
+    for i, spec_zone in enumerate(spec.zones):
+        x0, y0, x1, y1 = spec_zone.area_m
+        if x0 >= x1 or y0 >= y1:
+            raise InputError(file, f"zones[{i}].area_m", list(spec_zone.area_m),
+                             "[x_min, y_min, x_max, y_max] with x_min < x_max, y_min < y_max")
+        rate = spec_zone.obstacle_rate_per_km
+        if rate is not None and rate < 0:
+            raise InputError(file, f"zones[{i}].obstacle_rate_per_km", rate, "a rate >= 0")
+    for u, v, data in graph.edges(data=True):
+        mx = (graph.nodes[u]["x"] + graph.nodes[v]["x"]) / 2
+        my = (graph.nodes[u]["y"] + graph.nodes[v]["y"]) / 2
+        zone = next((z for z in spec.zones
+                     if z.area_m[0] <= mx <= z.area_m[2] and z.area_m[1] <= my <= z.area_m[3]),
+                    None)
+        if data["rssi_dbm"] is None:
+            data["rssi_dbm"] = zone.rssi_dbm if zone is not None and zone.rssi_dbm is not None \
+                else spec.defaults.rssi_dbm
+        if zone is not None:
+            data["obstacle_rate_per_km"] = zone.obstacle_rate_per_km
+            data["obstacle_duration"] = zone.obstacle_duration
+
+
+def _check_places(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None:
+    owner: dict[str, str] = {}
+    seen_ids: dict[str, str] = {}
+
+    def claim(where: str, place_id: str, node: str, kind: str) -> None:
+        if node not in graph:
+            raise InputError(file, where, node, "the id of a node in `nodes`")
+        if node in owner:
+            raise InputError(file, where, node, f"a node not already used by {owner[node]}")
+        owner[node] = place_id
+        actual = graph.nodes[node]["kind"]
+        if actual != kind:
+            raise InputError(file, where, node, f"a node of kind {kind!r} (it is {actual!r})")
+
+    def unique(where: str, place_id: str) -> None:
+        if place_id in seen_ids:
+            raise InputError(file, where, place_id, f"a unique id ({seen_ids[place_id]} has it)")
+        seen_ids[place_id] = where
+
+    for i, st in enumerate(spec.stations):
+        unique(f"stations[{i}].id", st.id)
+        if not st.nodes:
+            raise InputError(file, f"stations[{i}].nodes", [], "at least one docking node")
+        for j, node in enumerate(st.nodes):
+            claim(f"stations[{i}].nodes[{j}]", st.id, node, "station")
+    for i, ch in enumerate(spec.chargers):
+        unique(f"chargers[{i}].id", ch.id)
+        claim(f"chargers[{i}].node", ch.id, ch.node, "charger")
+        if ch.power_kw <= 0:
+            raise InputError(file, f"chargers[{i}].power_kw", ch.power_kw, "a power > 0 kW")
+        if ch.docking_s < 0:
+            raise InputError(file, f"chargers[{i}].docking_s", ch.docking_s, "a time >= 0 s")
+    for i, pk in enumerate(spec.parking):
+        unique(f"parking[{i}].id", pk.id)
+        claim(f"parking[{i}].node", pk.id, pk.node, "parking")
+        if pk.capacity < 1:
+            raise InputError(file, f"parking[{i}].capacity", pk.capacity, "an integer >= 1")
+    kinds = {st.kind for st in spec.stations}
+    for needed in ("pickup", "dropoff"):
+        if needed not in kinds:
+            raise InputError(file, "stations", f"no {needed} station",
+                             "at least one pickup and one dropoff station")
+    if not spec.parking:
+        raise InputError(file, "parking", [], "at least one parking area for idle AGVs")
+    for spec_node in spec.nodes:
+        if spec_node.kind in ("station", "charger", "parking") and spec_node.id not in owner:
+            raise InputError(file, f"nodes[{graph.nodes[spec_node.id]['index']}].kind",
+                             spec_node.kind, f"a node listed under {spec_node.kind}s "
+                             f"(node {spec_node.id} is not)")
+
+
+def _check_connectivity(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None:
+    """Every node must be reachable from every other one: an AGV can get anywhere and back."""
+    components = list(nx.strongly_connected_components(graph))
+    if len(components) == 1:
+        return
+    anchor = spec.stations[0].nodes[0]
+    main = next(c for c in components if anchor in c)
+    places: list[tuple[str, str, Iterable[str]]] = []
+    places += [(f"stations[{i}] ({s.id})", s.id, s.nodes) for i, s in enumerate(spec.stations)]
+    places += [(f"chargers[{i}] ({c.id})", c.id, (c.node,)) for i, c in enumerate(spec.chargers)]
+    places += [(f"parking[{i}] ({p.id})", p.id, (p.node,)) for i, p in enumerate(spec.parking)]
+    for where, _, nodes in places:
+        for node in nodes:
+            if node not in main:
+                raise InputError(file, where, node, _reach_problem(graph, node, anchor))
+    for spec_node in spec.nodes:
+        if spec_node.id not in main:
+            raise InputError(file, f"nodes[{graph.nodes[spec_node.id]['index']}]", spec_node.id,
+                             _reach_problem(graph, spec_node.id, anchor))
+
+
+def _reach_problem(graph: nx.DiGraph, node: str, anchor: str) -> str:
+    if not nx.has_path(graph, anchor, node):
+        return f"a node AGVs can reach (no path from {anchor} leads to it)"
+    return f"a node AGVs can leave (no path from it leads back to {anchor})"
+
+
+def _find_corridors(graph: nx.DiGraph) -> list[Corridor]:
+    two_way = nx.Graph()
+    for u, v, data in graph.edges(data=True):
+        if data["two_way"]:
+            two_way.add_edge(u, v)
+    junctions = {
+        n for n in two_way.nodes
+        if two_way.degree(n) >= 3
+        or any(not graph.edges[n, w]["two_way"] for w in graph.successors(n))
+        or any(not graph.edges[w, n]["two_way"] for w in graph.predecessors(n))
+    }
+    inner = two_way.subgraph(n for n in two_way.nodes if n not in junctions)
+    corridors: list[Corridor] = []
+    assigned: set[frozenset[str]] = set()
+    for comp in sorted(nx.connected_components(inner), key=lambda c: min(c)):
+        segs: set[tuple[str, str]] = set()
+        for n in comp:
+            for w in two_way.neighbors(n):
+                segs.add((n, w))
+                segs.add((w, n))
+                assigned.add(frozenset((n, w)))
+        corridors.append(Corridor(len(corridors), frozenset(comp), frozenset(segs)))
+    for u, v in sorted(two_way.edges, key=lambda e: tuple(sorted(e))):
+        if frozenset((u, v)) not in assigned:  # a two-way segment directly between junctions
+            corridors.append(Corridor(len(corridors), frozenset(), frozenset({(u, v), (v, u)})))
+    return corridors

@@ -1,0 +1,463 @@
+"""Scenario files -> one typed, frozen, validated config.
+
+Every key has a default written here, with its source: RSS-AGV-001 section 7.1 where the spec
+gives a figure, "assumed" where it does not. Unknown keys are errors. The resolved config (every
+default written out) is `resolved(scenario)`, saved with each run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from agv_model.profile import profile_names
+from fleet_sim.config.confparse import build, read_yaml, to_plain
+from fleet_sim.config.distributions import Duration
+from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.config.vehicle import VehicleProfile
+from fleet_sim.errors import InputError
+
+
+@dataclass(frozen=True)
+class FleetConfig:
+    size: int = 4
+    vehicle: VehicleProfile = field(default_factory=VehicleProfile)
+    start_nodes: tuple[str, ...] = ()
+    """Where AGVs start, one node each; empty: inside the parking areas, filled in file order."""
+    command_profile: str | None = None
+    """agv_model vehicle profile whose protocol and link carry the fleet manager's commands
+    (rss-agv-001, carriro-ad-plus, ktm-02, tabo, agv-3); none: commands take no time."""
+    status_poll_s: float = 0.0
+    """The fleet manager polls each AGV this often and learns it is free at the next poll;
+    0: AGVs report at once."""
+
+    def check(self, file: str, element: str) -> None:
+        if self.size < 1:
+            raise InputError(file, f"{element}.size", self.size, "an integer >= 1")
+        if self.start_nodes and len(self.start_nodes) < self.size:
+            raise InputError(file, f"{element}.start_nodes", list(self.start_nodes),
+                             f"at least one start node per AGV ({self.size})")
+        if self.status_poll_s < 0:
+            raise InputError(file, f"{element}.status_poll_s", self.status_poll_s,
+                             "a period >= 0 s")
+        if self.command_profile is not None and self.command_profile not in profile_names():
+            raise InputError(file, f"{element}.command_profile", self.command_profile,
+                             f"one of {', '.join(profile_names())}")
+        if len(set(self.start_nodes)) != len(self.start_nodes):
+            raise InputError(file, f"{element}.start_nodes", list(self.start_nodes),
+                             "distinct nodes (one AGV per node)")
+
+
+@dataclass(frozen=True)
+class Flow:
+    from_station: str = field(metadata={"key": "from"})
+    to_station: str = field(metadata={"key": "to"})
+    weight: float = 1.0
+
+    def check(self, file: str, element: str) -> None:
+        if self.weight <= 0:
+            raise InputError(file, f"{element}.weight", self.weight, "a weight > 0")
+
+
+@dataclass(frozen=True)
+class RatePeriod:
+    from_h: float
+    """Time of day (hours, 0-24) from which `multiplier` applies, until the next period."""
+    multiplier: float
+
+    def check(self, file: str, element: str) -> None:
+        if not 0 <= self.from_h < 24:
+            raise InputError(file, f"{element}.from_h", self.from_h, "an hour of day in [0, 24)")
+        if self.multiplier < 0:
+            raise InputError(file, f"{element}.multiplier", self.multiplier, "a number >= 0")
+
+
+@dataclass(frozen=True)
+class DemandConfig:
+    kind: Literal["poisson", "trace"] = "poisson"
+    rate_per_hour: float = 60.0
+    """Mean orders per hour at multiplier 1 (poisson)."""
+    flows: tuple[Flow, ...] = ()
+    """Order flows between stations; empty: every pickup to every dropoff, equal weights."""
+    profile: tuple[RatePeriod, ...] = ()
+    """Time-of-day rate multipliers, repeating daily; empty: constant rate."""
+    trace_csv: str | None = None
+    """Order trace (columns time_s, pickup, dropoff), relative to the scenario file."""
+
+    def check(self, file: str, element: str) -> None:
+        if self.rate_per_hour < 0:
+            raise InputError(file, f"{element}.rate_per_hour", self.rate_per_hour, "a rate >= 0")
+        if self.kind == "trace" and self.trace_csv is None:
+            raise InputError(file, f"{element}.trace_csv", None,
+                             "the path of an order trace CSV when kind is 'trace'")
+        hours = [p.from_h for p in self.profile]
+        if hours and (hours[0] != 0 or hours != sorted(set(hours))):
+            raise InputError(file, f"{element}.profile", hours,
+                             "periods in increasing from_h, the first at 0")
+
+    def multiplier_at(self, hour_of_day: float) -> float:
+        value = 1.0
+        for period in self.profile:
+            if period.from_h <= hour_of_day:
+                value = period.multiplier
+        return value
+
+    @property
+    def max_multiplier(self) -> float:
+        return max((p.multiplier for p in self.profile), default=1.0)
+
+
+@dataclass(frozen=True)
+class DispatchConfig:
+    policy: Literal["nearest_idle", "fcfs"] = "nearest_idle"
+    """nearest_idle: each order, oldest first, to the idle AGV with the shortest travel time to
+    its pickup. fcfs: each order, oldest first, to the AGV that has been idle longest."""
+    park_idle: bool = True
+    """Send AGVs with nothing to do to the nearest parking area with room."""
+
+
+@dataclass(frozen=True)
+class TrafficConfig:
+    deadlock_check_s: float = 10.0
+    """How often an AGV that is still blocked looks again for a wait-for cycle."""
+    replan_after_s: float = 30.0
+    """Blocked this long, an AGV takes another route if one exists."""
+    give_way_after_s: float = 10.0
+    """Blocked this long with another AGV queued behind it, an AGV drives on and comes back
+    round rather than block the way (assumed; see fleet_sim.sim.traffic.control)."""
+    backoff_s: float = 5.0
+    """Mean wait before a deadlocked AGV that cannot move tries again."""
+
+    def check(self, file: str, element: str) -> None:
+        for name in ("deadlock_check_s", "replan_after_s", "give_way_after_s", "backoff_s"):
+            if getattr(self, name) <= 0:
+                raise InputError(file, f"{element}.{name}", getattr(self, name), "a time > 0 s")
+
+
+@dataclass(frozen=True)
+class Rules:
+    """Thresholds and timings of RSS-AGV-001, each configurable, each defaulting to the spec."""
+
+    bat_low_pct: float = 20.0
+    """P_050 BAT_LOW_TH: Idle -> Moving only above it (4.2.2); Event_Low_Battery at it."""
+    bat_critical_pct: float = 10.0
+    """P_051 BAT_CRIT_TH: below it the AGV shuts down with E_201."""
+    charge_done_pct: float = 95.0
+    """4.2.10: charging ends once SOC > 95 %."""
+    safe_mode_soc_pct: float = 15.0
+    """4.2.14 / 6.3."""
+    safe_mode_rssi_dbm: float = -80.0
+    """4.2.14."""
+    obstacle_pause_s: float = 0.3
+    """4.2.3: obstacle within 1.0 m for >= 300 ms."""
+    obstacle_clear_s: float = 2.0
+    """4.2.4: path clear for >= 2000 ms."""
+    obstacle_timeout_s: float = 300.0
+    """6.1 E_101: paused for 5 minutes."""
+    obs_detect_dist_m: float = 1.5
+    """P_005 OBS_DETECT_DIST 1500 mm: slowing starts here."""
+    obs_stop_dist_m: float = 0.5
+    """P_006 OBS_STOP_DIST 500 mm."""
+    obstacle_slow_speed_mps: float = 0.3
+    """Assumed: creep speed inside the detection zone."""
+    comm_policy: Literal["req_err_011", "timeout_60s"] = "req_err_011"
+    """FMS heartbeat loss: Req.Err.011 (default, DESIGN reading) or 4.2.11's 60 s to Error."""
+    comm_timeout_s: float = 60.0
+    """4.2.11: communication timeout to Error (policy timeout_60s; internal links always)."""
+    reconnect_timeout_s: float = 600.0
+    """Req.Err.011: Error after 10 minutes without reconnecting."""
+    heartbeat_timeout_s: float = 3.0
+    """Assumed: the FMS and the AGV notice a lost link after 3 missed 1-s heartbeats."""
+    comm_loss_speed_mps: float = 0.3
+    """Assumed: the slow mode of Req.Err.011."""
+    link_min_rssi_dbm: float = -80.0
+    """Assumed: no Wi-Fi link below this signal (the 4.2.14 threshold)."""
+    weak_rssi_dbm: float = -70.0
+    """Assumed: E_002 (Wi-Fi signal low, warning) below this signal."""
+    line_keep_heading_m: float = 0.5
+    """Req.Err.010: keep the last heading for up to 50 cm looking for the tape."""
+    stop_tolerance_mm: float = 10.0
+    """4.2.5: stop within +/-10 mm at a station."""
+    marker_pause_s: float = 3.0
+    """5.3 TYPE_CMD 0x20: pause 3 s."""
+
+    def check(self, file: str, element: str) -> None:
+        for name in ("bat_low_pct", "bat_critical_pct", "charge_done_pct", "safe_mode_soc_pct"):
+            if not 0 <= getattr(self, name) <= 100:
+                raise InputError(file, f"{element}.{name}", getattr(self, name),
+                                 "a percentage in [0, 100]")
+        if self.bat_critical_pct >= self.bat_low_pct:
+            raise InputError(file, f"{element}.bat_critical_pct", self.bat_critical_pct,
+                             f"below bat_low_pct ({self.bat_low_pct})")
+        for name in ("obstacle_pause_s", "obstacle_clear_s", "obstacle_timeout_s",
+                     "comm_timeout_s", "reconnect_timeout_s", "heartbeat_timeout_s",
+                     "line_keep_heading_m", "stop_tolerance_mm", "marker_pause_s"):
+            if getattr(self, name) < 0:
+                raise InputError(file, f"{element}.{name}", getattr(self, name), "a number >= 0")
+        for name in ("obstacle_slow_speed_mps", "comm_loss_speed_mps"):
+            if getattr(self, name) <= 0:
+                raise InputError(file, f"{element}.{name}", getattr(self, name), "a speed > 0")
+
+
+@dataclass(frozen=True)
+class ChargingConfig:
+    enabled: bool = True
+    threshold_pct: float = 30.0
+    """Assumed policy: an AGV with nothing to do goes to charge at or below this SOC."""
+    opportunity: bool = False
+    """Charge while idle whenever a charger is free and SOC is below opportunity_below_pct."""
+    opportunity_below_pct: float = 80.0
+    schedule_h: tuple[float, ...] = ()
+    """Clock hours (0-24) at which every AGV goes to charge once it is free (scheduled)."""
+
+    def check(self, file: str, element: str) -> None:
+        for name in ("threshold_pct", "opportunity_below_pct"):
+            if not 0 <= getattr(self, name) <= 100:
+                raise InputError(file, f"{element}.{name}", getattr(self, name),
+                                 "a percentage in [0, 100]")
+        for i, hour in enumerate(self.schedule_h):
+            if not 0 <= hour < 24:
+                raise InputError(file, f"{element}.schedule_h[{i}]", hour, "an hour in [0, 24)")
+
+
+@dataclass(frozen=True)
+class SegmentBlock:
+    """A scripted obstacle: the segment between two nodes is blocked for a while."""
+
+    from_node: str = field(metadata={"key": "from"})
+    to_node: str = field(metadata={"key": "to"})
+    at_s: float = 0.0
+    duration_s: float = 900.0
+
+
+@dataclass(frozen=True)
+class LinkLoss:
+    """A scripted Wi-Fi loss: AGV `agv` loses the FMS link at `at_s` for `duration_s`."""
+
+    agv: int
+    at_s: float
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A scripted fault: AGV `agv` raises `code` at `at_s`."""
+
+    agv: int
+    at_s: float
+    code: Literal["E_101", "E_102", "E_201", "E_202", "E_999", "E_301"] = "E_999"
+
+
+@dataclass(frozen=True)
+class IncidentsConfig:
+    obstacle_rate_per_km: float = 0.0
+    """People and forklifts met per km driven (layout zones may set their own)."""
+    obstacle_duration: Duration = field(
+        default_factory=lambda: Duration("exponential", mean_s=4.0))
+    """How long an obstacle stays within range (assumed: exponential, mean 4 s)."""
+    blocks: tuple[SegmentBlock, ...] = ()
+    link_loss_rate_per_h: float = 0.0
+    """Random FMS link losses per AGV and hour (dead spots come from the layout's RSSI)."""
+    link_loss_duration: Duration = field(
+        default_factory=lambda: Duration("exponential", mean_s=30.0))
+    link_losses: tuple[LinkLoss, ...] = ()
+    internal_link_loss_rate_per_h: float = 0.0
+    """Losses of the vehicle's internal links (sensor bus); > comm_timeout_s means Error."""
+    internal_link_loss_duration: Duration = field(
+        default_factory=lambda: Duration("exponential", mean_s=20.0))
+    mtbf_h: float = 0.0
+    """Mean operating hours between random critical faults (E_999) per AGV; 0: none."""
+    transfer_failure_prob: float = 0.0
+    """Chance that a load transfer fails (E_102)."""
+    line_loss_per_km: float = 0.0
+    """Times per km an AGV loses the tape (Req.Err.010)."""
+    line_found_prob: float = 0.8
+    """Assumed: share of line losses where the tape is found again within 50 cm (E_001)."""
+    line_search_s: float = 2.0
+    """Assumed: time lost finding the tape again."""
+    faults: tuple[Fault, ...] = ()
+    operator_response: Duration = field(
+        default_factory=lambda: Duration("triangular", low_s=60.0, mode_s=180.0, high_s=600.0))
+    """Assumed: time until an operator reaches a failed AGV and turns it to MANUAL."""
+    repair: Duration = field(
+        default_factory=lambda: Duration("triangular", low_s=120.0, mode_s=300.0,
+                                         high_s=1200.0))
+    """Assumed: time in Maintenance."""
+    relocalise_s: float = 10.0
+    """Assumed: initial position estimation on return to AUTO (4.2.13)."""
+    rescue: Duration = field(
+        default_factory=lambda: Duration("triangular", low_s=300.0, mode_s=900.0,
+                                         high_s=1800.0))
+    """Assumed: time until an operator rescues an AGV in SafeMode."""
+    rescue_soc_pct: float = 50.0
+    """Assumed: SOC an operator leaves a rescued or shut-down AGV with (manual charge)."""
+
+    def check(self, file: str, element: str) -> None:
+        for name in ("obstacle_rate_per_km", "link_loss_rate_per_h", "mtbf_h",
+                     "internal_link_loss_rate_per_h", "line_loss_per_km", "relocalise_s"):
+            if getattr(self, name) < 0:
+                raise InputError(file, f"{element}.{name}", getattr(self, name), "a number >= 0")
+        for name in ("transfer_failure_prob", "line_found_prob"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise InputError(file, f"{element}.{name}", getattr(self, name),
+                                 "a probability in [0, 1]")
+
+
+@dataclass(frozen=True)
+class SumoConfig:
+    """Settings of the SUMO motion backend (used when `motion` is ``sumo``)."""
+
+    step_length_s: float = 0.1
+    """SUMO's time step; SUMO and SimPy advance together in steps of this length."""
+    tau_s: float = 1.0
+    """Krauss time headway (assumed): at 1 m/s the following gap is min_gap_m + 1.0 m,
+    P_005's 1.5 m detection distance."""
+
+    def check(self, file: str, element: str) -> None:
+        if not 0 < self.step_length_s <= 1.0:
+            raise InputError(file, f"{element}.step_length_s", self.step_length_s,
+                             "a time step in (0, 1] s")
+        if self.tau_s < self.step_length_s:
+            raise InputError(file, f"{element}.tau_s", self.tau_s,
+                             f"a headway >= step_length_s ({self.step_length_s} s)")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    layout: str
+    """Layout file, relative to the scenario file."""
+    name: str = "scenario"
+    description: str = ""
+    duration_h: float = 8.0
+    warmup_h: float = 0.5
+    """KPIs count from the end of the warm-up; orders and events are recorded from t=0."""
+    seed: int = 1
+    start_h: float = 0.0
+    """Time of day at t=0, for the demand profile."""
+    fleet: FleetConfig = FleetConfig()
+    demand: DemandConfig = DemandConfig()
+    dispatch: DispatchConfig = DispatchConfig()
+    traffic: TrafficConfig = TrafficConfig()
+    rules: Rules = Rules()
+    charging: ChargingConfig = ChargingConfig()
+    incidents: IncidentsConfig = IncidentsConfig()
+    motion: Literal["closed_form", "sumo"] = "closed_form"
+    """How AGVs move between nodes: closed_form (exact trapezoidal profiles per hop,
+    fleet_sim.model.kinematics) or sumo (SUMO's car-following model through libsumo,
+    fleet_sim.sim.motion.sumo, stepping with SimPy; dispatching, states, charging, incidents and
+    traffic locks stay in the SimPy model). See docs/sumo.md."""
+    sumo: SumoConfig = SumoConfig()
+    base_dir: str = field(default=".", metadata={"key": "_base_dir"}, compare=False)
+
+    def check(self, file: str, element: str) -> None:
+        if self.duration_h <= 0:
+            raise InputError(file, "duration_h", self.duration_h, "a duration > 0 h")
+        if not 0 <= self.warmup_h < self.duration_h:
+            raise InputError(file, "warmup_h", self.warmup_h,
+                             f"a warm-up >= 0 h and shorter than duration_h ({self.duration_h})")
+        if self.seed < 0:
+            raise InputError(file, "seed", self.seed, "an integer >= 0")
+        if not 0 <= self.start_h < 24:
+            raise InputError(file, "start_h", self.start_h, "an hour of day in [0, 24)")
+
+    @property
+    def duration_s(self) -> float:
+        return self.duration_h * 3600.0
+
+    @property
+    def warmup_s(self) -> float:
+        return self.warmup_h * 3600.0
+
+    def path(self, relative: str) -> Path:
+        """A file named in the scenario, relative to the scenario file's folder."""
+        p = Path(relative)
+        return p if p.is_absolute() else Path(self.base_dir) / p
+
+
+def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> Scenario:
+    """Read a scenario file; `overrides` maps dotted keys (``fleet.size``) to new values."""
+    path = Path(path)
+    data = read_yaml(path)
+    if data is not None and not isinstance(data, dict):
+        raise InputError(str(path), "top level", data, "a mapping")
+    data = dict(data or {})
+    if "scenario" in data and "factors" in data:
+        raise InputError(str(path), "top level", "an experiment file (scenario, factors...)",
+                         "a scenario file; run experiments with `fleet-sim sweep` or "
+                         "`fleet-sim size`")
+    if "_base_dir" in data:
+        raise InputError(str(path), "_base_dir", data["_base_dir"], "no such key (it is internal)")
+    for dotted, value in (overrides or {}).items():
+        _set_dotted(data, dotted, value)
+    data["_base_dir"] = str(path.parent)
+    return build(Scenario, data, str(path))
+
+
+def _set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
+    keys = dotted.split(".")
+    target = data
+    for key in keys[:-1]:
+        nxt = target.get(key)
+        if not isinstance(nxt, dict):
+            nxt = {}
+            target[key] = nxt
+        target = nxt
+    target[keys[-1]] = value
+
+
+def load_layout_for(scenario: Scenario, scenario_file: str) -> Layout:
+    """Load the scenario's layout and check the scenario against it."""
+    layout_path = scenario.path(scenario.layout)
+    if not layout_path.exists():
+        raise InputError(scenario_file, "layout", scenario.layout,
+                         f"an existing layout file (looked for {layout_path})")
+    layout = load_layout(layout_path, max_speed_mps=scenario.fleet.vehicle.max_speed_mps)
+    check_against_layout(scenario, layout, scenario_file)
+    return layout
+
+
+def check_against_layout(scenario: Scenario, layout: Layout, file: str) -> None:
+    for i, flow in enumerate(scenario.demand.flows):
+        for key, station, kind in (("from", flow.from_station, "pickup"),
+                                   ("to", flow.to_station, "dropoff")):
+            place = layout.places.get(station)
+            if place is None or place.kind != kind:
+                names = ", ".join(p.id for p in layout.places.values() if p.kind == kind)
+                raise InputError(file, f"demand.flows[{i}].{key}", station,
+                                 f"a {kind} station of layout {layout.name} ({names})")
+    for i, node in enumerate(scenario.fleet.start_nodes):
+        if node not in layout.graph:
+            raise InputError(file, f"fleet.start_nodes[{i}]", node,
+                             f"a node of layout {layout.name}")
+    for i, block in enumerate(scenario.incidents.blocks):
+        if not layout.graph.has_edge(block.from_node, block.to_node):
+            raise InputError(file, f"incidents.blocks[{i}]",
+                             f"{block.from_node} -> {block.to_node}",
+                             f"a segment of layout {layout.name}")
+    numbered = [("link_losses", i, x.agv) for i, x in enumerate(scenario.incidents.link_losses)]
+    numbered += [("faults", i, x.agv) for i, x in enumerate(scenario.incidents.faults)]
+    for key, i, agv in numbered:
+        if not 0 <= agv < scenario.fleet.size:
+            raise InputError(file, f"incidents.{key}[{i}].agv", agv,
+                             f"an AGV number from 0 to {scenario.fleet.size - 1}")
+    if not scenario.fleet.start_nodes:
+        room = sum(p.capacity for p in layout.parking)
+        if scenario.fleet.size > room:
+            raise InputError(file, "fleet.size", scenario.fleet.size,
+                             f"at most the parking capacity of layout {layout.name} ({room}), "
+                             "or fleet.start_nodes for the rest")
+
+
+def resolved(scenario: Scenario) -> dict[str, Any]:
+    """The scenario with every default written out, as plain data for YAML."""
+    plain = to_plain(scenario)
+    assert isinstance(plain, dict)
+    plain.pop("_base_dir", None)
+    return plain
+
+
+def with_overrides(scenario: Scenario, **changes: Any) -> Scenario:
+    """A copy with top-level fields replaced (``fleet=...``)."""
+    return dataclasses.replace(scenario, **changes)

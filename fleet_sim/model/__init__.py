@@ -1,0 +1,2 @@
+"""What an AGV is: states, the RSS-AGV-001 state machine, error codes, kinematics, battery,
+records."""

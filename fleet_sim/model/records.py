@@ -1,0 +1,90 @@
+"""What a run records: events, orders, traffic figures. Plain Python records, collected in one
+place and turned into tables only after the run (by fleet_sim.analysis.results)."""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+EVENT_COLUMNS = ("time_s", "agv", "event", "from_state", "to_state", "node", "detail")
+
+
+@dataclass(slots=True)
+class Order:
+    """One transport order and its timestamps (None until reached)."""
+
+    id: int
+    created_s: float
+    pickup: str
+    dropoff: str
+    pickup_handling_s: float = 0.0
+    dropoff_handling_s: float = 0.0
+    pickup_node: str | None = None
+    dropoff_node: str | None = None
+    agv: int | None = None
+    assigned_s: float | None = None
+    pickup_arrival_s: float | None = None
+    picked_s: float | None = None
+    dropoff_arrival_s: float | None = None
+    delivered_s: float | None = None
+    failed_s: float | None = None
+    failure: str | None = None
+    """Error code of the fault that lost a loaded order."""
+    reassigned: int = 0
+    """Times the order went back to the queue because its AGV failed before loading."""
+
+
+@dataclass
+class Recorder:
+    """Collects everything the KPIs are computed from. `warmup_s` splits off the warm-up for the
+    running totals (blocked time, distance); events and orders keep their own timestamps."""
+
+    warmup_s: float
+    end_s: float
+    record_occupancy: bool = False
+    events: list[tuple[float, int, str, str, str, str, str]] = field(default_factory=list)
+    orders: list[Order] = field(default_factory=list)
+    queue_lengths: list[tuple[float, int]] = field(default_factory=list)
+    blocked_s: float = 0.0
+    distance_m: float = 0.0
+    distance_total_m: float = 0.0
+    deadlocks: int = 0
+    occupancy: list[tuple[str, str, int, float, float]] = field(default_factory=list)
+    """(kind, key, agv, start_s, end_s): node holds and segment traversals, when traced."""
+    charge_waits: list[tuple[float, float]] = field(default_factory=list)
+    """(asked_s, charger_assigned_s) per charging."""
+    obstacle_pauses: int = 0
+    comm_losses: int = 0
+    commands_sent: int = 0
+    command_retries: int = 0
+    errors: list[tuple[float, int, str, str]] = field(default_factory=list)
+    """(time_s, agv, code, level) of every Error."""
+    warnings: Counter[str] = field(default_factory=Counter)
+    soc_samples: list[tuple[float, int, float]] = field(default_factory=list)
+    """(time_s, agv, soc_pct) at every state change, for battery plots."""
+
+    def warning(self, code: str) -> None:
+        self.warnings[code] += 1
+
+    def event(self, time_s: float, agv: int, event: str, from_state: str, to_state: str,
+              node: str, detail: str = "") -> None:
+        self.events.append((time_s, agv, event, from_state, to_state, node, detail))
+
+    def window(self, start_s: float, end_s: float) -> float:
+        """The part of [start_s, end_s] inside the measured window (after warm-up)."""
+        return max(0.0, min(end_s, self.end_s) - max(start_s, self.warmup_s))
+
+    def blocked(self, start_s: float, end_s: float) -> None:
+        self.blocked_s += self.window(start_s, end_s)
+
+    def drove(self, start_s: float, end_s: float, length_m: float) -> None:
+        self.distance_total_m += length_m
+        span = end_s - start_s
+        if span > 0:
+            self.distance_m += length_m * self.window(start_s, end_s) / span
+        elif start_s >= self.warmup_s:
+            self.distance_m += length_m
+
+    def occupied(self, kind: str, key: str, agv: int, start_s: float, end_s: float) -> None:
+        if self.record_occupancy:
+            self.occupancy.append((kind, key, agv, start_s, end_s))

@@ -1,0 +1,602 @@
+"""`fleet-sim report RESULTS_DIR`: a self-contained HTML report and a PDF of a sweep or sizing
+results folder, for a planner to hand on.
+
+Sections: the recommendation with its confidence (from sizing.json when `fleet-sim size` ran,
+else from the sweep's grid with the same rule: the smallest fleet whose 95 % intervals meet every
+target); the scenario and the layout; throughput and p95 lead time (and every target's KPI)
+against fleet size with 95 % bands and the targets; utilisation by state as stacked bars;
+charging and battery; congestion (blocked time, and a heat map of where AGVs waited on the layout
+drawing); incidents (deadlocks, reroutes, give-way circulations); statistics per design point,
+wide-interval warnings and paired differences; failed runs.
+
+Decisions, where the issue is silent:
+
+* Figures are PNG, base64-embedded: the HTML is one file that opens anywhere, offline. The PDF
+  has the same figures (vector) after a text page with the recommendation and the tables.
+* Every name that comes from a user file (experiment, scenario, layout, stations, factors,
+  error messages) is HTML-escaped; the report has no scripts.
+* The x axis is fleet.size when it is a factor, else the first factor; each combination of the
+  other factors is one line (series).
+* The heat map shows the mean seconds per hour that AGVs with work to do stood waiting at each
+  node (fleet_sim.study.sweep.node_waits), over the replications of the recommended fleet (else the
+  largest fleet run).
+* Charging: the runs' charging KPIs (``state_charging_pct``, ``charges``, the charger queue wait
+  and any ``charger_*``/``soc_*`` KPI) against fleet size, and SOC traces of a few AGVs from the
+  run's ``soc.parquet``. A run without charging says so instead of drawing empty axes.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from fleet_sim.analysis.stats import check_targets, kpi_columns, paired_differences, point_stats
+from fleet_sim.config.experiment import FLEET, Target, layout_for
+from fleet_sim.config.layout import Layout
+from fleet_sim.config.scenario import Scenario, load_scenario
+from fleet_sim.errors import InputError
+from fleet_sim.report import figures as figs
+
+INCIDENT_EVENTS = ("deadlock_detected", "deadlock_unresolved", "reroute", "circulate", "backoff")
+MAIN_KPIS = ("throughput_per_hour", "lead_time_p95_s")
+TABLE_KPIS = ("throughput_per_hour", "throughput_pct_of_demand", "lead_time_mean_s",
+              "lead_time_p95_s", "agv_utilisation_pct", "blocked_time_pct", "deadlocks_detected")
+
+
+def esc(value: object) -> str:
+    return html.escape(str(value), quote=True)
+
+
+def fmt(value: Any, digits: int = 4) -> str:
+    """Numbers for tables: no exponents for the sizes a planner reads."""
+    if value is None:
+        return "n/a"
+    if isinstance(value, (float, np.floating)):
+        if np.isnan(value):
+            return "n/a"
+        if abs(value) >= 10 ** (digits - 1):
+            return f"{value:,.0f}"
+        return f"{value:.{digits}g}"
+    return str(value)
+
+
+@dataclass
+class Figure:
+    key: str
+    caption: str
+    png: bytes
+    pdf_figure: Any = None
+
+
+@dataclass
+class Section:
+    title: str
+    body: list[str] = field(default_factory=list)
+    """HTML fragments (already escaped)."""
+    figures: list[Figure] = field(default_factory=list)
+    text: list[str] = field(default_factory=list)
+    """Plain text for the PDF's text pages."""
+
+
+@dataclass
+class ReportData:
+    out_dir: Path
+    experiment: dict[str, Any]
+    summary: pd.DataFrame
+    factors: list[str]
+    targets: list[Target]
+    sizing: dict[str, Any] | None
+    scenario: Scenario | None
+    layout: Layout | None
+    problem: str = ""
+
+    @property
+    def x(self) -> str:
+        return FLEET if FLEET in self.factors else (self.factors[0] if self.factors else "")
+
+    @property
+    def others(self) -> list[str]:
+        return [f for f in self.factors if f != self.x]
+
+    @property
+    def ok(self) -> pd.DataFrame:
+        return self.summary[self.summary["status"] == "ok"]
+
+    def series_key(self, row: dict[str, Any]) -> str:
+        return ", ".join(f"{k}={row[k]}" for k in self.others)
+
+
+def load(out_dir: Path) -> ReportData:
+    resolved = out_dir / "experiment.resolved.yaml"
+    if not resolved.exists():
+        raise InputError(str(out_dir), "folder", str(out_dir),
+                         "a results folder of `fleet-sim sweep` or `fleet-sim size` "
+                         "(with experiment.resolved.yaml)")
+    experiment = yaml.safe_load(resolved.read_text(encoding="utf-8"))
+    factors = list(experiment.get("factors") or {})
+    summary_file = out_dir / "summary.parquet"
+    if summary_file.exists():
+        summary = pd.read_parquet(summary_file)
+    else:
+        from fleet_sim.study.sweep import collect_summary
+        summary = collect_summary(out_dir, factors)
+    if summary.empty or "status" not in summary.columns:
+        raise InputError(str(out_dir), "runs", 0, "at least one run in the results folder")
+    targets = [Target(t["kpi"], t.get("at_least"), t.get("at_most"))
+               for t in experiment.get("targets") or []]
+    sizing_file = out_dir / "sizing.json"
+    sizing = json.loads(sizing_file.read_text(encoding="utf-8")) if sizing_file.exists() \
+        else None
+    scenario: Scenario | None = None
+    layout: Layout | None = None
+    problem = ""
+    try:
+        scenario = load_scenario(experiment["scenario"], experiment.get("overrides") or {})
+        layout = layout_for(scenario, experiment["scenario"])
+    except InputError as exc:
+        problem = f"The scenario or layout could not be read again: {exc}"
+    return ReportData(out_dir, experiment, summary, factors, targets, sizing, scenario, layout,
+                      problem)
+
+
+# ---- recommendation ------------------------------------------------------------------------
+
+
+def recommendations(data: ReportData) -> tuple[dict[str, int | None], list[str], list[str]]:
+    """Per series: the recommended fleet; the statements; the analytic estimates."""
+    recommended: dict[str, int | None] = {}
+    statements: list[str] = []
+    estimates: list[str] = []
+    if data.sizing is not None:
+        for group in data.sizing.get("groups", []):
+            key = data.series_key({k: group["fixed"].get(k) for k in data.others})
+            recommended[key] = group.get("recommended")
+            statements.append(group.get("statement", ""))
+            est = group.get("estimate") or {}
+            if est:
+                estimates.append(
+                    (f"{key}: " if key else "") +
+                    f"analytic estimate {est['agvs']:.2f} AGVs busy at the mean demand of "
+                    f"{est['demand_per_hour']:.1f} orders/h ({est['agvs_at_peak']:.2f} at the "
+                    f"peak of {est['peak_demand_per_hour']:.1f}): {est['cycle_s']:.1f} s per "
+                    f"order = {est['empty_travel_s']:.1f} s empty + {est['loaded_travel_s']:.1f}"
+                    f" s loaded travel + {est['handling_s']:.1f} s handling, one AGV carries "
+                    f"{est['capacity_per_agv_per_hour']:.1f} orders/h. So at least "
+                    f"{est['minimum']} AGVs; the simulation adds waiting and traffic.")
+        return recommended, statements, estimates
+    if data.x != FLEET or not data.targets:
+        return recommended, ["No recommendation: the experiment has no fleet.size factor or no "
+                             "targets (run `fleet-sim size` for a fleet-size search)."], []
+    checks = check_targets(data.summary, data.factors, data.targets)
+    by_series: dict[str, dict[int, list[str]]] = {}
+    for check in checks:
+        key = data.series_key(check.point)
+        by_series.setdefault(key, {}).setdefault(int(check.point[FLEET]), []).append(
+            check.decision)
+    for key, sizes in by_series.items():
+        meeting = [n for n, ds in sorted(sizes.items()) if all(d == "meets" for d in ds)]
+        recommended[key] = meeting[0] if meeting else None
+        head = f"{key}: " if key else ""
+        if meeting:
+            statements.append(f"{head}{meeting[0]} AGVs is the smallest fleet of the grid that "
+                              "meets every target with 95 % confidence (grid of the sweep; "
+                              "`fleet-sim size` refines it).")
+        else:
+            statements.append(f"{head}no fleet of the grid meets every target with 95 % "
+                              "confidence.")
+    return recommended, statements, estimates
+
+
+# ---- sections ------------------------------------------------------------------------------
+
+
+def _table(header: list[str], rows: list[list[str]], cls: str = "") -> str:
+    """An HTML table; cells must already be escaped."""
+    head = "".join(f"<th>{h}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in rows)
+    return f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
+
+
+def _figure(key: str, caption: str, fig: Any) -> Figure:
+    png = figs.png_bytes(fig)
+    return Figure(key, caption, png, fig)
+
+
+def _series(data: ReportData, stats: pd.DataFrame) -> dict[str, pd.DataFrame]:
+    if not data.others:
+        return {"": stats}
+    out: dict[str, pd.DataFrame] = {}
+    for key, group in stats.groupby(data.others, sort=True, dropna=False):
+        values = key if isinstance(key, tuple) else (key,)
+        out[data.series_key(dict(zip(data.others, values, strict=True)))] = group
+    return out
+
+
+def section_scenario(data: ReportData) -> Section:
+    sec = Section("Scenario and layout")
+    exp = data.experiment
+    rows: list[list[str]] = [["experiment", esc(exp.get("name", ""))],
+                             ["description", esc(exp.get("description", ""))]]
+    if data.scenario is not None:
+        sc = data.scenario
+        demand = (f"{sc.demand.kind}, {sc.demand.rate_per_hour:g} orders/h" +
+                  (", profile " + ", ".join(f"from {p.from_h:g} h x{p.multiplier:g}"
+                                            for p in sc.demand.profile)
+                   if sc.demand.profile else ""))
+        rows += [["scenario", esc(f"{sc.name}: {sc.description}" if sc.description
+                                  else sc.name)],
+                 ["layout", esc(data.layout.name if data.layout else sc.layout)],
+                 ["run length", esc(f"{sc.duration_h:g} h, warm-up {sc.warmup_h:g} h, "
+                                    f"start at {sc.start_h:g} h")],
+                 ["demand", esc(demand)],
+                 ["dispatch", esc(f"{sc.dispatch.policy}, park idle: {sc.dispatch.park_idle}")]]
+    overrides = exp.get("overrides") or {}
+    if overrides:
+        rows.append(["set in every run", esc(", ".join(f"{k} = {v}"
+                                                      for k, v in overrides.items()))])
+    for name, levels in (exp.get("factors") or {}).items():
+        rows.append([f"factor {esc(name)}", esc(levels)])
+    rows += [["design", esc(f"{exp.get('design')}, {exp.get('replications')} replications, "
+                            f"master seed {exp.get('master_seed')}")],
+             ["targets", esc("; ".join(t.describe() for t in data.targets) or "none")]]
+    sec.body.append(_table(["", ""], rows, "settings"))
+    sec.text += [f"{_strip(r[0])}: {_strip(r[1])}" for r in rows]
+    if data.problem:
+        sec.body.append(f'<p class="warn">{esc(data.problem)}</p>')
+    if data.layout is not None:
+        png = figs.layout_png(data.layout)
+        sec.figures.append(Figure("layout", f"Layout {data.layout.name}", png,
+                                  figs.image_page(png, f"Layout {data.layout.name}")))
+    return sec
+
+
+def _strip(text: str) -> str:
+    return html.unescape(text)
+
+
+def section_kpis(data: ReportData, series: dict[str, pd.DataFrame],
+                 recommended: dict[str, int | None]) -> Section:
+    sec = Section("Throughput and lead time")
+    kpis = [k for k in MAIN_KPIS if k in set(next(iter(series.values()))["kpi"])]
+    kpis += [t.kpi for t in data.targets if t.kpi not in kpis]
+    sec.body.append("<p>Mean over the replications of each design point, with its 95 % "
+                    "confidence interval (band); dashed lines are the targets.</p>")
+    sec.figures.append(_figure("kpis", "KPIs against " + data.x,
+                               figs.kpi_panels(series, data.x, kpis, data.targets,
+                                               recommended)))
+    return sec
+
+
+def section_states(data: ReportData) -> Section:
+    sec = Section("Utilisation by state")
+    states = [c for c in data.ok.columns if c.startswith("state_") and c.endswith("_pct")]
+    if not states:
+        sec.body.append("<p>The runs report no time in state.</p>")
+        return sec
+    sec.body.append("<p>Mean share of AGV time in each state of RSS-AGV-001 over the measured "
+                    "window.</p>")
+    groups = data.ok.groupby(data.others, sort=True) if data.others else [((), data.ok)]
+    for key, group in groups:
+        values = key if isinstance(key, tuple) else (key,)
+        name = data.series_key(dict(zip(data.others, values, strict=True)))
+        means = group.groupby(data.x, sort=True)[states].mean().reset_index()
+        title = "Utilisation by state" + (f" ({name})" if name else "")
+        sec.figures.append(_figure(f"states-{len(sec.figures)}", title,
+                                   figs.state_bars(means, data.x, title)))
+    return sec
+
+
+def section_charging(data: ReportData, series: dict[str, pd.DataFrame],
+                     recommended: dict[str, int | None]) -> Section:
+    sec = Section("Charging and battery")
+    ok = data.ok
+    kpis = [c for c in kpi_columns(ok, data.factors)
+            if c in ("state_charging_pct", "charges", "charging_queue_wait_mean_s")
+            or c.startswith(("charger_", "soc_", "battery_"))]
+    active = [k for k in kpis if float(ok[k].fillna(0).abs().max()) > 0]
+    if not active:
+        sec.body.append("<p>No run spent time charging or reported a battery figure: these "
+                        "runs do not model battery drain, so charging does not limit the "
+                        "fleet.</p>")
+        sec.text.append("No charging in these runs.")
+    else:
+        sec.figures.append(_figure("charging", "Charging against " + data.x,
+                                   figs.kpi_panels(series, data.x, active, data.targets,
+                                                   recommended)))
+    sample = _sample_runs(data, recommended)
+    for run_id in sample[:1]:
+        run_dir = data.out_dir / "runs" / run_id
+        table = run_dir / "soc.parquet"
+        if not table.exists():
+            table = run_dir / "events.parquet"
+        if not table.exists():
+            continue
+        frame = pd.read_parquet(table)
+        if "soc_pct" in frame.columns:
+            agvs = sorted(frame["agv"].unique())[:4]
+            traces = frame[frame["agv"].isin(agvs)][["time_s", "agv", "soc_pct"]].dropna()
+            if not traces.empty:
+                sec.figures.append(_figure("soc", f"SOC of {len(agvs)} AGVs, run {run_id}",
+                                           figs.soc_curves(traces, f"State of charge, run "
+                                                           f"{run_id}")))
+    return sec
+
+
+def _sample_runs(data: ReportData, recommended: dict[str, int | None]) -> list[str]:
+    """Runs of the first series at its recommended fleet (else its largest fleet run)."""
+    ok = data.ok
+    if ok.empty or not data.x:
+        return [str(r) for r in ok["run_id"]]
+    pick = ok
+    if data.others:
+        first = ok.sort_values(data.others).iloc[0]
+        for name in data.others:
+            pick = pick[pick[name] == first[name]]
+        key = data.series_key({str(k): v for k, v in first.to_dict().items()})
+    else:
+        key = ""
+    rec = recommended.get(key)
+    level = rec if rec is not None and (pick[data.x] == rec).any() else pick[data.x].max()
+    return [str(r) for r in pick[pick[data.x] == level]["run_id"]]
+
+
+def section_congestion(data: ReportData, series: dict[str, pd.DataFrame],
+                       recommended: dict[str, int | None]) -> Section:
+    sec = Section("Congestion")
+    sec.body.append("<p>Share of AGV time spent waiting for a node or corridor held by another "
+                    "AGV, and where on the layout the waiting happened.</p>")
+    if "blocked_time_pct" in set(next(iter(series.values()))["kpi"]):
+        sec.figures.append(_figure("blocked", "Blocked time against " + data.x,
+                                   figs.kpi_panels(series, data.x, ["blocked_time_pct"], [],
+                                                   recommended)))
+    sample = _sample_runs(data, recommended)
+    frames = []
+    for run_id in sample:
+        path = data.out_dir / "runs" / run_id / "node_waits.parquet"
+        if path.exists():
+            frames.append(pd.read_parquet(path).assign(run_id=run_id))
+    if data.layout is None or not frames:
+        sec.body.append("<p>No node waiting data (node_waits.parquet) for a heat map.</p>")
+        return sec
+    waits = pd.concat(frames)
+    window_h = float(data.ok["duration_h"].iloc[0] - data.ok["warmup_h"].iloc[0]) \
+        if "duration_h" in data.ok else 1.0
+    per_node = (waits.groupby("node")["wait_s"].sum() / len(frames) / window_h).reset_index()
+    per_node = per_node.rename(columns={"wait_s": "wait_s_per_h"})
+    level = data.ok[data.ok["run_id"].isin(sample)][data.x].iloc[0]
+    title = (f"Where AGVs waited: {data.x} = {level}, mean of {len(frames)} replications "
+             "(seconds of waiting per hour at each node)")
+    sec.figures.append(_figure("heatmap", title, figs.heat_map(data.layout, per_node, title)))
+    top = per_node.sort_values("wait_s_per_h", ascending=False).head(8)
+    top = top[top["wait_s_per_h"] > 0]
+    rows = [[esc(node), fmt(float(value), 3)]
+            for node, value in zip(top["node"], top["wait_s_per_h"], strict=True)]
+    if rows:
+        sec.body.append("<p>Nodes with the most waiting (" + esc(f"{data.x} = {level}") +
+                        "):</p>" + _table(["node", "AGV waiting [s/h]"], rows))
+        sec.text.append("Most waiting at: " + ", ".join(
+            f"{node} ({float(value):.0f} s/h)"
+            for node, value in zip(top["node"], top["wait_s_per_h"], strict=True)))
+    return sec
+
+
+def section_incidents(data: ReportData, recommended: dict[str, int | None]) -> Section:
+    sec = Section("Incidents")
+    ok = data.ok
+    counts = _incident_counts(data)
+    if data.x:
+        merged = ok[["run_id", data.x, *data.others]]
+        if "deadlocks_detected" in ok:
+            merged = merged.assign(deadlocks=ok["deadlocks_detected"].fillna(0))
+        if counts is not None:
+            merged = merged.merge(counts, on="run_id", how="left")
+        kinds = [k for k in ("deadlocks", *INCIDENT_EVENTS[1:]) if k in merged.columns]
+        if kinds:
+            merged = merged.assign(**{k: merged[k].fillna(0) for k in kinds})
+            first = merged
+            for name in data.others:
+                first = first[first[name] == merged.sort_values(data.others)[name].iloc[0]]
+            mean = first.groupby(data.x)[kinds].mean().reset_index()
+            sec.figures.append(_figure("incidents", "Incidents against " + data.x,
+                                       figs.incidents(mean, data.x)))
+    total = int(ok["deadlocks_detected"].fillna(0).sum()) if "deadlocks_detected" in ok else 0
+    sec.body.append(f"<p>{total} deadlocks were detected (and resolved by the traffic control) "
+                    f"in {len(ok)} runs.</p>")
+    sec.text.append(f"{total} deadlocks detected in {len(ok)} runs.")
+    rows: list[list[str]] = []
+    for run_id in _sample_runs(data, recommended)[:3]:
+        path = data.out_dir / "runs" / run_id / "events.parquet"
+        if not path.exists():
+            continue
+        events = pd.read_parquet(path, columns=["time_s", "agv", "event", "node", "detail"])
+        dead = events[events["event"].astype(str) == "deadlock_detected"]
+        for _, r in dead.head(4).iterrows():
+            rows.append([esc(run_id), fmt(float(r["time_s"]) / 3600.0, 3), esc(r["agv"]),
+                         esc(r["event"]), esc(r["node"]), esc(r["detail"])])
+    if rows:
+        sec.body.append("<p>Deadlocks in runs of the recommended fleet:</p>" +
+                        _table(["run", "time [h]", "AGV", "event", "node", "detail"], rows))
+    return sec
+
+
+def _incident_counts(data: ReportData) -> pd.DataFrame | None:
+    import duckdb
+
+    runs = (data.out_dir / "runs").resolve()
+    if not any(runs.glob("*/events.parquet")):
+        return None
+    pattern = str(runs / "*" / "events.parquet").replace("'", "''")
+    kinds = ", ".join(f"'{k}'" for k in INCIDENT_EVENTS)
+    con = duckdb.connect()
+    try:
+        frame = con.execute(
+            "SELECT regexp_extract(filename, '([^/]+)/events.parquet$', 1) AS run_id, event, "
+            f"count(*) AS n FROM read_parquet('{pattern}', filename = true) "
+            f"WHERE event IN ({kinds}) GROUP BY ALL").df()
+    finally:
+        con.close()
+    if frame.empty:
+        return pd.DataFrame({"run_id": pd.Series(dtype="string")})
+    return frame.pivot_table(index="run_id", columns="event", values="n",
+                             aggfunc="sum").reset_index()
+
+
+def section_statistics(data: ReportData, stats: pd.DataFrame) -> Section:
+    sec = Section("Statistics")
+    kpis = [k for k in TABLE_KPIS if k in set(stats["kpi"])]
+    keys = [*data.others, data.x] if data.x else []
+    header = [esc(k) for k in keys] + ["n"] + [esc(k) for k in kpis]
+    rows: list[list[str]] = []
+    wide = stats.pivot_table(index=keys, columns="kpi", values=["mean", "half_width", "n"],
+                             aggfunc="first") if keys else None
+    if wide is not None:
+        for index, row in wide.iterrows():
+            idx = index if isinstance(index, tuple) else (index,)
+            n = int(max(row[("n", k)] for k in kpis)) if kpis else 0
+            cells = [esc(v) for v in idx] + [str(n)]
+            for k in kpis:
+                mean, half = row[("mean", k)], row[("half_width", k)]
+                cells.append(f"{fmt(mean)} &plusmn; {fmt(half, 2)}")
+            rows.append(cells)
+    sec.body.append("<p>Mean &plusmn; half-width of the 95 % confidence interval (Student t) "
+                    "over the replications of each design point.</p>" +
+                    _table(header, rows, "stats"))
+    checks = check_targets(data.summary, data.factors, data.targets)
+    warnings = [w for w in (c.warning() for c in checks) if w]
+    if warnings:
+        sec.body.append("<p><b>Intervals too wide to decide:</b></p><ul>" +
+                        "".join(f"<li>{esc(w)}</li>" for w in warnings) + "</ul>")
+        sec.text += ["Too wide to decide: " + w for w in warnings]
+    if data.x:
+        diff_kpis = list(dict.fromkeys([*(t.kpi for t in data.targets), "throughput_per_hour"]))
+        diff_kpis = [k for k in diff_kpis if k in set(stats["kpi"])]
+        diffs = paired_differences(data.summary, data.x, data.factors, diff_kpis)
+        if not diffs.empty:
+            drows = [[*(esc(r[o]) for o in data.others), esc(r["kpi"]),
+                      esc(f"{r['from_level']} -> {r['to_level']}"), str(r["pairs"]),
+                      f"{fmt(r['mean_diff'])} [{fmt(r['ci_low'])}, {fmt(r['ci_high'])}]"]
+                     for _, r in diffs.iterrows()]
+            sec.body.append("<p>Paired differences between adjacent levels (same replications, "
+                            "so common random numbers cancel shared noise), with 95 % CI:</p>" +
+                            _table([*(esc(o) for o in data.others), "KPI", esc(data.x), "pairs",
+                                    "mean difference [95 % CI]"], drows, "stats"))
+    return sec
+
+
+def section_runs(data: ReportData) -> Section:
+    sec = Section("Runs")
+    summary = data.summary
+    bad = summary[summary["status"] != "ok"]
+    wall = float(summary["wall_s"].fillna(0).sum()) if "wall_s" in summary else 0.0
+    sec.body.append(f"<p>{len(summary)} runs: {len(summary) - len(bad)} finished, {len(bad)} "
+                    f"failed or incomplete; {wall:.0f} s of simulation in all.</p>")
+    if not bad.empty:
+        rows = [[esc(r["run_id"]), esc(r["status"]), esc(r.get("error", ""))]
+                for _, r in bad.iterrows()]
+        sec.body.append(_table(["run", "status", "error"], rows))
+        sec.text += [f"run {r['run_id']}: {r['status']}: {r.get('error', '')}"
+                     for _, r in bad.iterrows()]
+    sec.body.append("<p>Query every run with SQL: <code>duckdb " +
+                    esc(data.out_dir / "sweep.duckdb") + "</code>, for example <code>SELECT "
+                    "s.&quot;fleet.size&quot;, avg(o.lead_time_s) FROM orders o JOIN summary s "
+                    "USING (run_id) GROUP BY 1 ORDER BY 1</code>.</p>")
+    return sec
+
+
+# ---- output --------------------------------------------------------------------------------
+
+CSS = """
+body { font-family: system-ui, -apple-system, Segoe UI, Roboto, sans-serif; margin: 2em auto;
+       max-width: 1150px; color: #202124; line-height: 1.45; padding: 0 1em; }
+h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { border-bottom: 1px solid #dadce0;
+     padding-bottom: 0.2em; margin-top: 1.8em; }
+.lead { color: #5f6368; } .rec { background: #e8f0fe; border-left: 4px solid #1a73e8;
+     padding: 0.8em 1em; margin: 1em 0; } .warn { color: #b06000; }
+table { border-collapse: collapse; font-size: 0.85em; margin: 0.6em 0; }
+td, th { border: 1px solid #dadce0; padding: 0.25em 0.6em; text-align: left; }
+th { background: #f1f3f4; } figure { margin: 1em 0; } figure img { max-width: 100%; }
+figcaption { color: #5f6368; font-size: 0.85em; } code { background: #f1f3f4; padding: 0 0.2em; }
+"""
+
+
+def render_html(title: str, lead: str, rec_html: str, sections: list[Section]) -> str:
+    parts = [
+        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{esc(title)}</title><style>{CSS}</style></head><body>",
+        f"<h1>{esc(title)}</h1>", f'<p class="lead">{lead}</p>', rec_html,
+    ]
+    for sec in sections:
+        parts.append(f"<section><h2>{esc(sec.title)}</h2>")
+        parts += sec.body
+        for fig in sec.figures:
+            data = base64.b64encode(fig.png).decode("ascii")
+            parts.append(f'<figure><img src="data:image/png;base64,{data}" '
+                         f'alt="{esc(fig.caption)}" data-figure="{esc(fig.key)}">'
+                         f"<figcaption>{esc(fig.caption)}</figcaption></figure>")
+        parts.append("</section>")
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def write_report(out_dir: Path, pdf: bool = True) -> tuple[Path, Path | None]:
+    """Write report.html (and report.pdf) into `out_dir`; returns their paths."""
+    data = load(out_dir)
+    stats = point_stats(data.summary, data.factors)
+    if stats.empty:
+        raise InputError(str(out_dir), "runs", 0, "at least one finished run")
+    series = _series(data, stats)
+    recommended, statements, estimates = recommendations(data)
+    sections = [section_scenario(data), section_kpis(data, series, recommended),
+                section_states(data), section_charging(data, series, recommended),
+                section_congestion(data, series, recommended),
+                section_incidents(data, recommended), section_statistics(data, stats),
+                section_runs(data)]
+    name = data.experiment.get("name", "experiment")
+    title = f"Fleet sizing report: {name}"
+    n_ok = int((data.summary["status"] == "ok").sum())
+    scenario_name = data.scenario.name if data.scenario else "?"
+    layout_name = data.layout.name if data.layout else "?"
+    lead = esc(f"Scenario {scenario_name} on layout {layout_name}; {n_ok} of "
+               f"{len(data.summary)} runs finished; generated "
+               f"{time.strftime('%Y-%m-%d %H:%M')} by fleet-sim.")
+    rec_html = ('<div class="rec"><h2 style="margin-top:0">Recommendation</h2>' +
+                "".join(f"<p><b>{esc(s)}</b></p>" for s in statements) +
+                "".join(f"<p>{esc(e)}</p>" for e in estimates) + "</div>")
+    html_path = out_dir / "report.html"
+    html_path.write_text(render_html(title, lead, rec_html, sections), encoding="utf-8")
+    pdf_path: Path | None = None
+    if pdf:
+        pdf_path = out_dir / "report.pdf"
+        _write_pdf(pdf_path, title, statements, estimates, sections)
+    for sec in sections:
+        for fig in sec.figures:
+            figs.close(fig.pdf_figure)
+    return html_path, pdf_path
+
+
+def _write_pdf(path: Path, title: str, statements: list[str], estimates: list[str],
+               sections: list[Section]) -> None:
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    lines = ["RECOMMENDATION", *statements, "", *estimates, ""]
+    for sec in sections:
+        if sec.text:
+            lines += [sec.title.upper(), *sec.text, ""]
+    with PdfPages(path) as pdf:
+        page = figs.text_page(title, lines)
+        pdf.savefig(page)
+        figs.close(page)
+        for sec in sections:
+            for fig in sec.figures:
+                if fig.pdf_figure is not None:
+                    pdf.savefig(fig.pdf_figure)

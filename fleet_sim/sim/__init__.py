@@ -1,0 +1,1 @@
+"""The SimPy simulation core: engine, demand, incidents, fleet commands, traffic, agents, motion."""

@@ -1,0 +1,1 @@
+"""The actors: the AGV (driving + state machine) and the fleet manager."""

@@ -1,0 +1,479 @@
+"""Driving under traffic control: the part of an AGV that moves it from node to node.
+
+Standing at a node, the AGV takes the next node (waiting if it must), then tries to take the node
+after it; with it, it may pass through the next node at the highest speed from which it could
+still stop at the one after; without it, it brakes to stop at the next node. Each hop's time is
+closed form (fleet_sim.model.kinematics), or, when the traffic has a motion backend
+(`motion: sumo`, fleet_sim.sim.motion.sumo), the time SUMO takes to drive it. See
+fleet_sim.sim.traffic and docs/engine.md for the rules.
+
+`Driver` is the base of `fleet_sim.sim.agents.vehicle.Vehicle`; the hooks `_speed_cap_mps`,
+`_travel` and `_arrived` let the vehicle add markers, obstacles, battery use and slow modes to
+each hop.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Generator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import simpy
+
+from fleet_sim.config.layout import Place
+from fleet_sim.config.scenario import TrafficConfig
+from fleet_sim.config.vehicle import VehicleProfile
+from fleet_sim.errors import SimulationError
+from fleet_sim.model.kinematics import Piece, traverse
+from fleet_sim.model.records import Order, Recorder
+from fleet_sim.model.states import State
+from fleet_sim.sim.traffic.control import Claim, Escape, Lock, Traffic
+
+Proc = Generator[simpy.Event, Any, Any]
+
+STOP_MARKERS = ("spin", "pause")
+"""RSS-AGV-001 5.3 markers that stop the AGV at their node."""
+
+
+@dataclass(slots=True)
+class Held:
+    node: str
+    claim: Claim
+    since_s: float
+    behind_m: float = 0.0
+    """How far the AGV has driven past this node."""
+
+
+class Driver:
+    """Node and corridor locks, routes, hops, waits and deadlock escapes of one AGV."""
+
+    def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
+                 recorder: Recorder, profile: VehicleProfile, config: TrafficConfig,
+                 rng: np.random.Generator) -> None:
+        self.id = agv_id
+        self.env = env
+        self.traffic = traffic
+        self.recorder = recorder
+        self.profile = profile
+        self.config = config
+        self.rng = rng
+        self.clear_m = profile.length_m + profile.min_gap_m
+        self.node = ""
+        self.prev: str | None = None
+        self.speed_mps = 0.0
+        self.held: list[Held] = []
+        self.ahead: list[Held] = []
+        self.corridors: dict[int, tuple[Claim, str | None]] = {}
+        """Corridor id -> (claim, entry node while not yet entered, None once inside)."""
+        self.goal: str | None = None
+        self.next_node: str | None = None
+        self.order: Order | None = None
+        self.parked_in: Place | None = None
+        self.escape: Escape | None = None
+        self.failing = False
+        self.state = State.BOOTING
+        self.process: simpy.Process | None = None
+        self._leg: simpy.Event | None = None
+        """The motion backend's event for the hop under way."""
+        self._moved = 0.0
+        """Share of the hop under way already driven (see `_move`)."""
+        traffic.vehicles[agv_id] = self
+
+    def note(self, event: str, detail: str = "") -> None:
+        """Record an event that changes no state (deadlock, reroute, assignment...)."""
+        self.recorder.event(self.env.now, self.id, event, self.state.value, self.state.value,
+                            self.node, detail)
+
+    @property
+    def dispatch_node(self) -> str:
+        """Where the dispatcher should measure travel from: the node the AGV is committed to."""
+        if self.ahead:
+            return self.ahead[-1].node
+        return self.node
+
+    # ---- hooks for the vehicle ------------------------------------------------------------
+    def _speed_cap_mps(self) -> float | None:
+        """A speed the next hop must not exceed (markers, slow modes), or None."""
+        return None
+
+    def _travel(self, u: str, v: str, time_s: float) -> Proc:
+        """Drive the hop (the vehicle adds obstacles here). `time_s` is the closed-form
+        driving time (0 with a motion backend, which times the hop itself)."""
+        yield from self._move(u, v, time_s, 1.0)
+
+    # ---- motion: closed form, or a backend ------------------------------------------------
+    def _move(self, u: str, v: str, time_s: float, share: float) -> Proc:
+        """Drive on until `share` of the hop u -> v is behind the AGV."""
+        backend = self.traffic.motion_backend
+        if backend is None:
+            yield self.env.timeout(time_s * (share - self._moved))
+        elif share >= 1.0:
+            assert self._leg is not None
+            yield self._leg
+        else:
+            yield backend.reach(self.id, u, v, share)
+        self._moved = share
+
+    def _pause(self, seconds: float, speed_mps: float = 0.0) -> Proc:
+        """Lose `seconds` where the AGV is (line search, obstacle): with a backend, the AGV
+        is held at `speed_mps` meanwhile and speeds up again on its own afterwards."""
+        backend = self.traffic.motion_backend
+        if backend is not None:
+            backend.hold(self.id, speed_mps)
+        try:
+            yield self.env.timeout(seconds)
+        finally:
+            if backend is not None:
+                backend.release(self.id)
+
+    def _halt(self) -> None:
+        """A fault stops the AGV where it is."""
+        self.speed_mps = 0.0
+        if self.traffic.motion_backend is not None:
+            self.traffic.motion_backend.halt(self.id)
+
+    def _arrived(self, u: str, v: str, length_m: float, start_s: float) -> Proc:
+        """After each hop (the vehicle adds battery use and markers here)."""
+        yield from ()
+
+    # ---- placement --------------------------------------------------------------------------
+    def place_at(self, node: str) -> None:
+        """Stand on `node` at t=0 (holding it, and its corridor if it is inside one)."""
+        corridor = self.traffic.layout.corridor_at(node)
+        if corridor is not None:
+            claim = self.traffic.corridor_locks[corridor.id].claim(self.id)
+            if not claim.triggered:
+                raise SimulationError(f"AGV {self.id} starts in corridor {corridor.id}, "
+                                      "which another AGV already occupies")
+            self.corridors[corridor.id] = (claim, None)
+        claim = self.traffic.node_locks[node].claim(self.id)
+        if not claim.triggered:
+            raise SimulationError(f"AGV {self.id} starts on node {node}, already occupied")
+        self.held = [Held(node, claim, self.env.now)]
+        self.node = node
+
+    def place_in_parking(self, place: Place) -> None:
+        self.parked_in = place
+        self.node = place.nodes[0]
+
+    # ---- on and off the track -------------------------------------------------------------
+    def _enter_parking(self, place: Place) -> None:
+        """Drive off the tape into the parking area: every lock is let go."""
+        for held in self.held:
+            self._release(held)
+        self.held = []
+        for cid in list(self.corridors):
+            self._release_corridor(cid)
+        self.parked_in = place
+        self.prev = None
+        if self.traffic.motion_backend is not None:
+            self.traffic.motion_backend.off_track(self.id)
+
+    def _leave_track(self) -> None:
+        """Off the tape (into a parking bay, or taken off by an operator): let go of all."""
+        for held in self.held + self.ahead:
+            self._release(held)
+        self.held, self.ahead = [], []
+        for cid in list(self.corridors):
+            self._release_corridor(cid)
+        self.prev, self.speed_mps = None, 0.0
+        if self.traffic.motion_backend is not None:
+            self.traffic.motion_backend.off_track(self.id)
+
+    def _reenter_track(self, access: str) -> Proc:
+        """Back onto the tape at `access`, once it (and its corridor) is free."""
+        corridor = self.traffic.layout.corridor_at(access)
+        if corridor is not None:
+            lock = self.traffic.corridor_locks[corridor.id]
+            claim = lock.claim(self.id)
+            yield from self._wait(lock, claim, may_escape=False)
+            self.corridors[corridor.id] = (claim, None)
+        lock = self.traffic.node_locks[access]
+        claim = lock.claim(self.id)
+        yield from self._wait(lock, claim, may_escape=False)
+        self.held = [Held(access, claim, self.env.now)]
+        self.traffic.version += 1
+        self.node = access
+
+    # ---- driving ------------------------------------------------------------------------------
+    def drive(self, goal: str, stop_early: Callable[[], bool] | None = None) -> Proc:
+        """Drive to `goal` and stop there, holding it. When `stop_early()` turns true, stop at
+        the first node where the AGV can instead."""
+        self.goal = goal
+        path = self.traffic.route(self.node, goal)
+        i = 0
+        while self.node != self.goal:
+            nxt = path[i + 1]
+            self.next_node = nxt
+            if not self.ahead:
+                after = path[i + 2] if i + 2 < len(path) else None
+                taken = yield from self._take(nxt, after)
+                if not taken:
+                    path = yield from self._get_out()
+                    i = 0
+                    continue
+            v_end_max = 0.0
+            stop_marker = self.traffic.layout.markers.get(nxt) in STOP_MARKERS
+            if nxt != self.goal and i + 2 < len(path) and not stop_marker:
+                w = path[i + 2]
+                x = path[i + 3] if i + 3 < len(path) else None
+                if self._try_take(nxt, w, x):
+                    v_end_max = self.traffic.pass_speed_mps(self.node, nxt, w)
+            yield from self._hop(nxt, v_end_max)
+            i += 1
+            if stop_early is not None and stop_early():
+                self.goal = self.ahead[-1].node if self.ahead else self.node
+        self.next_node = None
+        self._drop_pending_corridors()
+        if self.ahead or self.speed_mps > 1e-9:
+            raise SimulationError(f"AGV {self.id} ended a drive at {self.node} still moving")
+
+    def _hop(self, nxt: str, v_end_max: float) -> Proc:
+        u = self.node
+        corridor = self.traffic.layout.corridor_of(u, nxt)
+        if corridor is not None and corridor.id not in self.corridors:
+            raise SimulationError(f"AGV {self.id} about to enter corridor {corridor.id} "
+                                  f"({u} -> {nxt}) without holding it")
+        cap = self._speed_cap_mps()
+        backend = self.traffic.motion_backend
+        self._moved = 0.0
+        if backend is not None:  # the backend times the hop; the AGV passes through nxt
+            after = self.ahead[1].node if v_end_max > 0 and len(self.ahead) > 1 else None
+            self._leg = backend.hop(self.id, self.prev, u, nxt, after, cap)
+            time_s = v_end = 0.0
+        elif cap is None:
+            time_s, v_end = self.traffic.hop(self.prev, u, nxt, self.speed_mps, v_end_max)
+        else:
+            pieces: tuple[Piece, ...] = tuple(
+                (length, min(limit, cap))
+                for length, limit in self.traffic.pieces(self.prev, u, nxt))
+            motion = self.traffic.motion
+            time_s, v_end = traverse(pieces, self.speed_mps, min(v_end_max, cap),
+                                     motion.accel_mps2, motion.decel_mps2)
+        start = self.env.now
+        yield from self._travel(u, nxt, time_s)
+        if self._leg is not None:
+            if self._moved < 1.0:  # a _travel override that did not drive to the end
+                yield from self._move(u, nxt, time_s, 1.0)
+            speed = self._leg.value
+            assert isinstance(speed, float)
+            v_end = speed
+            self._leg = None
+        length = self.traffic.graph.edges[u, nxt]["length_m"]
+        self.recorder.drove(start, self.env.now, length)
+        if self.recorder.record_occupancy:
+            self.recorder.occupied("segment", f"{u}>{nxt}", self.id, start, self.env.now)
+        self.prev, self.node, self.speed_mps = u, nxt, v_end
+        arrived = self.ahead.pop(0)
+        for held in self.held:
+            held.behind_m += length
+        self.held.append(arrived)
+        while len(self.held) > 1 and self.held[0].behind_m >= self.clear_m - 1e-9:
+            self._release(self.held.pop(0))
+        if corridor is not None:
+            claim, _ = self.corridors[corridor.id]
+            self.corridors[corridor.id] = (claim, None)
+        self._release_left_corridors()
+        yield from self._arrived(u, nxt, length, start)
+
+    def _take(self, node: str, after: str | None) -> Generator[simpy.Event, Any, bool]:
+        """Take `node` (and the corridors the AGV enters on its way), waiting if need be.
+        False when the AGV gave up waiting and must find another way."""
+        taken_corridors: list[int] = []
+        for a, b in ((self.node, node), (node, after)):
+            corridor = self.traffic.entry_corridor(a, b)
+            if corridor is None or corridor.id in self.corridors:
+                continue
+            lock = self.traffic.corridor_locks[corridor.id]
+            claim = lock.claim(self.id)
+            ok = yield from self._wait(lock, claim)
+            if not ok:
+                for cid in taken_corridors:
+                    self._release_corridor(cid)
+                return False
+            self.corridors[corridor.id] = (claim, a)
+            taken_corridors.append(corridor.id)
+        lock = self.traffic.node_locks[node]
+        claim = lock.claim(self.id)
+        ok = yield from self._wait(lock, claim)
+        if not ok:
+            for cid in taken_corridors:
+                self._release_corridor(cid)
+            return False
+        self.ahead.append(Held(node, claim, self.env.now))
+        self.traffic.version += 1
+        return True
+
+    def _try_take(self, via: str, node: str, after: str | None) -> bool:
+        """Take `node` now if it and the corridors on the way are free; never wait."""
+        traffic = self.traffic
+        needed: list[tuple[int, str]] = []
+        for a, b in ((via, node), (node, after)):
+            corridor = traffic.entry_corridor(a, b)
+            if corridor is None or corridor.id in self.corridors:
+                continue
+            if not traffic.corridor_locks[corridor.id].is_free:
+                return False
+            needed.append((corridor.id, a))
+        lock = traffic.node_locks[node]
+        if not lock.is_free:
+            return False
+        for cid, entry in needed:
+            self.corridors[cid] = (traffic.corridor_locks[cid].claim(self.id), entry)
+        self.ahead.append(Held(node, lock.claim(self.id), self.env.now))
+        traffic.version += 1
+        return True
+
+    def _wait(self, lock: Lock, claim: Claim,
+              may_escape: bool = True) -> Generator[simpy.Event, Any, bool]:
+        """Wait for `claim`. Returns True once held; False if the AGV gave up (deadlock victim,
+        or blocked for long with another route at hand) and the claim was withdrawn."""
+        if claim.triggered:
+            return True
+        env = self.env
+        traffic = self.traffic
+        start = env.now
+        traffic.waiting[self.id] = lock
+        traffic.version += 1
+        looked_at: tuple[int, bool, bool] | None = None
+        try:
+            while True:
+                waited = env.now - start
+                now_seen = (traffic.version, waited >= self.config.give_way_after_s,
+                            waited >= self.config.replan_after_s)
+                if may_escape and now_seen != looked_at:  # nothing changed, nothing to look at
+                    looked_at = now_seen
+                    if self._deadlocked() or self._takes_other_way(now_seen[1], now_seen[2]):
+                        claim.cancel()
+                        return False
+                try:
+                    yield claim | env.timeout(self.config.deadlock_check_s)
+                except simpy.Interrupt as interrupt:
+                    if interrupt.cause != "deadlock":  # a fault: let go and pass it on
+                        if claim.triggered:
+                            lock.release(claim)
+                        else:
+                            claim.cancel()
+                        raise
+                    if claim.triggered:
+                        self.escape = None
+                        return True
+                    claim.cancel()
+                    return False
+                if claim.triggered:
+                    return True
+        finally:
+            del traffic.waiting[self.id]
+            traffic.version += 1
+            self.recorder.blocked(start, env.now)
+
+    def _takes_other_way(self, may_give_way: bool, may_replan: bool) -> bool:
+        """Blocked long enough: take another route if there is one; with someone queued behind,
+        circulate rather than block them."""
+        give_way = may_give_way and self.traffic.blocks_others(self)
+        if not (give_way or may_replan):
+            return False
+        escape = self.traffic.escape_for(self)
+        if escape is None or not (escape.kind == "reroute"
+                                  or (give_way and escape.kind == "circulate")):
+            return False
+        self.escape = escape
+        return True
+
+    def _deadlocked(self) -> bool:
+        """Look for a wait-for cycle through this AGV; resolve it. True if this AGV must move."""
+        traffic = self.traffic
+        cycle = traffic.find_cycle(self.id)
+        if cycle is None:
+            return False
+        vehicles = [traffic.vehicles[m] for m in cycle]
+        if any(v.escape is not None or v.failing for v in vehicles):
+            return False  # already being resolved
+        new = traffic.new_cycle(cycle)
+        members = " ".join(str(m) for m in cycle)
+        locks = " ".join(traffic.waiting[m].key for m in cycle)
+        if new:
+            self.recorder.deadlocks += 1
+            self.note("deadlock_detected", f"agvs {members} waiting for {locks}")
+        # Member i holds the lock that member i-1 waits for; its escape must let go of it.
+        options = [(v, traffic.escape_for(v, traffic.waiting[cycle[i - 1]]))
+                   for i, v in enumerate(vehicles)]
+        chosen: tuple[Driver, Escape] | None = None
+        for kind in ("yield", "reroute", "circulate", "backoff"):
+            for vehicle, escape in options:
+                if escape is not None and escape.kind == kind:
+                    chosen = (vehicle, escape)
+                    break
+            if chosen is not None:
+                break
+        if chosen is None:
+            if new:
+                self.note("deadlock_unresolved", f"agvs {members}: no free way out yet")
+            return False
+        victim, escape = chosen
+        victim.note("deadlock_resolved", f"{escape.kind} via {' '.join(escape.path)}")
+        victim.escape = escape
+        if victim is self:
+            return True
+        assert victim.process is not None
+        victim.process.interrupt("deadlock")
+        return False
+
+    def _get_out(self) -> Generator[simpy.Event, Any, list[str]]:
+        """After giving up a wait: take the escape (another route, or one hop back), or wait a
+        little and try the usual route again. Returns the new path from the current node."""
+        escape = self.escape or self.traffic.escape_for(self)
+        self.escape = None
+        self._drop_pending_corridors()
+        assert self.goal is not None
+        if escape is not None and escape.kind in ("reroute", "circulate"):
+            self.note(escape.kind, " ".join(escape.path[:4]) + (" ..." if len(escape.path) > 4
+                                                                 else ""))
+            return list(escape.path)
+        if escape is not None and escape.kind == "backoff":
+            step = escape.path[1]
+            if self._try_take(self.node, step, None):
+                self.note("backoff", f"{self.node} -> {step}")
+                yield from self._hop(step, 0.0)
+                return self.traffic.route(self.node, self.goal)
+        yield self.env.timeout(float(self.rng.exponential(self.config.backoff_s)))
+        return self.traffic.route(self.node, self.goal)
+
+    # ---- releasing ------------------------------------------------------------------------------
+    def _release(self, held: Held) -> None:
+        lock = self.traffic.node_locks[held.node]
+        lock.release(held.claim)
+        self.traffic.version += 1
+        self.recorder.occupied("node", held.node, self.id, held.since_s, self.env.now)
+
+    def _release_corridor(self, cid: int) -> None:
+        claim, _ = self.corridors.pop(cid)
+        self.traffic.corridor_locks[cid].release(claim)
+        self.traffic.version += 1
+
+    def _release_left_corridors(self) -> None:
+        """Let go of corridors the AGV has entered and fully left, and of pending ones whose
+        entry node it is no longer at or heading to."""
+        if not self.corridors:
+            return
+        layout = self.traffic.layout
+        nodes = [h.node for h in self.held]
+        spots = set(nodes) | {h.node for h in self.ahead}
+        for cid, (_, entry) in list(self.corridors.items()):
+            corridor = layout.corridors[cid]
+            if entry is not None:
+                if entry not in spots:
+                    self._release_corridor(cid)
+                continue
+            if any(n in corridor.members for n in nodes):
+                continue
+            if any((a, b) in corridor.segments for a, b in itertools.pairwise(nodes)):
+                continue
+            self._release_corridor(cid)
+
+    def _drop_pending_corridors(self) -> None:
+        for cid, (_, entry) in list(self.corridors.items()):
+            if entry is not None:
+                self._release_corridor(cid)

@@ -1,0 +1,565 @@
+"""The AGV: the RSS-AGV-001 state machine driving a `Driver` through its day.
+
+Every change of state goes through `fire(event)`, which looks the (state, event) pair up in the
+table of fleet_sim.model.state_machine, checks the guard against this vehicle's facts (SOC, load
+sensor, link, obstacle timing...) and records the transition. The behaviours:
+
+* Orders: Idle -> Moving -> Loading (L_Approach, L_Handshake, L_Transfer, L_Verify) -> Moving ->
+  Unloading (U_Approach, U_Handshake, U_Transfer, U_Verify) -> Idle. L_Transfer is the station's
+  handling time; the other sub-states take the vehicle profile's times.
+* Battery: drained per metre (more when loaded), by handling and by idling. An AGV at or below the
+  charging threshold (or P_050, Event_Low_Battery) asks the fleet manager for a charger, drives
+  there (Moving, purpose to_charger), docks, charges along the charge curve until SOC > 95 %,
+  undocks. Below P_051 it shuts down with E_201.
+* Obstacles (4.2.3/4.2.4): met while driving; seen for < 300 ms they only slow the AGV (the
+  P_005/P_006 zone), otherwise it pauses until the path has been clear for 2000 ms; E_101 after
+  5 minutes paused. Scripted blocks stop AGVs in front of the blocked segment.
+* FMS link (Req.Err.011 by default): a lost heartbeat is noticed after `heartbeat_timeout_s`; the
+  AGV drives on slowly to the next tag, waits in Idle, resumes when the link is back, and raises
+  an Error after 10 minutes. Policy `timeout_60s` (4.2.11) instead raises an Error after 60 s.
+  Segments below `link_min_rssi_dbm` are dead spots. A lost AGV takes no new orders and keeps the
+  order it carries.
+* Faults: line loss (Req.Err.010), transfer failure (E_102), random critical faults (MTBF) and
+  scripted ones: Error, an operator comes (Event_Switch_Manual -> Maintenance, the AGV is taken off
+  the track), repairs it, and switches back to AUTO (-> Idle after position re-estimation). An
+  order not yet loaded goes back to the queue; a loaded one is recorded as failed. SafeMode per
+  4.2.14/6.3; only an operator rescue brings an AGV back from it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, NoReturn
+
+import networkx as nx
+import numpy as np
+import simpy
+
+from fleet_sim.config.layout import MARKER_SPEED_MPS, Place
+from fleet_sim.config.scenario import ChargingConfig, IncidentsConfig, Rules, Scenario
+from fleet_sim.model.battery import Battery, charge_time_s
+from fleet_sim.model.error_codes import describe
+from fleet_sim.model.records import Order, Recorder
+from fleet_sim.model.state_machine import transition_for
+from fleet_sim.model.states import State
+from fleet_sim.sim.agents.driving import Driver, Proc
+from fleet_sim.sim.traffic.control import Traffic
+
+if TYPE_CHECKING:
+    from fleet_sim.sim.agents.fleet_manager import FleetManager
+
+
+class Failure:
+    """The cause of an interrupt that sends an AGV to Error."""
+
+    def __init__(self, code: str, detail: str = "") -> None:
+        self.code = code
+        self.detail = detail
+
+
+class Vehicle(Driver):
+    def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
+                 fleet: FleetManager, recorder: Recorder, scenario: Scenario,
+                 rng: np.random.Generator, incident_rng: np.random.Generator) -> None:
+        super().__init__(agv_id, env, traffic, recorder, scenario.fleet.vehicle,
+                         scenario.traffic, rng)
+        self.fleet = fleet
+        self.rules: Rules = scenario.rules
+        self.charging: ChargingConfig = scenario.charging
+        self.incidents: IncidentsConfig = scenario.incidents
+        self.incident_rng = incident_rng
+        self.battery = Battery(scenario.fleet.vehicle.battery, env.now)
+        self.work: simpy.Event = env.event()
+        self.loaded = False
+        self._position_known = True
+        self._stop_error_mm = 0.0
+        self._obstacle_near_s = 0.0
+        self._obstacle_clear_s = 0.0
+        self.error_code: str | None = None
+        self.links_down = 0
+        """FMS link losses in force (scripted or random, noticed)."""
+        self.in_dead_spot = False
+        self.link_changed: simpy.Event = env.event()
+        self.charger: Place | None = None
+        self.docked = False
+        self.charge_due = False
+        self.marker_speed_mps: float | None = None
+        self.parking_target: Place | None = None
+
+    # ---- facts the guards read (fleet_sim.model.state_machine.Facts) -----------------------
+    @property
+    def soc_pct(self) -> float:
+        return self.battery.soc_pct(self.env.now)
+
+    @property
+    def position_known(self) -> bool:
+        return self._position_known
+
+    @property
+    def obstacle_near_s(self) -> float:
+        return self._obstacle_near_s
+
+    @property
+    def obstacle_clear_s(self) -> float:
+        return self._obstacle_clear_s
+
+    @property
+    def stop_error_mm(self) -> float:
+        return self._stop_error_mm
+
+    @property
+    def load_on(self) -> bool:
+        return self.loaded
+
+    @property
+    def charger_free(self) -> bool:
+        return self.charger is not None
+
+    @property
+    def error_flags(self) -> bool:
+        return self.error_code is not None
+
+    @property
+    def rssi_dbm(self) -> float:
+        graph = self.traffic.graph
+        if self.prev is not None and graph.has_edge(self.prev, self.node):
+            return float(graph.edges[self.prev, self.node]["rssi_dbm"])
+        return max((float(d["rssi_dbm"]) for _, _, d in graph.out_edges(self.node, data=True)),
+                   default=self.traffic.layout.spec.defaults.rssi_dbm)
+
+    @property
+    def fms_link(self) -> bool:
+        return self.links_down == 0 and not self.in_dead_spot
+
+    @property
+    def on_charger(self) -> bool:
+        return self.docked
+
+    @property
+    def post_passed(self) -> bool:
+        return True
+
+    # ---- the state machine ------------------------------------------------------------------
+    def fire(self, event: str, detail: str = "") -> bool:
+        """Take the transition for `event` from the current state; False if its guard fails.
+        An event with no transition from here raises InvalidTransition."""
+        transition = transition_for(self.id, self.state, event)
+        if transition.guard is not None and not transition.guard(self, self.rules):
+            self.note("guard_failed", f"{event}: needs {transition.condition}")
+            return False
+        now = self.env.now
+        self.recorder.event(now, self.id, event, self.state.value, transition.target.value,
+                            self.node, detail)
+        self.recorder.soc_samples.append((now, self.id, self.soc_pct))
+        self.state = transition.target
+        return True
+
+    def start(self) -> None:
+        self.in_dead_spot = self.rssi_dbm < self.rules.link_min_rssi_dbm
+        self.recorder.event(self.env.now, self.id, "Event_Power_On", "", State.BOOTING.value,
+                            self.node)
+        self.process = self.env.process(self.run())
+
+    def fail(self, code: str, detail: str = "") -> bool:
+        """Send the AGV to Error from wherever it is (an incident process calls this)."""
+        if self.failing or self.process is None or not self.process.is_alive:
+            return False
+        self.failing = True
+        self.process.interrupt(Failure(code, detail))
+        return True
+
+    # ---- its day ------------------------------------------------------------------------------
+    def run(self) -> Proc:
+        yield self.env.timeout(self.profile.boot_s)
+        self.fire("Event_Init_Complete")
+        while True:
+            try:
+                if self.order is None:
+                    yield from self._idle()
+                if self.order is not None:
+                    yield from self._serve(self.order)
+            except simpy.Interrupt as interrupt:
+                if not isinstance(interrupt.cause, Failure):
+                    raise
+                yield from self._recover(interrupt.cause)
+
+    def needs_charge(self) -> bool:
+        if not self.charging.enabled:
+            return False
+        soc = self.soc_pct
+        if soc <= max(self.charging.threshold_pct, self.rules.bat_low_pct):
+            return True
+        if self.charge_due and soc <= self.rules.charge_done_pct:
+            return True
+        return self.charging.opportunity and soc < self.charging.opportunity_below_pct \
+            and self.fleet.charger_available()
+
+    def _idle(self) -> Proc:
+        """Nothing to do: charge if needed, else offer itself to the dispatcher and park."""
+        if self.needs_charge():
+            yield from self._charge()
+            return
+        if self.soc_pct <= self.rules.bat_low_pct:
+            # may not start moving (P_050) and may not charge: stand until the battery dies
+            yield self.env.timeout(
+                self.battery.seconds_until(self.env.now, self.rules.bat_critical_pct) + 1e-6)
+            self.fail_now("E_201")
+        self.work = self.env.event()
+        self.fleet.vehicle_idle(self)
+        if self.order is not None:
+            return
+        if self.parked_in is None and self.fleet.config.park_idle and self.fms_link:
+            place = self.fleet.reserve_parking(self)
+            if place is not None:
+                self.parking_target = place
+                self.fire("Event_Go_Park", f"to_parking {place.id}")
+                access = place.nodes[0]
+                yield from self.drive(access, stop_early=self._stop_parking_trip)
+                if self.node == access and self.order is None and not self.charge_due:
+                    # drive off the tape into a bay, at turn speed, before letting go of it
+                    yield self.env.timeout(self.clear_m / self.profile.turn_speed_mps)
+                    self._enter_parking(place)
+                    self.parking_target = None
+                    self.fire("Event_Arrived_Parking", place.id)
+                else:
+                    self.parking_target = None
+                    self.fleet.release_parking(place)
+                    self.fire("Event_Stop", "trip to parking cut short")
+                    if self.order is None:
+                        self.fleet.withdraw(self)
+                        return
+                if self.order is not None:
+                    return
+        # wait for work, a charging call, the battery running down, or (no link) 10 minutes
+        threshold = max(self.charging.threshold_pct, self.rules.bat_low_pct) \
+            if self.charging.enabled else self.rules.bat_critical_pct
+        until_low = self.battery.seconds_until(self.env.now, threshold)
+        events = [self.work]
+        if math.isfinite(until_low):
+            events.append(self.env.timeout(until_low + 1e-6))
+        lost = not self.fms_link
+        if lost:  # Req.Err.011: waiting and retrying; Error after 10 minutes
+            events += [self.link_changed, self.env.timeout(self.rules.reconnect_timeout_s)]
+        started = self.env.now
+        yield self.env.any_of(events)
+        if self.order is None:
+            self.fleet.withdraw(self)
+            if self.soc_pct < self.rules.bat_critical_pct:
+                self.fail_now("E_201")
+            if lost and not self.fms_link \
+                    and self.env.now - started >= self.rules.reconnect_timeout_s:
+                self.fail_now("E_301")
+
+    def fail_now(self, code: str) -> NoReturn:
+        """A fault found by the AGV's own process: raise it as an interrupt to itself."""
+        self.failing = True
+        raise simpy.Interrupt(Failure(code))
+
+    def _stop_parking_trip(self) -> bool:
+        return self.order is not None or self.charge_due or not self.fms_link
+
+    def _serve(self, order: Order) -> Proc:
+        if not self.fire("Event_Transport_Order", f"to_pickup order {order.id}"):
+            self.fleet.give_back(self, order)
+            self.order = None
+            return
+        if self.parked_in is not None:
+            yield from self._unpark()
+        assert order.pickup_node is not None and order.dropoff_node is not None
+        yield from self._drive_to(order.pickup_node)
+        order.pickup_arrival_s = self.env.now
+        self.fire("Event_Arrived_Pickup", f"order {order.id}")
+        yield from self._handle("L", order.pickup_handling_s, order)
+        self.loaded = True
+        order.picked_s = self.env.now
+        self.fleet.left_station(order.pickup_node)
+        self.fire("Event_Load_Complete", f"to_dropoff order {order.id}")
+        yield from self._drive_to(order.dropoff_node)
+        order.dropoff_arrival_s = self.env.now
+        self.fire("Event_Arrived_Dropoff", f"order {order.id}")
+        yield from self._handle("U", order.dropoff_handling_s, order)
+        self.loaded = False
+        order.delivered_s = self.env.now
+        self.fleet.left_station(order.dropoff_node)
+        self.order = None
+        self.fire("Event_Unload_Complete", f"order {order.id}")
+
+    def _handle(self, prefix: str, transfer_s: float, order: Order) -> Proc:
+        """The four sub-states of Loading (4.3) or Unloading: approach, handshake, transfer,
+        verify. A failed transfer raises E_102."""
+        profile = self.profile
+        self.battery.draw(self.env.now, profile.battery.handling_w)
+        for name, seconds in (("Approach", profile.approach_s),
+                              ("Handshake", profile.handshake_s),
+                              ("Transfer", transfer_s), ("Verify", profile.verify_s)):
+            self.note(f"{prefix}_{name}", f"order {order.id}")
+            yield self.env.timeout(seconds)
+            if name == "Transfer" and self.incidents.transfer_failure_prob > 0 \
+                    and self.incident_rng.random() < self.incidents.transfer_failure_prob:
+                self.battery.draw(self.env.now, profile.battery.idle_w)
+                self.fail_now("E_102")
+        self.battery.draw(self.env.now, profile.battery.idle_w)
+
+    def _unpark(self) -> Proc:
+        place = self.parked_in
+        assert place is not None
+        yield from self._reenter_track(place.nodes[0])
+        self.parked_in = None
+        self.fleet.release_parking(place)
+
+    # ---- charging ------------------------------------------------------------------------------
+    def _charge(self) -> Proc:
+        trigger = "Event_Low_Battery" if self.soc_pct <= self.rules.bat_low_pct \
+            else "Event_Go_Charge"
+        asked = self.env.now
+        request = self.fleet.request_charger(self)
+        until_dead = self.battery.seconds_until(self.env.now, self.rules.bat_critical_pct)
+        events: list[simpy.Event] = [request]
+        if math.isfinite(until_dead):
+            events.append(self.env.timeout(until_dead + 1e-6))
+        yield self.env.any_of(events)
+        if not request.triggered:
+            self.fleet.cancel_charger_request(self)
+            self.fail_now("E_201")
+        place = request.value
+        assert isinstance(place, Place)
+        self.charger = place
+        self.recorder.charge_waits.append((asked, self.env.now))
+        self.charge_due = False
+        self.fire(trigger, f"to_charger {place.id} soc {self.soc_pct:.1f}")
+        if self.parked_in is not None:
+            yield from self._unpark()
+        yield from self._drive_to(place.nodes[0])
+        self.fire("Event_Arrived_Charger", place.id)
+        self.docked = True
+        self.battery.draw(self.env.now, 0.0)  # the charger powers the AGV
+        yield self.env.timeout(place.docking_s)
+        start = self.soc_pct
+        target = self.rules.charge_done_pct + 0.1
+        charge_s = charge_time_s(self.battery.profile, start, target, place.power_kw)
+        yield self.env.timeout(charge_s)
+        self.battery.set_soc(self.env.now, max(start, target))
+        yield self.env.timeout(place.docking_s)  # undocking
+        self.docked = False
+        self.battery.draw(self.env.now, self.profile.battery.idle_w)
+        self.fire("Event_Charge_Complete", f"{place.id} soc {self.soc_pct:.1f}")
+        self.charger = None
+        self.fleet.release_charger(place)
+
+    # ---- driving with the link, markers, obstacles and the battery -----------------------------
+    def _drive_to(self, goal: str) -> Proc:
+        """Drive to `goal`; under Req.Err.011, stop at the next tag when the FMS link is lost,
+        wait in Idle, and drive on when it is back (Error after 10 minutes)."""
+        while True:
+            if self.rules.comm_policy == "req_err_011":
+                if not self.fms_link:  # no route from the FMS: do not set off
+                    yield from self._wait_for_link()
+                    continue
+                yield from self.drive(goal, stop_early=lambda: not self.fms_link)
+            else:
+                yield from self.drive(goal)
+            if self.node == goal:
+                return
+            yield from self._wait_for_link()
+
+    def _wait_for_link(self) -> Proc:
+        self.fire("Event_Heartbeat_Lost", "Req.Err.011: waiting at the nearest tag")
+        lost = self.env.now
+        while not self.fms_link:
+            left = self.rules.reconnect_timeout_s - (self.env.now - lost)
+            if left <= 0:
+                self.fail_now("E_301")
+            yield self.link_changed | self.env.timeout(left)
+        yield from self.fleet.commands.wait("resume")
+        if not self.fire("Event_Heartbeat_Restored", "link back"):
+            # may not move on (SOC at or below P_050): charge first, then resume the trip
+            yield from self._charge()
+            self.fire("Event_Transport_Order", "resume after charging")
+
+    def set_link(self, down_delta: int) -> None:
+        """An FMS link loss starts (+1) or ends (-1); wakes an AGV waiting for the link."""
+        self.links_down += down_delta
+        self._link_changed()
+
+    def _link_changed(self) -> None:
+        if not self.link_changed.triggered:
+            self.link_changed.succeed()
+        self.link_changed = self.env.event()
+
+    def _speed_cap_mps(self) -> float | None:
+        cap = self.marker_speed_mps
+        if not self.fms_link and self.rules.comm_policy == "req_err_011":
+            slow = self.rules.comm_loss_speed_mps
+            cap = slow if cap is None else min(cap, slow)
+        return cap
+
+    def _travel(self, u: str, v: str, time_s: float) -> Proc:
+        edge = self.traffic.graph.edges[u, v]
+        dead = edge["rssi_dbm"] < self.rules.link_min_rssi_dbm
+        if dead != self.in_dead_spot:
+            self.in_dead_spot = dead
+            self.recorder.comm_losses += dead
+            self.note("dead_spot_in" if dead else "dead_spot_out", f"{u} -> {v}")
+            self._link_changed()
+        if edge["rssi_dbm"] < self.rules.weak_rssi_dbm:
+            self.recorder.warning("E_002")
+        blocked_until = self.traffic.blocked_until(u, v, self.env.now)
+        if blocked_until is not None:
+            yield from self._obstacle(blocked_until - self.env.now, f"segment {u} -> {v} blocked")
+        length = edge["length_m"]
+        rate = edge["obstacle_rate_per_km"]
+        if rate is None:
+            rate = self.incidents.obstacle_rate_per_km
+        rng = self.incident_rng
+        if rate > 0 and rng.random() < 1.0 - math.exp(-rate * length / 1000.0):
+            share = float(rng.random())
+            duration = edge["obstacle_duration"] or self.incidents.obstacle_duration
+            yield from self._move(u, v, time_s, share)
+            yield from self._obstacle(duration.sample(rng), f"on {u} -> {v}")
+            yield from self._move(u, v, time_s, 1.0)
+        else:
+            yield from self._move(u, v, time_s, 1.0)
+        line_rate = self.incidents.line_loss_per_km
+        if line_rate > 0 and rng.random() < 1.0 - math.exp(-line_rate * length / 1000.0):
+            if rng.random() < self.incidents.line_found_prob:
+                self.recorder.warning("E_001")
+                self.note("line_lost", f"found again within {self.rules.line_keep_heading_m} m")
+                yield from self._pause(self.incidents.line_search_s)
+            else:
+                self.fail_now("E_202")
+
+    def _obstacle(self, seen_s: float, where: str) -> Proc:
+        """An obstacle appears in front and stays within range for `seen_s` seconds.
+
+        Seen for less than 300 ms (4.2.3), it only slows the AGV through the detection zone
+        (P_005/P_006): braking to the creep speed and speeding up again cost time. Seen longer,
+        the AGV pauses 300 ms after it appeared and drives on 2000 ms after it has gone (4.2.4);
+        paused for 5 minutes, it raises E_101.
+        """
+        rules = self.rules
+        motion = self.traffic.motion
+        v = max(self.speed_mps, min(self.profile.max_speed_mps, 1.0))
+        self._obstacle_near_s = seen_s
+        if self.traffic.motion_backend is not None:
+            yield from self._obstacle_held(seen_s, where)
+            return
+        if seen_s < rules.obstacle_pause_s:
+            slow = min(rules.obstacle_slow_speed_mps, v)
+            extra = (v - slow) / motion.decel_mps2 + (v - slow) / motion.accel_mps2 \
+                - (v * v - slow * slow) * (1 / motion.decel_mps2 + 1 / motion.accel_mps2) / (2 * v)
+            self.note("obstacle_slowdown", f"{where}: seen {seen_s:.2f} s")
+            yield self.env.timeout(extra + seen_s * (1 - slow / v))
+            return
+        yield self.env.timeout(rules.obstacle_pause_s)
+        self.fire("Event_Obstacle_Detected", f"{where}: within 1.0 m for "
+                                              f">= {rules.obstacle_pause_s * 1000:.0f} ms")
+        self.recorder.obstacle_pauses += 1
+        wait = seen_s - rules.obstacle_pause_s + rules.obstacle_clear_s
+        if wait >= rules.obstacle_timeout_s:
+            yield self.env.timeout(rules.obstacle_timeout_s)
+            self.fail_now("E_101")
+        yield self.env.timeout(wait)
+        self._obstacle_clear_s = rules.obstacle_clear_s
+        self.fire("Event_Obstacle_Cleared", f"paused {wait:.2f} s")
+        yield self.env.timeout(v / (2 * motion.accel_mps2))  # speeding up again from a stop
+
+    def _obstacle_held(self, seen_s: float, where: str) -> Proc:
+        """`_obstacle` with a motion backend: the same rules, but the backend brakes the AGV
+        (to the creep speed, or to a stop) and speeds it up again, so the time lost is its
+        own, and AGVs behind it close up."""
+        rules = self.rules
+        if seen_s < rules.obstacle_pause_s:
+            self.note("obstacle_slowdown", f"{where}: seen {seen_s:.2f} s")
+            yield from self._pause(seen_s, rules.obstacle_slow_speed_mps)
+            return
+        yield from self._pause(rules.obstacle_pause_s, rules.obstacle_slow_speed_mps)
+        self.fire("Event_Obstacle_Detected", f"{where}: within 1.0 m for "
+                                              f">= {rules.obstacle_pause_s * 1000:.0f} ms")
+        self.recorder.obstacle_pauses += 1
+        wait = seen_s - rules.obstacle_pause_s + rules.obstacle_clear_s
+        if wait >= rules.obstacle_timeout_s:
+            yield from self._pause(rules.obstacle_timeout_s)
+            self.fail_now("E_101")
+        yield from self._pause(wait)
+        self._obstacle_clear_s = rules.obstacle_clear_s
+        self.fire("Event_Obstacle_Cleared", f"paused {wait:.2f} s")
+
+    def _arrived(self, u: str, v: str, length_m: float, start_s: float) -> Proc:
+        self.battery.drive(self.env.now, length_m, self.loaded)
+        marker = self.traffic.layout.markers.get(v)
+        if marker is not None:
+            if marker in MARKER_SPEED_MPS:
+                self.marker_speed_mps = MARKER_SPEED_MPS[marker]
+            elif marker == "location":
+                self._position_known = True
+            elif marker == "spin":
+                yield self.env.timeout(self.profile.spin_s)
+            elif marker == "pause":
+                yield self.env.timeout(self.rules.marker_pause_s)
+            self.note(f"marker_{marker}", v)
+        if self.soc_pct < self.rules.bat_critical_pct:
+            self.fail_now("E_201")
+
+    def _recovery_node(self) -> str:
+        """Where the operator puts the AGV back on the track: where it failed, or, if there is
+        no Wi-Fi there, the nearest node (by driving time) that has it."""
+        graph = self.traffic.graph
+        limit = self.rules.link_min_rssi_dbm
+
+        def has_link(node: str) -> bool:
+            return max((float(d["rssi_dbm"]) for _, _, d in graph.out_edges(node, data=True)),
+                       default=limit) >= limit
+
+        if has_link(self.node):
+            return self.node
+        times = nx.single_source_dijkstra_path_length(graph, self.node, weight="free_time_s")
+        good = [n for n in sorted(times, key=lambda n: (times[n], n)) if has_link(n)]
+        return good[0] if good else self.node
+
+    # ---- faults and recovery -------------------------------------------------------------------
+    def _recover(self, failure: Failure) -> Proc:
+        """Error -> (operator) -> Maintenance -> (repair) -> Idle, or SafeMode -> rescue."""
+        env = self.env
+        self.fleet.withdraw(self)
+        self._halt()
+        self.error_code = failure.code
+        level, text = describe(failure.code)
+        self.recorder.errors.append((env.now, self.id, failure.code, level))
+        self.fire("Event_Critical_Error", f"{failure.code} {level}: {text} {failure.detail}")
+        order = self.order
+        if order is not None:
+            self.order = None
+            if self.loaded:
+                self.fleet.order_failed(order, failure.code)
+            else:
+                self.fleet.give_back(self, order)
+        self.loaded = False
+        if self.parking_target is not None:
+            self.fleet.release_parking(self.parking_target)
+            self.parking_target = None
+        if self.charger is not None and not self.docked:
+            self.fleet.release_charger(self.charger)
+            self.charger = None
+        if self.fire("Event_NetLoss_LowBat", "4.2.14: no link, low battery, no charger"):
+            yield env.timeout(self.incidents.rescue.sample(self.incident_rng))
+            self.fire("Event_Operator_Rescue")
+        else:
+            yield env.timeout(self.incidents.operator_response.sample(self.incident_rng))
+            self.fire("Event_Switch_Manual", "operator at the AGV")
+        if self.parked_in is None:
+            self._leave_track()
+        if self.docked and self.charger is not None:
+            self.docked = False
+            self.fleet.release_charger(self.charger)
+            self.charger = None
+        yield env.timeout(self.incidents.repair.sample(self.incident_rng))
+        if self.soc_pct < self.incidents.rescue_soc_pct:
+            self.battery.set_soc(env.now, self.incidents.rescue_soc_pct)  # charged by hand
+        self.error_code = None
+        self.marker_speed_mps = None
+        yield env.timeout(self.incidents.relocalise_s)
+        if self.parked_in is None:
+            yield from self._reenter_track(self._recovery_node())
+            self.in_dead_spot = self.rssi_dbm < self.rules.link_min_rssi_dbm
+        self.failing = False
+        self.fire("Event_Switch_Auto", "back to AUTO, position re-estimated")

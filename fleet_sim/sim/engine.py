@@ -1,0 +1,125 @@
+"""Builds the SimPy model of a scenario, runs it, and hands back the run's records.
+
+Random streams come from one `numpy.random.SeedSequence(seed)`, spawned in a fixed order
+(arrivals, handling times, traffic back-off per AGV, incidents per AGV, command link jitter), so
+the same scenario and seed give the same run, and runs that differ only in fleet size still
+share their order streams.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import simpy
+
+from fleet_sim.config.layout import Layout
+from fleet_sim.config.scenario import Scenario
+from fleet_sim.config.trace import TraceOrder
+from fleet_sim.model.kinematics import Motion, MotionBackend
+from fleet_sim.model.records import Recorder
+from fleet_sim.sim.agents.fleet_manager import FleetManager
+from fleet_sim.sim.agents.vehicle import Vehicle
+from fleet_sim.sim.commands import CommandPath
+from fleet_sim.sim.demand import Demand
+from fleet_sim.sim.incidents import start_incidents
+from fleet_sim.sim.traffic.control import Traffic
+
+ProgressCallback = Callable[[float, float], None]
+"""Called with (simulated seconds so far, simulated seconds in all) during a run."""
+
+PROGRESS_STEPS = 20
+
+
+@dataclass
+class Model:
+    env: simpy.Environment
+    traffic: Traffic
+    fleet: FleetManager
+    vehicles: list[Vehicle]
+    demand: Demand
+    recorder: Recorder
+    motion_backend: MotionBackend | None = None
+
+    def close(self) -> None:
+        """Release what the run holds outside Python (the SUMO simulation, if any)."""
+        if self.motion_backend is not None:
+            self.motion_backend.close()
+
+
+@dataclass
+class RunOutput:
+    scenario: Scenario
+    layout: Layout
+    recorder: Recorder
+    vehicles: list[Vehicle]
+    sim_events: int
+    wall_s: float
+
+
+def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
+                record_occupancy: bool = False) -> Model:
+    env = simpy.Environment()
+    profile = scenario.fleet.vehicle
+    motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
+                    profile.turn_speed_mps)
+    recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy)
+    traffic = Traffic(env, layout, motion)
+    if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
+        from fleet_sim.sim.motion.sumo import SumoMotion
+
+        traffic.motion_backend = SumoMotion(env, layout, scenario, profile.turn_speed_mps)
+    arrivals, handling, backoff, incident, link = np.random.SeedSequence(scenario.seed).spawn(5)
+    commands = CommandPath(env, scenario.fleet.command_profile, scenario.fleet.status_poll_s,
+                           np.random.default_rng(link), recorder)
+    fleet = FleetManager(env, layout, traffic, scenario.dispatch, recorder, commands)
+    vehicle_seeds = backoff.spawn(scenario.fleet.size)
+    incident_seeds = incident.spawn(2 * scenario.fleet.size)
+    vehicles = [
+        Vehicle(i, env, traffic, fleet, recorder, scenario,
+                np.random.default_rng(vehicle_seeds[i]),
+                np.random.default_rng(incident_seeds[2 * i]))
+        for i in range(scenario.fleet.size)
+    ]
+    _place(vehicles, scenario, layout, fleet)
+    start_incidents(env, scenario, vehicles, fleet, traffic, recorder,
+                    [np.random.default_rng(incident_seeds[2 * i + 1])
+                     for i in range(scenario.fleet.size)])
+    demand = Demand(env, layout, scenario.demand, scenario.start_h, fleet.submit,
+                    np.random.default_rng(arrivals), np.random.default_rng(handling), trace)
+    for v in vehicles:
+        v.start()
+    demand.start()
+    return Model(env, traffic, fleet, vehicles, demand, recorder, traffic.motion_backend)
+
+
+def _place(vehicles: list[Vehicle], scenario: Scenario, layout: Layout,
+           fleet: FleetManager) -> None:
+    if scenario.fleet.start_nodes:
+        for vehicle, node in zip(vehicles, scenario.fleet.start_nodes, strict=False):
+            vehicle.place_at(node)
+        return
+    slots = [p for p in layout.parking for _ in range(p.capacity)]
+    for vehicle, place in zip(vehicles, slots, strict=False):
+        vehicle.place_in_parking(place)
+        fleet.parking_free[place.id] -= 1
+
+
+def simulate(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
+             progress: ProgressCallback | None = None, record_occupancy: bool = False) -> RunOutput:
+    """Run the scenario to its end and return what it recorded."""
+    wall_start = time.perf_counter()
+    model = build_model(scenario, layout, trace, record_occupancy)
+    end = scenario.duration_s
+    try:
+        for step in range(1, PROGRESS_STEPS + 1):
+            model.env.run(until=end * step / PROGRESS_STEPS)
+            if progress is not None:
+                progress(model.env.now, end)
+    finally:
+        model.close()
+    sim_events = next(model.env._eid)  # SimPy's count of scheduled events
+    return RunOutput(scenario, layout, model.recorder, model.vehicles, sim_events,
+                     time.perf_counter() - wall_start)

@@ -1,0 +1,1 @@
+"""Motion backends other than the closed form: SUMO through libsumo."""

@@ -1,0 +1,194 @@
+"""Layout -> SUMO network: plain node/edge/connection files, converted with `netconvert`.
+
+The export is what a SUMO user would build by hand for tape-guided AGVs:
+
+* One SUMO node per layout node (type ``unregulated``: who may enter a node is decided by the
+  fleet model's node locks, not by SUMO's right-of-way rules), at the layout's coordinates
+  (``--offset.disable-normalization``).
+* One SUMO edge with one lane per direction of a segment (a two-way segment gives two edges),
+  with the segment's speed limit and its length carried over exactly (an explicit ``length``
+  attribute and ``--precision 6``; `check_network` reads the result back and compares).
+* No internal junction lanes (``--no-internal-links``): a vehicle leaves one edge and is on the
+  next, so the distance driven is the sum of the layout's segment lengths. The slow branch curve
+  after a turn (Req.Nav.005) is not geometry here; the motion backend (fleet_sim.sim.motion.sumo)
+  makes it a waypoint at the turn speed over the first ``turn_length_m`` of the edge.
+* Every turn a layout allows is a connection, U-turns included (AGVs reverse at dead ends).
+* The vehicle type comes from the vehicle profile: length, top speed, acceleration and
+  deceleration, minimum gap; ``sigma=0`` (no driver imperfection: runs are deterministic) and
+  ``tau`` (time headway; 1.0 s by default, so that at 1 m/s the following gap is
+  min_gap_m + 1.0 m = 1.5 m, P_005's detection distance).
+
+Edge ids are ``<from>~<to>``; node ids must be valid SUMO ids (no spaces, no ``~``, none of
+``|\\'";<>&``), which every bundled layout satisfies; others get an InputError naming the node.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import subprocess
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+from fleet_sim.config.layout import Layout
+from fleet_sim.config.vehicle import VehicleProfile
+from fleet_sim.errors import FleetSimError, InputError
+
+VTYPE_ID = "agv"
+EDGE_SEP = "~"
+BAD_ID_CHARS = frozenset(" \t\n\r|\\'\";<>&" + EDGE_SEP)
+LENGTH_TOLERANCE_M = 1e-5
+"""Edge lengths read back from the network must match the layout within this."""
+
+
+def edge_id(u: str, v: str) -> str:
+    """The SUMO edge of segment u -> v."""
+    return f"{u}{EDGE_SEP}{v}"
+
+
+@dataclass(frozen=True)
+class SumoNetwork:
+    """The files of an exported layout."""
+
+    net_file: Path
+    vtype_file: Path
+    nodes_file: Path
+    edges_file: Path
+    connections_file: Path
+
+
+def sumo_binary(name: str) -> str:
+    """Path of a SUMO tool (`netconvert`, `sumo`) from the eclipse-sumo package, else PATH."""
+    try:
+        import sumo  # the eclipse-sumo wheel
+
+        candidate = Path(sumo.SUMO_HOME) / "bin" / name
+        if candidate.exists():
+            return str(candidate)
+    except ImportError:
+        pass
+    found = shutil.which(name)
+    if found is None:
+        raise FleetSimError(f"SUMO's {name} not found: install the project (it pins "
+                            "eclipse-sumo) or put SUMO's bin folder on PATH")
+    return found
+
+
+def _check_ids(layout: Layout) -> None:
+    for node, data in layout.graph.nodes(data=True):
+        if not node or any(c in BAD_ID_CHARS for c in node):
+            raise InputError(layout.file, f"nodes[{data['index']}].id", node,
+                             "an id SUMO accepts for export (no spaces, '~' or any of "
+                             "|\\'\";<>&)")
+
+
+def write_plain(layout: Layout, out_dir: Path) -> tuple[Path, Path, Path]:
+    """Write the plain node, edge and connection files; returns their paths."""
+    _check_ids(layout)
+    graph = layout.graph
+    out_dir.mkdir(parents=True, exist_ok=True)
+    nodes = ET.Element("nodes")
+    for node, data in graph.nodes(data=True):
+        ET.SubElement(nodes, "node", id=node, x=_num(data["x"]), y=_num(data["y"]),
+                      type="unregulated")
+    edges = ET.Element("edges")
+    for u, v, data in graph.edges(data=True):
+        ET.SubElement(edges, "edge", id=edge_id(u, v), attrib={
+            "from": u, "to": v, "numLanes": "1", "speed": _num(data["speed_limit_mps"]),
+            "length": _num(data["length_m"]), "spreadType": "center"})
+    connections = ET.Element("connections")
+    for node in graph.nodes:
+        for t in graph.predecessors(node):
+            for v in graph.successors(node):
+                ET.SubElement(connections, "connection", attrib={
+                    "from": edge_id(t, node), "to": edge_id(node, v),
+                    "fromLane": "0", "toLane": "0"})
+    paths = []
+    for root, suffix in ((nodes, "nod"), (edges, "edg"), (connections, "con")):
+        path = out_dir / f"{layout.name}.{suffix}.xml"
+        ET.indent(root)
+        ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+        paths.append(path)
+    return paths[0], paths[1], paths[2]
+
+
+def write_vtype(profile: VehicleProfile, path: Path, tau_s: float = 1.0) -> Path:
+    """A SUMO additional file with the AGV vehicle type of `profile`."""
+    root = ET.Element("additional")
+    ET.SubElement(root, "vType", attrib=vtype_attributes(profile, tau_s))
+    ET.indent(root)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+    return path
+
+
+def vtype_attributes(profile: VehicleProfile, tau_s: float) -> dict[str, str]:
+    return {
+        "id": VTYPE_ID, "length": _num(profile.length_m), "minGap": _num(profile.min_gap_m),
+        "maxSpeed": _num(profile.max_speed_mps), "accel": _num(profile.accel_mps2),
+        "decel": _num(profile.decel_mps2),
+        "emergencyDecel": _num(2.0 * profile.decel_mps2), "sigma": "0", "tau": _num(tau_s),
+        "speedFactor": "1", "speedDev": "0", "carFollowModel": "Krauss",
+    }
+
+
+def export(layout: Layout, out_dir: Path, profile: VehicleProfile | None = None,
+           tau_s: float = 1.0) -> SumoNetwork:
+    """Write the plain files, the vehicle type and the converted `<name>.net.xml` to out_dir,
+    and check the network against the layout."""
+    out_dir = Path(out_dir)
+    nodes_file, edges_file, connections_file = write_plain(layout, out_dir)
+    net_file = out_dir / f"{layout.name}.net.xml"
+    cmd = [sumo_binary("netconvert"), "--node-files", str(nodes_file),
+           "--edge-files", str(edges_file), "--connection-files", str(connections_file),
+           "--output-file", str(net_file), "--no-internal-links", "true",
+           "--offset.disable-normalization", "true", "--precision", "6",
+           "--junctions.join", "false", "--geometry.remove", "false",
+           "--no-turnarounds", "false", "--no-warnings", "true"]
+    result = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    if result.returncode != 0:
+        raise FleetSimError(f"netconvert failed on layout {layout.name}: "
+                            f"{(result.stderr or result.stdout).strip()}")
+    vtype_file = write_vtype(profile or VehicleProfile(), out_dir / f"{layout.name}.vtype.xml",
+                             tau_s)
+    check_network(layout, net_file)
+    return SumoNetwork(net_file, vtype_file, nodes_file, edges_file, connections_file)
+
+
+def read_edges(net_file: Path) -> dict[str, tuple[float, float]]:
+    """Edge id -> (length_m, speed_mps) of the non-internal edges of a SUMO network."""
+    out: dict[str, tuple[float, float]] = {}
+    for edge in ET.parse(net_file).getroot().iter("edge"):
+        if edge.get("function") == "internal":
+            continue
+        lanes = edge.findall("lane")
+        if len(lanes) != 1:
+            raise FleetSimError(f"{net_file}: edge {edge.get('id')} has {len(lanes)} lanes; "
+                                "expected 1")
+        lane = lanes[0]
+        out[str(edge.get("id"))] = (float(lane.get("length", "nan")),
+                                    float(lane.get("speed", "nan")))
+    return out
+
+
+def check_network(layout: Layout, net_file: Path) -> None:
+    """Every segment is an edge of the same length and speed limit, and nothing else is."""
+    edges = read_edges(net_file)
+    expected = {edge_id(u, v): (d["length_m"], d["speed_limit_mps"])
+                for u, v, d in layout.graph.edges(data=True)}
+    if set(edges) != set(expected):
+        missing = sorted(set(expected) - set(edges))[:5]
+        extra = sorted(set(edges) - set(expected))[:5]
+        raise FleetSimError(f"{net_file}: edges differ from layout {layout.name} "
+                            f"(missing {missing}, extra {extra})")
+    for eid, (length, speed) in expected.items():
+        got_length, got_speed = edges[eid]
+        if not math.isclose(got_length, length, abs_tol=LENGTH_TOLERANCE_M) \
+                or not math.isclose(got_speed, speed, abs_tol=LENGTH_TOLERANCE_M):
+            raise FleetSimError(f"{net_file}: edge {eid} is {got_length} m at {got_speed} m/s; "
+                                f"the layout says {length} m at {speed} m/s")
+
+
+def _num(value: float) -> str:
+    return repr(float(value))

@@ -1,0 +1,1 @@
+"""Traffic control: the reservation table of node and corridor locks, routes, deadlocks."""

@@ -1,0 +1,412 @@
+"""Fleet sizing: the smallest fleet that meets every target with 95 % confidence.
+
+Two answers side by side:
+
+* The analytic estimate: the time one order takes an AGV (empty travel to the pickup, loaded
+  travel to the drop-off, handling at both ends), times the demand, over the AGV time available.
+  Travel times are free-flow times of the shortest routes under the vehicle's speed profile
+  (fleet_sim.model.kinematics: start, turns at turn speed, stop), weighted by the order flows; the
+  empty leg runs from the drop-off of one order to the pickup of an independent next order. No
+  waiting, no traffic: it is a lower bound on the fleet, and the search starts there.
+* The search: evaluate a fleet size with the experiment's replications; where the 95 % interval
+  of a target KPI straddles the bound, add replications (up to ``sizing.max_replications``,
+  growing towards the number fleet_sim.analysis.stats estimates would decide it); step away
+  from the start
+  (1, 2, 4 ... AGVs) until one size meets every target and a smaller one does not, then bisect.
+  A size still undecided at the replication limit counts as not shown to meet the targets (the
+  recommendation errs towards more AGVs). The search assumes more AGVs never make a target
+  worse; the report's grid (from a sweep) shows whether that held.
+
+Every run goes through fleet_sim.study.sweep with the experiment's seeds, so a sizing search over a
+folder that already holds a sweep reuses its runs, and an interrupted search resumes.
+Other factors of the experiment (say, two demand levels) each get their own search.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+import simpy
+
+from fleet_sim.analysis.stats import TargetCheck, target_check
+from fleet_sim.config.experiment import FLEET, Experiment, Target, layout_for, load_trace_for
+from fleet_sim.config.layout import Layout
+from fleet_sim.config.scenario import Scenario
+from fleet_sim.errors import InputError
+from fleet_sim.model.kinematics import Motion, Piece, traverse
+from fleet_sim.sim.demand import resolved_flows
+from fleet_sim.sim.traffic.control import Traffic
+from fleet_sim.study.sweep import DaskPool, LocalPool, execute, prepare, write_tables
+
+DEFAULT_MAX_AGVS = 50
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Analytic fleet estimate from travel and handling times."""
+
+    empty_travel_s: float
+    loaded_travel_s: float
+    handling_s: float
+    demand_per_hour: float
+    """Mean demand over the measured window (after warm-up)."""
+    peak_demand_per_hour: float
+    agv_availability: float
+
+    @property
+    def cycle_s(self) -> float:
+        return self.empty_travel_s + self.loaded_travel_s + self.handling_s
+
+    @property
+    def capacity_per_agv_per_hour(self) -> float:
+        return 3600.0 * self.agv_availability / self.cycle_s
+
+    @property
+    def agvs(self) -> float:
+        """AGVs kept busy by the mean demand (fractional)."""
+        return self.demand_per_hour / self.capacity_per_agv_per_hour
+
+    @property
+    def agvs_at_peak(self) -> float:
+        return self.peak_demand_per_hour / self.capacity_per_agv_per_hour
+
+    @property
+    def minimum(self) -> int:
+        """The least whole fleet that can carry the mean demand at all."""
+        return max(1, math.ceil(self.agvs - 1e-9))
+
+    def as_dict(self) -> dict[str, float]:
+        return {**asdict(self), "cycle_s": self.cycle_s,
+                "capacity_per_agv_per_hour": self.capacity_per_agv_per_hour,
+                "agvs": self.agvs, "agvs_at_peak": self.agvs_at_peak, "minimum": self.minimum}
+
+
+def route_time_s(traffic: Traffic, motion: Motion, src: str, dest: str) -> float:
+    """Free-flow time from standstill at `src` to standstill at `dest` by the shortest route."""
+    if src == dest:
+        return 0.0
+    path = traffic.route(src, dest)
+    pieces: list[Piece] = []
+    prev: str | None = None
+    for u, v in itertools.pairwise(path):
+        pieces.extend(traffic.pieces(prev, u, v))
+        prev = u
+    time_s, _ = traverse(pieces, 0.0, 0.0, motion.accel_mps2, motion.decel_mps2)
+    return time_s
+
+
+def analytic_estimate(scenario: Scenario, layout: Layout, availability: float = 1.0,
+                      trace: Sequence[Any] = ()) -> Estimate:
+    profile = scenario.fleet.vehicle
+    motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
+                    profile.turn_speed_mps)
+    traffic = Traffic(simpy.Environment(), layout, motion)
+
+    def place_time(a: str, b: str) -> float:
+        """Mean over the nodes of two places."""
+        times = [route_time_s(traffic, motion, u, v)
+                 for u in layout.places[a].nodes for v in layout.places[b].nodes]
+        return float(np.mean(times))
+
+    if trace:
+        pairs: dict[tuple[str, str], float] = {}
+        for item in trace:
+            pairs[(item.pickup, item.dropoff)] = pairs.get((item.pickup, item.dropoff), 0) + 1
+        flows = [(p, d, w) for (p, d), w in pairs.items()]
+    else:
+        flows = resolved_flows(scenario.demand, layout)
+    total = sum(w for _, _, w in flows)
+    p_pick: dict[str, float] = {}
+    p_drop: dict[str, float] = {}
+    for p, d, w in flows:
+        p_pick[p] = p_pick.get(p, 0.0) + w / total
+        p_drop[d] = p_drop.get(d, 0.0) + w / total
+    loaded = sum(w / total * place_time(p, d) for p, d, w in flows)
+    empty = sum(pd * pp * place_time(d, p) for d, pd in p_drop.items()
+                for p, pp in p_pick.items())
+
+    def handling(place: str) -> float:
+        spec = layout.places[place].handling
+        return spec.expected_s if spec is not None else 0.0
+
+    handle = sum(w / total * (handling(p) + handling(d)) for p, d, w in flows)
+    mean_rate, peak_rate = demand_rates(scenario, trace)
+    return Estimate(empty, loaded, handle, mean_rate, peak_rate, availability)
+
+
+def demand_rates(scenario: Scenario, trace: Sequence[Any] = ()) -> tuple[float, float]:
+    """(mean, peak hourly) demand over the measured window."""
+    start, end = scenario.warmup_s, scenario.duration_s
+    if scenario.demand.kind == "trace":
+        times = np.array([t.time_s for t in trace], dtype=float)
+        inside = times[(times >= start) & (times <= end)]
+        window_h = max((end - start) / 3600.0, 1e-9)
+        bins = max(1, math.ceil(window_h))
+        counts = np.histogram(inside, bins=bins, range=(start, end))[0]
+        return len(inside) / window_h, float(counts.max()) / (window_h / bins)
+    steps = np.arange(start, end, 60.0) + 30.0  # minute midpoints
+    clock_h = (scenario.start_h + steps / 3600.0) % 24.0
+    mult = np.array([scenario.demand.multiplier_at(float(h)) for h in clock_h])
+    rate = scenario.demand.rate_per_hour
+    return rate * float(mult.mean()), rate * float(mult.max())
+
+
+# ---- the search ----------------------------------------------------------------------------
+
+
+@dataclass
+class Evaluation:
+    agvs: int
+    replications: int
+    checks: list[TargetCheck]
+    failed_runs: int = 0
+
+    @property
+    def verdict(self) -> str:
+        decisions = [c.decision for c in self.checks]
+        if any(d == "fails" for d in decisions):
+            return "fails"
+        if decisions and all(d == "meets" for d in decisions):
+            return "meets"
+        return "undecided"
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "agvs": self.agvs, "replications": self.replications, "verdict": self.verdict,
+            "failed_runs": self.failed_runs,
+            "targets": [{"target": c.target.describe(), "kpi": c.target.kpi,
+                         "bound": c.target.bound, "at_least": c.target.higher_is_better,
+                         "decision": c.decision, "n": c.interval.n,
+                         "mean": _num(c.interval.mean), "ci_low": _num(c.interval.low),
+                         "ci_high": _num(c.interval.high), "needed": c.needed}
+                        for c in self.checks],
+        }
+
+
+@dataclass
+class GroupResult:
+    fixed: dict[str, Any]
+    estimate: Estimate
+    evaluations: dict[int, Evaluation] = field(default_factory=dict)
+    recommended: int | None = None
+    min_agvs: int = 1
+    max_agvs: int = DEFAULT_MAX_AGVS
+
+    def statement(self) -> str:
+        """The recommendation in a planner's words, with its confidence."""
+        where = ", ".join(f"{k} = {v}" for k, v in self.fixed.items())
+        head = f"{where}: " if where else ""
+        if self.recommended is None:
+            tried = self.evaluations.get(self.max_agvs)
+            why = _why_not(tried) if tried else ""
+            return (f"{head}no fleet of {self.min_agvs} to {self.max_agvs} AGVs meets every "
+                    f"target with 95 % confidence{why}")
+        ev = self.evaluations[self.recommended]
+        parts = [f"{c.target.kpi} {c.interval.mean:.4g} (95 % CI {c.interval.low:.4g} to "
+                 f"{c.interval.high:.4g}; target {c.target.describe().split(' ', 1)[1]})"
+                 for c in ev.checks]
+        text = (f"{head}{self.recommended} AGVs meet every target with 95 % confidence over "
+                f"{ev.replications} replications: " + "; ".join(parts) + ".")
+        below = self.evaluations.get(self.recommended - 1)
+        if below is not None:
+            text += f" {below.agvs} AGVs: {below.verdict}{_why_not(below)}."
+        elif self.recommended == self.min_agvs:
+            text += f" ({self.min_agvs} is the smallest fleet searched.)"
+        return text
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"fixed": self.fixed, "estimate": self.estimate.as_dict(),
+                "recommended": self.recommended, "min_agvs": self.min_agvs,
+                "max_agvs": self.max_agvs, "statement": self.statement(),
+                "evaluations": [self.evaluations[n].as_dict() for n in sorted(self.evaluations)]}
+
+
+def _why_not(ev: Evaluation) -> str:
+    bad = [c for c in ev.checks if c.decision != "meets"]
+    if not bad:
+        return ""
+    return " (" + "; ".join(
+        f"{c.target.kpi} {c.interval.mean:.4g}, 95 % CI {c.interval.low:.4g} to "
+        f"{c.interval.high:.4g}, {c.decision} {c.target.describe().split(' ', 1)[1]}"
+        for c in bad) + ")"
+
+
+def _num(value: float) -> float | None:
+    return None if math.isnan(value) else value
+
+
+class Sizer:
+    """Runs the search for one group of fixed factor values."""
+
+    def __init__(self, experiment: Experiment, out_dir: Path, fixed: dict[str, Any],
+                 workers: int = 0, scheduler: str | None = None, quiet: bool = False,
+                 stream: IO[str] | None = None, pool: LocalPool | DaskPool | None = None) -> None:
+        self.pool = pool
+        self.experiment = experiment
+        self.out_dir = out_dir
+        self.fixed = fixed
+        self.workers = workers
+        self.scheduler = scheduler
+        self.quiet = quiet
+        self.stream = stream
+        self.targets: Sequence[Target] = experiment.spec.targets
+
+    def evaluate(self, agvs: int, result: GroupResult) -> Evaluation:
+        spec = self.experiment.spec
+        reps = spec.replications
+        cap = max(spec.sizing.max_replications, reps)
+        while True:
+            factors = {**self.fixed, FLEET: agvs}
+            runs = [self.experiment.run(factors, r) for r in range(reps)]
+            execute(runs, self.out_dir, self.workers, self.scheduler, quiet=True,
+                    stream=self.stream, pool=self.pool)
+            values, failed = self._values(runs)
+            checks = [target_check(factors, t, values[t.kpi]) for t in self.targets]
+            ev = Evaluation(agvs, reps, checks, failed)
+            if ev.verdict != "undecided" or reps >= cap:
+                break
+            wanted = [c.needed for c in checks if c.decision == "undecided" and c.needed]
+            grow = max(wanted) if wanted else reps + 1
+            reps = min(cap, max(reps + 1, min(grow, 2 * reps)))
+        result.evaluations[agvs] = ev
+        if not self.quiet:
+            note = " (undecided at the replication limit: counted as not meeting)" \
+                if ev.verdict == "undecided" else ""
+            where = ", ".join(f"{k}={v}" for k, v in self.fixed.items())
+            self._say(f"{where + ': ' if where else ''}{agvs} AGVs, {ev.replications} "
+                      f"replications: {ev.verdict}{note}")
+        return ev
+
+    def _values(self, runs: Sequence[Any]) -> tuple[dict[str, np.ndarray], int]:
+        values: dict[str, list[float]] = {t.kpi: [] for t in self.targets}
+        failed = 0
+        for spec in runs:
+            kpi_file = self.out_dir / "runs" / spec.run_id / "kpis.json"
+            if not kpi_file.exists():
+                failed += 1
+                continue
+            figures = json.loads(kpi_file.read_text(encoding="utf-8"))
+            for kpi in values:
+                value = figures.get(kpi)
+                values[kpi].append(math.nan if value is None else float(value))
+        return {k: np.array(v, dtype=float) for k, v in values.items()}, failed
+
+    def _say(self, text: str) -> None:
+        import sys
+
+        stream = self.stream if self.stream is not None else sys.stderr
+        stream.write(f"  {text}\n")
+        stream.flush()
+
+    def search(self, estimate: Estimate, lo_limit: int, hi_limit: int) -> GroupResult:
+        result = GroupResult(self.fixed, estimate, min_agvs=lo_limit, max_agvs=hi_limit)
+
+        def meets(n: int) -> bool:
+            ev = result.evaluations.get(n) or self.evaluate(n, result)
+            return ev.verdict == "meets"
+
+        start = min(max(estimate.minimum, lo_limit), hi_limit)
+        lo = lo_limit - 1  # largest size known not to meet (lo_limit - 1: none below)
+        hi: int | None = None  # smallest size known to meet
+        if meets(start):
+            hi, step = start, 1
+            while hi - step >= lo_limit:
+                probe = hi - step
+                if meets(probe):
+                    hi, step = probe, step * 2
+                else:
+                    lo = probe
+                    break
+        else:
+            lo, step = start, 1
+            while lo < hi_limit:
+                probe = min(lo + step, hi_limit)
+                if meets(probe):
+                    hi = probe
+                    break
+                lo, step = probe, step * 2
+        if hi is None:
+            return result
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if meets(mid):
+                hi = mid
+            else:
+                lo = mid
+        result.recommended = hi
+        return result
+
+
+def groups(experiment: Experiment) -> list[dict[str, Any]]:
+    """The combinations of the other factors' values, one sizing search each."""
+    others = [f for f in experiment.factor_names if f != FLEET]
+    for name in others:
+        value = experiment.spec.factors[name]
+        if not isinstance(value, list):
+            raise InputError(str(experiment.file), f"factors.{name}", value,
+                             "a list of levels (`fleet-sim size` searches each combination of "
+                             "the other factors' levels; ranges are for sweeps)")
+    seen: list[dict[str, Any]] = []
+    for point in experiment.points:
+        fixed = {k: v for k, v in point if k in others}
+        if fixed not in seen:
+            seen.append(fixed)
+    return seen or [{}]
+
+
+def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
+               scheduler: str | None = None, quiet: bool = False,
+               stream: IO[str] | None = None) -> list[GroupResult]:
+    """Search every group; write sizing.json and refresh the summary tables."""
+    spec = experiment.spec
+    if not spec.targets:
+        raise InputError(str(experiment.file), "targets", [],
+                         "at least one target for `fleet-sim size` to meet")
+    levels = [v for v in (spec.factors.get(FLEET) or []) if isinstance(v, int)]
+    lo_limit = spec.sizing.min_agvs or (min(levels) if levels else 1)
+    hi_limit = spec.sizing.max_agvs or (max(levels) if levels else DEFAULT_MAX_AGVS)
+    if hi_limit < lo_limit:
+        raise InputError(str(experiment.file), "sizing.max_agvs", hi_limit,
+                         f"at least the smallest fleet searched ({lo_limit})")
+    prepare(experiment, out_dir)
+    results = []
+    n_workers = workers or os.cpu_count() or 1
+    pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers) if scheduler \
+        else LocalPool(n_workers)
+    with pool:
+        for fixed in groups(experiment):
+            results.append(_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, workers,
+                                       scheduler, quiet, stream, pool))
+    document = {"experiment": experiment.name, "confidence": 0.95,
+                "targets": [t.describe() for t in spec.targets],
+                "groups": [r.as_dict() for r in results]}
+    (out_dir / "sizing.json").write_text(json.dumps(document, indent=2, default=str) + "\n",
+                                         encoding="utf-8")
+    write_tables(experiment, out_dir)
+    return results
+
+
+def _size_group(experiment: Experiment, out_dir: Path, fixed: dict[str, Any], lo_limit: int,
+                hi_limit: int, workers: int, scheduler: str | None, quiet: bool,
+                stream: IO[str] | None, pool: LocalPool | DaskPool) -> GroupResult:
+    spec = experiment.spec
+    scenario = experiment.scenario(fixed)
+    layout = layout_for(scenario, str(experiment.scenario_file))
+    trace = load_trace_for(scenario, layout)
+    estimate = analytic_estimate(scenario, layout, spec.sizing.agv_availability, trace)
+    sizer = Sizer(experiment, out_dir, fixed, workers, scheduler, quiet, stream, pool)
+    if not quiet:
+        where = ", ".join(f"{k}={v}" for k, v in fixed.items())
+        sizer._say(f"{where + ': ' if where else ''}analytic estimate {estimate.agvs:.2f} AGVs "
+                   f"busy at the mean demand ({estimate.demand_per_hour:.1f} orders/h x "
+                   f"{estimate.cycle_s:.1f} s per order); searching {lo_limit} to {hi_limit} "
+                   f"AGVs from {min(max(estimate.minimum, lo_limit), hi_limit)}")
+    return sizer.search(estimate, lo_limit, hi_limit)
