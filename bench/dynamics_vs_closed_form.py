@@ -1,6 +1,6 @@
 """Study (a): the fleet engine's closed-form hop times against the time-stepped vehicle model.
 
-The engine (fleet_sim.sim.traffic.control.Traffic.hop / pass_speed_mps,
+The engine (fleet_sim.sim.traffic.routing.Routes.hop / pass_speed_mps,
 fleet_sim.model.kinematics) times each hop
 u -> v with a trapezoidal speed profile: a branch curve of `turn_length_m` (layout default 1.0 m)
 at the turn speed, then the segment limit; at an intermediate node it passes no faster than lets
@@ -28,7 +28,6 @@ from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
 
-import simpy
 import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -39,7 +38,7 @@ from agv_model.dynamics_plot import plot_trace  # noqa: E402
 from agv_model.track import Arc, Marker, Piece, Straight, TagType, Track  # noqa: E402
 from fleet_sim.config.layout import Layout, load_layout  # noqa: E402
 from fleet_sim.model.kinematics import Motion  # noqa: E402
-from fleet_sim.sim.traffic.control import Traffic  # noqa: E402
+from fleet_sim.sim.traffic.routing import Routes  # noqa: E402
 
 # Node positions of the study loop (counter-clockwise, so every corner is a left turn). The
 # bottom side's hops are 0.5, 1, 2, 5, 10, 20 and 1.5 m; the corners give turn hops of 1 m
@@ -107,7 +106,7 @@ class Hop:
         return 100.0 * (self.model_s - self.engine_s) / self.engine_s
 
 
-def engine_hops(traffic: Traffic, prev: str | None,
+def engine_hops(traffic: Routes, prev: str | None,
                 route: list[str]) -> list[tuple[float, float, float]]:
     """(v_in, v_out, time_s) of each hop, as Vehicle.drive computes them on a free road."""
     out = []
@@ -164,7 +163,7 @@ def model_hop_times(trace: Trace, node_positions: list[float]) -> list[float]:
 def run(dt_s: float) -> tuple[list[Hop], dict[str, Trace]]:
     with tempfile.TemporaryDirectory() as tmp:
         layout = study_layout(Path(tmp))
-    traffic = Traffic(simpy.Environment(), layout, Motion(1.0, 0.5, 0.5, 0.3))
+    traffic = Routes(layout, Motion(1.0, 0.5, 0.5, 0.3))
     params = VehicleParams()  # P_001-P_004: 1.0 m/s, 0.5 m/s2 both ways, 0.3 m/s turns
     hops: list[Hop] = []
     traces: dict[str, Trace] = {}

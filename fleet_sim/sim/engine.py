@@ -66,7 +66,7 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
                     profile.turn_speed_mps)
     recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy)
-    traffic = Traffic(env, layout, motion)
+    traffic = Traffic(env, layout, motion, recorder)
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
         from fleet_sim.sim.motion.sumo import SumoMotion
 

@@ -34,7 +34,6 @@ from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
-import simpy
 
 from fleet_sim.analysis.stats import TargetCheck, target_check
 from fleet_sim.config.experiment import FLEET, Experiment, Target, layout_for, load_trace_for
@@ -43,7 +42,7 @@ from fleet_sim.config.scenario import Scenario
 from fleet_sim.errors import InputError
 from fleet_sim.model.kinematics import Motion, Piece, traverse
 from fleet_sim.sim.demand import resolved_flows
-from fleet_sim.sim.traffic.control import Traffic
+from fleet_sim.sim.traffic.routing import Routes
 from fleet_sim.study.sweep import DaskPool, LocalPool, execute, prepare, write_tables
 
 DEFAULT_MAX_AGVS = 50
@@ -89,7 +88,7 @@ class Estimate:
                 "agvs": self.agvs, "agvs_at_peak": self.agvs_at_peak, "minimum": self.minimum}
 
 
-def route_time_s(traffic: Traffic, motion: Motion, src: str, dest: str) -> float:
+def route_time_s(traffic: Routes, motion: Motion, src: str, dest: str) -> float:
     """Free-flow time from standstill at `src` to standstill at `dest` by the shortest route."""
     if src == dest:
         return 0.0
@@ -108,7 +107,7 @@ def analytic_estimate(scenario: Scenario, layout: Layout, availability: float = 
     profile = scenario.fleet.vehicle
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
                     profile.turn_speed_mps)
-    traffic = Traffic(simpy.Environment(), layout, motion)
+    traffic = Routes(layout, motion)
 
     def place_time(a: str, b: str) -> float:
         """Mean over the nodes of two places."""

@@ -7,6 +7,12 @@ closed form (fleet_sim.model.kinematics), or, when the traffic has a motion back
 (`motion: sumo`, fleet_sim.sim.motion.sumo), the time SUMO takes to drive it. See
 fleet_sim.sim.traffic and docs/engine.md for the rules.
 
+The driver is a client of the reservation table (`TrafficClient`): it asks `Traffic` for each
+lock, waits for the claim, and gives it back; it keeps only its own driving bookkeeping (which
+claims are behind it and how far). A deadlock victim is told so by a `DeadlockVictim` interrupt
+cause; any other interrupt cause (a fault) makes it let go of the claim it waited for and passes
+the interrupt on.
+
 `Driver` is the base of `fleet_sim.sim.agents.vehicle.Vehicle`; the hooks `_speed_cap_mps`,
 `_travel` and `_arrived` let the vehicle add markers, obstacles, battery use and slow modes to
 each hop.
@@ -29,7 +35,9 @@ from fleet_sim.errors import SimulationError
 from fleet_sim.model.kinematics import Piece, traverse
 from fleet_sim.model.records import Order, Recorder
 from fleet_sim.model.states import State
-from fleet_sim.sim.traffic.control import Claim, Escape, Lock, Traffic
+from fleet_sim.sim.traffic.control import Traffic
+from fleet_sim.sim.traffic.deadlock import DeadlockVictim
+from fleet_sim.sim.traffic.locks import Claim, Lock
 
 Proc = Generator[simpy.Event, Any, Any]
 
@@ -39,6 +47,8 @@ STOP_MARKERS = ("spin", "pause")
 
 @dataclass(slots=True)
 class Held:
+    """A node claim the AGV holds or drives to."""
+
     node: str
     claim: Claim
     since_s: float
@@ -65,13 +75,10 @@ class Driver:
         self.speed_mps = 0.0
         self.held: list[Held] = []
         self.ahead: list[Held] = []
-        self.corridors: dict[int, tuple[Claim, str | None]] = {}
-        """Corridor id -> (claim, entry node while not yet entered, None once inside)."""
         self.goal: str | None = None
         self.next_node: str | None = None
         self.order: Order | None = None
         self.parked_in: Place | None = None
-        self.escape: Escape | None = None
         self.failing = False
         self.state = State.BOOTING
         self.process: simpy.Process | None = None
@@ -79,12 +86,17 @@ class Driver:
         """The motion backend's event for the hop under way."""
         self._moved = 0.0
         """Share of the hop under way already driven (see `_move`)."""
-        traffic.vehicles[agv_id] = self
+        traffic.register(self)
 
     def note(self, event: str, detail: str = "") -> None:
         """Record an event that changes no state (deadlock, reroute, assignment...)."""
         self.recorder.event(self.env.now, self.id, event, self.state.value, self.state.value,
                             self.node, detail)
+
+    def on_deadlock_victim(self, cause: DeadlockVictim) -> None:
+        """Traffic chose this AGV to break a wait-for cycle: interrupt its wait."""
+        assert self.process is not None
+        self.process.interrupt(cause)
 
     @property
     def dispatch_node(self) -> str:
@@ -141,14 +153,14 @@ class Driver:
     # ---- placement --------------------------------------------------------------------------
     def place_at(self, node: str) -> None:
         """Stand on `node` at t=0 (holding it, and its corridor if it is inside one)."""
-        corridor = self.traffic.layout.corridor_at(node)
+        traffic = self.traffic
+        corridor = traffic.layout.corridor_at(node)
         if corridor is not None:
-            claim = self.traffic.corridor_locks[corridor.id].claim(self.id)
+            claim = traffic.request(self.id, traffic.corridor_locks[corridor.id])
             if not claim.triggered:
                 raise SimulationError(f"AGV {self.id} starts in corridor {corridor.id}, "
                                       "which another AGV already occupies")
-            self.corridors[corridor.id] = (claim, None)
-        claim = self.traffic.node_locks[node].claim(self.id)
+        claim = traffic.request(self.id, traffic.node_locks[node])
         if not claim.triggered:
             raise SimulationError(f"AGV {self.id} starts on node {node}, already occupied")
         self.held = [Held(node, claim, self.env.now)]
@@ -164,7 +176,7 @@ class Driver:
         for held in self.held:
             self._release(held)
         self.held = []
-        for cid in list(self.corridors):
+        for cid in list(self.traffic.corridors_of(self.id)):
             self._release_corridor(cid)
         self.parked_in = place
         self.prev = None
@@ -176,7 +188,7 @@ class Driver:
         for held in self.held + self.ahead:
             self._release(held)
         self.held, self.ahead = [], []
-        for cid in list(self.corridors):
+        for cid in list(self.traffic.corridors_of(self.id)):
             self._release_corridor(cid)
         self.prev, self.speed_mps = None, 0.0
         if self.traffic.motion_backend is not None:
@@ -184,17 +196,16 @@ class Driver:
 
     def _reenter_track(self, access: str) -> Proc:
         """Back onto the tape at `access`, once it (and its corridor) is free."""
-        corridor = self.traffic.layout.corridor_at(access)
+        traffic = self.traffic
+        corridor = traffic.layout.corridor_at(access)
         if corridor is not None:
-            lock = self.traffic.corridor_locks[corridor.id]
-            claim = lock.claim(self.id)
+            lock = traffic.corridor_locks[corridor.id]
+            claim = traffic.request(self.id, lock)
             yield from self._wait(lock, claim, may_escape=False)
-            self.corridors[corridor.id] = (claim, None)
-        lock = self.traffic.node_locks[access]
-        claim = lock.claim(self.id)
+        lock = traffic.node_locks[access]
+        claim = traffic.request(self.id, lock)
         yield from self._wait(lock, claim, may_escape=False)
         self.held = [Held(access, claim, self.env.now)]
-        self.traffic.version += 1
         self.node = access
 
     # ---- driving ------------------------------------------------------------------------------
@@ -220,7 +231,7 @@ class Driver:
                 w = path[i + 2]
                 x = path[i + 3] if i + 3 < len(path) else None
                 if self._try_take(nxt, w, x):
-                    v_end_max = self.traffic.pass_speed_mps(self.node, nxt, w)
+                    v_end_max = self.traffic.routes.pass_speed_mps(self.node, nxt, w)
             yield from self._hop(nxt, v_end_max)
             i += 1
             if stop_early is not None and stop_early():
@@ -232,24 +243,25 @@ class Driver:
 
     def _hop(self, nxt: str, v_end_max: float) -> Proc:
         u = self.node
-        corridor = self.traffic.layout.corridor_of(u, nxt)
-        if corridor is not None and corridor.id not in self.corridors:
+        traffic = self.traffic
+        corridor = traffic.layout.corridor_of(u, nxt)
+        if corridor is not None and corridor.id not in traffic.corridors_of(self.id):
             raise SimulationError(f"AGV {self.id} about to enter corridor {corridor.id} "
                                   f"({u} -> {nxt}) without holding it")
         cap = self._speed_cap_mps()
-        backend = self.traffic.motion_backend
+        backend = traffic.motion_backend
         self._moved = 0.0
         if backend is not None:  # the backend times the hop; the AGV passes through nxt
             after = self.ahead[1].node if v_end_max > 0 and len(self.ahead) > 1 else None
             self._leg = backend.hop(self.id, self.prev, u, nxt, after, cap)
             time_s = v_end = 0.0
         elif cap is None:
-            time_s, v_end = self.traffic.hop(self.prev, u, nxt, self.speed_mps, v_end_max)
+            time_s, v_end = traffic.routes.hop(self.prev, u, nxt, self.speed_mps, v_end_max)
         else:
             pieces: tuple[Piece, ...] = tuple(
                 (length, min(limit, cap))
-                for length, limit in self.traffic.pieces(self.prev, u, nxt))
-            motion = self.traffic.motion
+                for length, limit in traffic.routes.pieces(self.prev, u, nxt))
+            motion = traffic.motion
             time_s, v_end = traverse(pieces, self.speed_mps, min(v_end_max, cap),
                                      motion.accel_mps2, motion.decel_mps2)
         start = self.env.now
@@ -261,7 +273,7 @@ class Driver:
             assert isinstance(speed, float)
             v_end = speed
             self._leg = None
-        length = self.traffic.graph.edges[u, nxt]["length_m"]
+        length = traffic.graph.edges[u, nxt]["length_m"]
         self.recorder.drove(start, self.env.now, length)
         if self.recorder.record_occupancy:
             self.recorder.occupied("segment", f"{u}>{nxt}", self.id, start, self.env.now)
@@ -273,37 +285,35 @@ class Driver:
         while len(self.held) > 1 and self.held[0].behind_m >= self.clear_m - 1e-9:
             self._release(self.held.pop(0))
         if corridor is not None:
-            claim, _ = self.corridors[corridor.id]
-            self.corridors[corridor.id] = (claim, None)
+            traffic.entered_corridor(self.id, corridor.id)
         self._release_left_corridors()
         yield from self._arrived(u, nxt, length, start)
 
     def _take(self, node: str, after: str | None) -> Generator[simpy.Event, Any, bool]:
         """Take `node` (and the corridors the AGV enters on its way), waiting if need be.
         False when the AGV gave up waiting and must find another way."""
+        traffic = self.traffic
         taken_corridors: list[int] = []
         for a, b in ((self.node, node), (node, after)):
-            corridor = self.traffic.entry_corridor(a, b)
-            if corridor is None or corridor.id in self.corridors:
+            corridor = traffic.entry_corridor(a, b)
+            if corridor is None or corridor.id in traffic.corridors_of(self.id):
                 continue
-            lock = self.traffic.corridor_locks[corridor.id]
-            claim = lock.claim(self.id)
+            lock = traffic.corridor_locks[corridor.id]
+            claim = traffic.request(self.id, lock, entry=a)
             ok = yield from self._wait(lock, claim)
             if not ok:
                 for cid in taken_corridors:
                     self._release_corridor(cid)
                 return False
-            self.corridors[corridor.id] = (claim, a)
             taken_corridors.append(corridor.id)
-        lock = self.traffic.node_locks[node]
-        claim = lock.claim(self.id)
+        lock = traffic.node_locks[node]
+        claim = traffic.request(self.id, lock)
         ok = yield from self._wait(lock, claim)
         if not ok:
             for cid in taken_corridors:
                 self._release_corridor(cid)
             return False
         self.ahead.append(Held(node, claim, self.env.now))
-        self.traffic.version += 1
         return True
 
     def _try_take(self, via: str, node: str, after: str | None) -> bool:
@@ -312,7 +322,7 @@ class Driver:
         needed: list[tuple[int, str]] = []
         for a, b in ((via, node), (node, after)):
             corridor = traffic.entry_corridor(a, b)
-            if corridor is None or corridor.id in self.corridors:
+            if corridor is None or corridor.id in traffic.corridors_of(self.id):
                 continue
             if not traffic.corridor_locks[corridor.id].is_free:
                 return False
@@ -321,9 +331,8 @@ class Driver:
         if not lock.is_free:
             return False
         for cid, entry in needed:
-            self.corridors[cid] = (traffic.corridor_locks[cid].claim(self.id), entry)
-        self.ahead.append(Held(node, lock.claim(self.id), self.env.now))
-        traffic.version += 1
+            traffic.request(self.id, traffic.corridor_locks[cid], entry=entry)
+        self.ahead.append(Held(node, traffic.request(self.id, lock), self.env.now))
         return True
 
     def _wait(self, lock: Lock, claim: Claim,
@@ -335,8 +344,7 @@ class Driver:
         env = self.env
         traffic = self.traffic
         start = env.now
-        traffic.waiting[self.id] = lock
-        traffic.version += 1
+        traffic.start_waiting(self.id, lock)
         looked_at: tuple[int, bool, bool] | None = None
         try:
             while True:
@@ -345,87 +353,35 @@ class Driver:
                             waited >= self.config.replan_after_s)
                 if may_escape and now_seen != looked_at:  # nothing changed, nothing to look at
                     looked_at = now_seen
-                    if self._deadlocked() or self._takes_other_way(now_seen[1], now_seen[2]):
-                        claim.cancel()
+                    if traffic.resolve_deadlock(self) is not None \
+                            or traffic.other_way(self, now_seen[1], now_seen[2]) is not None:
+                        traffic.withdraw(self.id, claim)
                         return False
                 try:
                     yield claim | env.timeout(self.config.deadlock_check_s)
                 except simpy.Interrupt as interrupt:
-                    if interrupt.cause != "deadlock":  # a fault: let go and pass it on
+                    if not isinstance(interrupt.cause, DeadlockVictim):
+                        # a fault: let go and pass it on
                         if claim.triggered:
-                            lock.release(claim)
+                            traffic.free(self.id, claim)
                         else:
-                            claim.cancel()
+                            traffic.withdraw(self.id, claim)
                         raise
                     if claim.triggered:
-                        self.escape = None
+                        traffic.take_escape(self.id)  # the way is open after all
                         return True
-                    claim.cancel()
+                    traffic.withdraw(self.id, claim)
                     return False
                 if claim.triggered:
                     return True
         finally:
-            del traffic.waiting[self.id]
-            traffic.version += 1
+            traffic.stop_waiting(self.id)
             self.recorder.blocked(start, env.now)
-
-    def _takes_other_way(self, may_give_way: bool, may_replan: bool) -> bool:
-        """Blocked long enough: take another route if there is one; with someone queued behind,
-        circulate rather than block them."""
-        give_way = may_give_way and self.traffic.blocks_others(self)
-        if not (give_way or may_replan):
-            return False
-        escape = self.traffic.escape_for(self)
-        if escape is None or not (escape.kind == "reroute"
-                                  or (give_way and escape.kind == "circulate")):
-            return False
-        self.escape = escape
-        return True
-
-    def _deadlocked(self) -> bool:
-        """Look for a wait-for cycle through this AGV; resolve it. True if this AGV must move."""
-        traffic = self.traffic
-        cycle = traffic.find_cycle(self.id)
-        if cycle is None:
-            return False
-        vehicles = [traffic.vehicles[m] for m in cycle]
-        if any(v.escape is not None or v.failing for v in vehicles):
-            return False  # already being resolved
-        new = traffic.new_cycle(cycle)
-        members = " ".join(str(m) for m in cycle)
-        locks = " ".join(traffic.waiting[m].key for m in cycle)
-        if new:
-            self.recorder.deadlocks += 1
-            self.note("deadlock_detected", f"agvs {members} waiting for {locks}")
-        # Member i holds the lock that member i-1 waits for; its escape must let go of it.
-        options = [(v, traffic.escape_for(v, traffic.waiting[cycle[i - 1]]))
-                   for i, v in enumerate(vehicles)]
-        chosen: tuple[Driver, Escape] | None = None
-        for kind in ("yield", "reroute", "circulate", "backoff"):
-            for vehicle, escape in options:
-                if escape is not None and escape.kind == kind:
-                    chosen = (vehicle, escape)
-                    break
-            if chosen is not None:
-                break
-        if chosen is None:
-            if new:
-                self.note("deadlock_unresolved", f"agvs {members}: no free way out yet")
-            return False
-        victim, escape = chosen
-        victim.note("deadlock_resolved", f"{escape.kind} via {' '.join(escape.path)}")
-        victim.escape = escape
-        if victim is self:
-            return True
-        assert victim.process is not None
-        victim.process.interrupt("deadlock")
-        return False
 
     def _get_out(self) -> Generator[simpy.Event, Any, list[str]]:
         """After giving up a wait: take the escape (another route, or one hop back), or wait a
         little and try the usual route again. Returns the new path from the current node."""
-        escape = self.escape or self.traffic.escape_for(self)
-        self.escape = None
+        escape = self.traffic.take_escape(self.id) or self.traffic.escape_for(self)
         self._drop_pending_corridors()
         assert self.goal is not None
         if escape is not None and escape.kind in ("reroute", "circulate"):
@@ -443,25 +399,23 @@ class Driver:
 
     # ---- releasing ------------------------------------------------------------------------------
     def _release(self, held: Held) -> None:
-        lock = self.traffic.node_locks[held.node]
-        lock.release(held.claim)
-        self.traffic.version += 1
+        self.traffic.free(self.id, held.claim)
         self.recorder.occupied("node", held.node, self.id, held.since_s, self.env.now)
 
     def _release_corridor(self, cid: int) -> None:
-        claim, _ = self.corridors.pop(cid)
-        self.traffic.corridor_locks[cid].release(claim)
-        self.traffic.version += 1
+        claim, _ = self.traffic.corridors_of(self.id)[cid]
+        self.traffic.free(self.id, claim)
 
     def _release_left_corridors(self) -> None:
         """Let go of corridors the AGV has entered and fully left, and of pending ones whose
         entry node it is no longer at or heading to."""
-        if not self.corridors:
+        corridors = self.traffic.corridors_of(self.id)
+        if not corridors:
             return
         layout = self.traffic.layout
         nodes = [h.node for h in self.held]
         spots = set(nodes) | {h.node for h in self.ahead}
-        for cid, (_, entry) in list(self.corridors.items()):
+        for cid, (_, entry) in list(corridors.items()):
             corridor = layout.corridors[cid]
             if entry is not None:
                 if entry not in spots:
@@ -474,6 +428,6 @@ class Driver:
             self._release_corridor(cid)
 
     def _drop_pending_corridors(self) -> None:
-        for cid, (_, entry) in list(self.corridors.items()):
+        for cid, (_, entry) in list(self.traffic.corridors_of(self.id).items()):
             if entry is not None:
                 self._release_corridor(cid)

@@ -28,6 +28,7 @@ import contextlib
 import io
 import math
 import tempfile
+from collections.abc import Generator
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -38,13 +39,14 @@ import simpy
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario
 from fleet_sim.errors import FleetSimError, SimulationError
-from fleet_sim.sim.agents.driving import Proc
 from fleet_sim.sim.motion.sumo_network import VTYPE_ID, edge_id, export
 
 STOP_S = 1e9
 """Duration of the stop that holds an AGV at a node until its next hop resumes it."""
 AT_STOP_M = 0.2
 """A vehicle standing still this close to the end of its stop edge has arrived."""
+
+Proc = Generator[simpy.Event, Any, None]
 
 _active: SumoMotion | None = None
 
@@ -321,6 +323,3 @@ class SumoMotion:
         if _active is self:
             _active = None
         self._tmp.cleanup()
-
-    def stats(self) -> dict[str, Any]:
-        return {"sumo_steps": self.steps, "sumo_step_s": self.step_s}

@@ -1,4 +1,11 @@
-"""Traffic control: node and corridor locks, routes by travel time, deadlock detection.
+"""Traffic control: the one reservation table of node and corridor locks, and what it tells the
+AGVs about routes, escapes and deadlocks.
+
+Like openTCS's Scheduler, `Traffic` owns every allocation: its clients (the AGVs' drivers,
+anything that satisfies `TrafficClient`) ask it for a lock (`request`), wait for the claim it
+hands back, and give it back (`free`, or `withdraw` a claim not yet granted). A client cannot
+free what it does not hold. Nobody else writes locks; traffic never reads a client's own
+bookkeeping, only what `TrafficClient` declares.
 
 Rules (see docs/engine.md for why):
 
@@ -9,115 +16,188 @@ Rules (see docs/engine.md for why):
   in order, at least the minimum gap behind the one ahead: no overtaking and no overlap.
 * Corridors (chains of two-way segments) are single-track: an AGV takes the corridor lock before
   it takes the node from which it enters the corridor, so two AGVs never meet head-on.
-* Routes follow the shortest free-flow travel time, from per-destination tables computed once.
-* A wait-for cycle (AGV a waits for a lock that b holds, b for one that c holds, ..., back to a)
-  is looked for whenever an AGV starts waiting and every `deadlock_check_s` while it still waits.
-  A cycle is recorded and resolved: one member takes another route or backs off to a free node.
+* Routes follow the shortest free-flow travel time (fleet_sim.sim.traffic.routing).
+* A wait-for cycle is looked for whenever an AGV starts waiting and every `deadlock_check_s`
+  while it still waits (fleet_sim.sim.traffic.deadlock). A cycle is recorded and resolved by the
+  `DeadlockPolicy` handed to `Traffic`: one member takes another route or backs off.
 * Giving way: an AGV that has waited `give_way_after_s` for a corridor or a side track while
   another AGV queues behind it drives on and comes back round (circulates) instead of blocking
   the main loop. This keeps loops flowing, which avoids most deadlocks by construction.
+
+`version` counts changes of lock ownership and waits: a blocked AGV that sees the same count as
+at its last look has nothing new to find.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, cast
+from collections.abc import Iterator, Mapping
+from typing import Protocol, cast
 
-import networkx as nx
 import simpy
-from simpy.resources.resource import Request
 
 from fleet_sim.config.layout import Corridor, Layout
-from fleet_sim.model.kinematics import Motion, MotionBackend, Piece, stop_entry_speed, traverse
+from fleet_sim.errors import SimulationError
+from fleet_sim.model.kinematics import Motion, MotionBackend
+from fleet_sim.model.records import Recorder
+from fleet_sim.sim.traffic.deadlock import (
+    DeadlockPolicy,
+    DeadlockVictim,
+    Escape,
+    GentlestEscapeFirst,
+    KnownCycles,
+    find_cycle,
+)
+from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock
+from fleet_sim.sim.traffic.routing import Routes
 
-if TYPE_CHECKING:
-    from fleet_sim.sim.agents.driving import Driver as Vehicle
+CorridorHold = tuple[Claim, str | None]
+"""A corridor claim and the node from which the client will enter it (None once inside)."""
 
 
-class Claim(Request):
-    """A request for a lock that knows which AGV made it."""
-
-    def __init__(self, resource: Lock, agv_id: int) -> None:
-        self.agv_id = agv_id
-        super().__init__(resource)
-
-
-class Lock(simpy.Resource):
-    """An exclusive lock on a node or a corridor: a SimPy resource of capacity one."""
-
-    def __init__(self, env: simpy.Environment, key: str) -> None:
-        super().__init__(env, capacity=1)
-        self.key = key
-
-    def claim(self, agv_id: int) -> Claim:
-        return Claim(self, agv_id)
+class TrafficClient(Protocol):
+    """What traffic control knows of an AGV (openTCS: a Scheduler client)."""
 
     @property
-    def holder(self) -> int | None:
-        if not self.users:
-            return None
-        claim = cast(Claim, self.users[0])
-        return claim.agv_id
+    def id(self) -> int: ...
 
     @property
-    def is_free(self) -> bool:
-        return not self.users and not self.put_queue
+    def node(self) -> str:
+        """The node the AGV stands on (or last passed)."""
+        ...
 
+    @property
+    def goal(self) -> str | None:
+        """Where the AGV is driving to, if anywhere."""
+        ...
 
-@dataclass(frozen=True)
-class Escape:
-    """How a deadlocked AGV gets out: another route, or a step back to a free node."""
+    @property
+    def next_node(self) -> str | None:
+        """The node it drives to next, if it is driving."""
+        ...
 
-    kind: Literal["yield", "reroute", "circulate", "backoff"]
-    path: tuple[str, ...]
-    """Nodes from the AGV's node onwards (reroute, circulate: to its goal; backoff: one hop;
-    yield: none, the AGV gives up a corridor it reserved and tries again a little later)."""
+    @property
+    def failing(self) -> bool:
+        """A fault is on its way: the AGV is about to let go of everything."""
+        ...
+
+    def note(self, event: str, detail: str = "") -> None:
+        """Record an event about the AGV that changes no state (deadlock_detected...)."""
+
+    def on_deadlock_victim(self, cause: DeadlockVictim) -> None:
+        """The AGV was chosen to break a wait-for cycle: stop waiting and take `cause.escape`."""
 
 
 class Traffic:
-    def __init__(self, env: simpy.Environment, layout: Layout, motion: Motion) -> None:
+    """The reservation table: node and corridor locks, keyed by client."""
+
+    def __init__(self, env: simpy.Environment, layout: Layout, motion: Motion,
+                 recorder: Recorder, policy: DeadlockPolicy | None = None) -> None:
         self.env = env
         self.layout = layout
         self.graph = layout.graph
         self.motion = motion
-        self.node_locks = {n: Lock(env, n) for n in self.graph.nodes}
-        self.corridor_locks = {c.id: Lock(env, f"corridor {c.id}") for c in layout.corridors}
+        self.routes = Routes(layout, motion)
+        self.recorder = recorder
+        self.policy: DeadlockPolicy = policy if policy is not None else GentlestEscapeFirst()
+        self.node_locks = {n: Lock(env, NodeLock(n)) for n in self.graph.nodes}
+        self.corridor_locks = {c.id: Lock(env, CorridorLock(c.id)) for c in layout.corridors}
         self.waiting: dict[int, Lock] = {}
+        """Client id -> the lock it waits for."""
         self.blocks: dict[tuple[str, str], list[tuple[float, float]]] = {}
         """Scripted obstacles: segment (both directions) -> [(from_s, until_s)]."""
         self.known_blocks: dict[tuple[str, str], float] = {}
         """Blocks an AGV has reported: routes keep off them until they end."""
         self.version = 0
-        """Counts changes of lock ownership and waits: a blocked AGV that sees the same count
-        as at its last look has nothing new to find."""
-        self.vehicles: dict[int, Vehicle] = {}
         self.motion_backend: MotionBackend | None = None
         """Moves the AGVs when set (`motion: sumo`); None: closed-form hops."""
-        self._known_cycles: set[frozenset[int]] = set()
-        for _, _, data in self.graph.edges(data=True):
-            data["free_time_s"] = data["length_m"] / min(data["speed_limit_mps"],
-                                                         motion.max_speed_mps)
-        self._to_dest: dict[str, tuple[dict[str, float], dict[str, str]]] = {}
-        self._pieces: dict[tuple[str | None, str, str], tuple[Piece, ...]] = {}
-        self._stop_entry: dict[tuple[str, str, str], float] = {}
-        self._detours: dict[tuple[str, str, frozenset[str], frozenset[tuple[str, str]]],
-                            list[str] | None] = {}
+        self._clients: dict[int, TrafficClient] = {}
+        self._nodes: dict[int, set[Claim]] = {}
+        """Client id -> its node claims (granted or waiting)."""
+        self._corridors: dict[int, dict[int, CorridorHold]] = {}
+        """Client id -> corridor id -> its corridor claims, in the order it asked for them."""
+        self._escapes: dict[int, Escape] = {}
+        """Escapes chosen for clients that have not taken them yet."""
+        self._cycles = KnownCycles()
 
-    # ---- routes ---------------------------------------------------------------------------
-    def _table(self, dest: str) -> tuple[dict[str, float], dict[str, str]]:
-        table = self._to_dest.get(dest)
-        if table is None:
-            dist, paths = nx.single_source_dijkstra(self.graph.reverse(copy=False), dest,
-                                                    weight="free_time_s")
-            next_hop = {n: p[-2] for n, p in paths.items() if len(p) > 1}
-            table = (dist, next_hop)
-            self._to_dest[dest] = table
-        return table
+    # ---- clients and the table --------------------------------------------------------------
+    def register(self, client: TrafficClient) -> None:
+        self._clients[client.id] = client
+        self._nodes[client.id] = set()
+        self._corridors[client.id] = {}
 
+    def request(self, client_id: int, lock: Lock, entry: str | None = None) -> Claim:
+        """Ask for `lock`: the claim is granted (`triggered`) at once if the lock is free, else
+        when the client's turn comes. `entry`: for a corridor, the node from which the client
+        will enter it (None: it is inside already)."""
+        claim = Claim(lock, client_id)
+        key = lock.key
+        if isinstance(key, NodeLock):
+            self._nodes[client_id].add(claim)
+        else:
+            self._corridors[client_id][key.corridor_id] = (claim, entry)
+        self.version += 1
+        return claim
+
+    def free(self, client_id: int, claim: Claim) -> None:
+        """Give back a lock the client holds."""
+        lock = cast(Lock, claim.resource)
+        if claim.client_id != client_id or not lock.users or lock.users[0] is not claim:
+            raise SimulationError(f"AGV {client_id} cannot free {lock.key}: it does not hold "
+                                  f"it (holder: {lock.holder})")
+        lock.release(claim)
+        self._forget(client_id, lock, claim)
+
+    def withdraw(self, client_id: int, claim: Claim) -> None:
+        """Stop waiting for a claim not yet granted."""
+        lock = cast(Lock, claim.resource)
+        if claim.client_id != client_id or claim.triggered:
+            raise SimulationError(f"AGV {client_id} cannot withdraw its claim on {lock.key}: "
+                                  "it is not its own waiting claim")
+        claim.cancel()
+        self._forget(client_id, lock, claim)
+
+    def _forget(self, client_id: int, lock: Lock, claim: Claim) -> None:
+        key = lock.key
+        if isinstance(key, NodeLock):
+            self._nodes[client_id].discard(claim)
+        else:
+            hold = self._corridors[client_id].get(key.corridor_id)
+            if hold is not None and hold[0] is claim:
+                del self._corridors[client_id][key.corridor_id]
+        self.version += 1
+
+    def entered_corridor(self, client_id: int, corridor_id: int) -> None:
+        """The client has driven into a corridor it reserved."""
+        claim, _ = self._corridors[client_id][corridor_id]
+        self._corridors[client_id][corridor_id] = (claim, None)
+
+    def corridors_of(self, client_id: int) -> Mapping[int, CorridorHold]:
+        """The client's corridor claims (corridor id -> claim, entry node), oldest first."""
+        return self._corridors[client_id]
+
+    def holds_corridor(self, client_id: int, corridor_id: int) -> bool:
+        hold = self._corridors[client_id].get(corridor_id)
+        return hold is not None and hold[0].triggered
+
+    def start_waiting(self, client_id: int, lock: Lock) -> None:
+        self.waiting[client_id] = lock
+        self.version += 1
+
+    def stop_waiting(self, client_id: int) -> None:
+        del self.waiting[client_id]
+        self.version += 1
+
+    def holders(self) -> Iterator[tuple[str, int]]:
+        """(node, client id) for every held node lock (for invariant checks)."""
+        for node, lock in self.node_locks.items():
+            holder = lock.holder
+            if holder is not None:
+                yield node, holder
+
+    # ---- routes -----------------------------------------------------------------------------
     def travel_time_s(self, src: str, dest: str) -> float:
-        """Free-flow travel time from src to dest (cached per destination)."""
-        return self._table(dest)[0][src]
+        """Free-flow travel time from src to dest."""
+        return self.routes.travel_time_s(src, dest)
 
     def block(self, u: str, v: str, from_s: float, until_s: float) -> None:
         for key in ((u, v), (v, u)):
@@ -139,73 +219,11 @@ class Traffic:
             now = self.env.now
             self.known_blocks = {k: t for k, t in self.known_blocks.items() if t > now}
             if self.known_blocks:
-                around = self.route_avoiding(src, dest, set(), set(self.known_blocks))
+                around = self.routes.route_avoiding(src, dest, set(), set(self.known_blocks))
                 if around is not None:
                     return around
-        next_hop = self._table(dest)[1]
-        path = [src]
-        node = src
-        while node != dest:
-            node = next_hop[node]
-            path.append(node)
-        return path
+        return self.routes.route(src, dest)
 
-    def route_avoiding(self, src: str, dest: str, avoid: set[str],
-                       avoid_edges: set[tuple[str, str]] | None = None) -> list[str] | None:
-        """Shortest route that keeps off `avoid` nodes and edges (not cached: used when
-        blocked)."""
-        if dest in avoid or src in avoid:
-            return None
-        key = (src, dest, frozenset(avoid), frozenset(avoid_edges or ()))
-        if key in self._detours:
-            return self._detours[key]
-        view = nx.restricted_view(self.graph, list(avoid), list(avoid_edges or ()))
-        try:
-            path: list[str] | None = list(nx.shortest_path(view, src, dest, weight="free_time_s"))
-        except nx.NetworkXNoPath:
-            path = None
-        self._detours[key] = path
-        return path
-
-    # ---- kinematics per hop ---------------------------------------------------------------
-    def pieces(self, prev: str | None, u: str, v: str) -> tuple[Piece, ...]:
-        """The stretch u -> v for an AGV that came from prev: a turn curve first if it turns."""
-        key = (prev, u, v)
-        found = self._pieces.get(key)
-        if found is None:
-            data = self.graph.edges[u, v]
-            length = data["length_m"]
-            limit = min(data["speed_limit_mps"], self.motion.max_speed_mps)
-            turn = self.layout.turn(prev, u, v)
-            curve = min(self.layout.turn_length_m, length)
-            if turn in ("left", "right") and curve > 0:
-                turn_limit = min(limit, self.motion.turn_speed_mps)
-                found = ((curve, turn_limit), (length - curve, limit)) if length > curve \
-                    else ((length, turn_limit),)
-            else:
-                found = ((length, limit),)
-            self._pieces[key] = found
-        return found
-
-    def pass_speed_mps(self, u: str, v: str, w: str) -> float:
-        """Highest speed at v for an AGV on u -> v that goes on to w and may have to stop at w."""
-        key = (u, v, w)
-        found = self._stop_entry.get(key)
-        if found is None:
-            if self.layout.turn(u, v, w) == "reverse":
-                found = 0.0
-            else:
-                found = stop_entry_speed(self.pieces(u, v, w), self.motion.decel_mps2)
-            self._stop_entry[key] = found
-        return found
-
-    def hop(self, prev: str | None, u: str, v: str, v_in: float,
-            v_end_max: float) -> tuple[float, float]:
-        """(time_s, v_end) for u -> v, closed form."""
-        return traverse(self.pieces(prev, u, v), v_in, v_end_max,
-                        self.motion.accel_mps2, self.motion.decel_mps2)
-
-    # ---- locks ----------------------------------------------------------------------------
     def entry_corridor(self, node: str, nxt: str | None) -> Corridor | None:
         """The corridor an AGV enters when it leaves `node` for `nxt`, if `node` is outside it."""
         if nxt is None:
@@ -215,90 +233,109 @@ class Traffic:
             return None
         return corridor
 
-    # ---- deadlocks ------------------------------------------------------------------------
-    def find_cycle(self, start: int) -> list[int] | None:
-        """The wait-for cycle through AGV `start`, as AGV ids in wait order, if there is one."""
-        chain = [start]
-        seen = {start}
-        agv = start
-        while True:
-            lock = self.waiting.get(agv)
-            if lock is None:
-                return None
-            holder = lock.holder
-            if holder is None or holder == agv:
-                return None
-            if holder == start:
-                return chain
-            if holder in seen:
-                return None  # a cycle that does not pass through start: its members handle it
-            seen.add(holder)
-            chain.append(holder)
-            agv = holder
+    # ---- escapes and deadlocks --------------------------------------------------------------
+    def take_escape(self, client_id: int) -> Escape | None:
+        """The escape chosen for the client, if any (it is then the client's to take)."""
+        return self._escapes.pop(client_id, None)
 
-    def new_cycle(self, cycle: list[int]) -> bool:
-        """True the first time a cycle with these members is seen while it persists."""
-        key = frozenset(cycle)
-        self._known_cycles = {c for c in self._known_cycles if self._still_cycle(c)}
-        if key in self._known_cycles:
-            return False
-        self._known_cycles.add(key)
-        return True
+    def other_way(self, client: TrafficClient, may_give_way: bool,
+                  may_replan: bool) -> Escape | None:
+        """Blocked long enough: another route if there is one; with someone queued behind,
+        circulating rather than blocking them. The escape is kept for `take_escape`."""
+        give_way = may_give_way and self.blocks_others(client.id)
+        if not (give_way or may_replan):
+            return None
+        escape = self.escape_for(client)
+        if escape is None or not (escape.kind == "reroute"
+                                  or (give_way and escape.kind == "circulate")):
+            return None
+        self._escapes[client.id] = escape
+        return escape
 
-    def _still_cycle(self, members: frozenset[int]) -> bool:
-        first = min(members)
-        cycle = self.find_cycle(first)
-        return cycle is not None and frozenset(cycle) == members
+    def resolve_deadlock(self, client: TrafficClient) -> Escape | None:
+        """Look for a wait-for cycle through `client` and resolve it. Returns the escape when
+        the client itself must move; another victim is interrupted with `DeadlockVictim`."""
+        cycle = find_cycle(client.id, self.waiting)
+        if cycle is None:
+            return None
+        members = [self._clients[m] for m in cycle]
+        if any(m.id in self._escapes or m.failing for m in members):
+            return None  # already being resolved
+        new = self._cycles.is_new(cycle, self.waiting)
+        names = " ".join(str(m) for m in cycle)
+        if new:
+            locks = " ".join(str(self.waiting[m].key) for m in cycle)
+            self.recorder.deadlocks += 1
+            client.note("deadlock_detected", f"agvs {names} waiting for {locks}")
+        # Member i holds the lock that member i-1 waits for; its escape must let go of it.
+        options = [(m.id, self.escape_for(m, self.waiting[cycle[i - 1]]))
+                   for i, m in enumerate(members)]
+        chosen = self.policy.choose(options)
+        if chosen is None:
+            if new:
+                client.note("deadlock_unresolved", f"agvs {names}: no free way out yet")
+            return None
+        victim_id, escape = chosen
+        victim = self._clients[victim_id]
+        victim.note("deadlock_resolved", f"{escape.kind} via {' '.join(escape.path)}")
+        self._escapes[victim_id] = escape
+        if victim is client:
+            return escape
+        victim.on_deadlock_victim(DeadlockVictim(escape))
+        return None
 
-    def escape_for(self, vehicle: Vehicle, must_free: Lock | None = None) -> Escape | None:
+    def escape_for(self, client: TrafficClient, must_free: Lock | None = None) -> Escape | None:
         """A way out for a blocked AGV that lets go of `must_free` (a lock it holds that another
         AGV waits for): give up a corridor it has reserved but not entered, take another route
         whose first node is free, or back off to a free neighbour."""
-        lock = self.waiting.get(vehicle.id)
-        node = vehicle.node
-        goal = vehicle.goal
+        client_id = client.id
+        waited = self.waiting.get(client_id)
+        node = client.node
+        goal = client.goal
         inside: Corridor | None = None
-        if must_free is not None and must_free.key not in self.node_locks:
-            cid = int(must_free.key.split()[1])
-            _, entry = vehicle.corridors.get(cid, (None, "?"))
-            if entry is not None:
+        if must_free is not None and isinstance(must_free.key, CorridorLock):
+            cid = must_free.key.corridor_id
+            hold = self._corridors[client_id].get(cid)
+            if hold is None or not hold[0].triggered or hold[1] is not None:
                 return Escape("yield", (node,))
             inside = self.layout.corridors[cid]
         avoid_nodes: set[str] = set()
         avoid_edges: set[tuple[str, str]] = set()
-        if lock is not None and lock.key in self.node_locks:
-            avoid_nodes.add(lock.key)
-        elif lock is not None:
-            corridor = self.layout.corridors[int(lock.key.split()[1])]
-            avoid_nodes |= corridor.members
-            avoid_edges |= corridor.segments
+        if waited is not None:
+            key = waited.key
+            if isinstance(key, NodeLock):
+                avoid_nodes.add(key.node)
+            else:
+                corridor = self.layout.corridors[key.corridor_id]
+                avoid_nodes |= corridor.members
+                avoid_edges |= corridor.segments
         if goal is not None and (avoid_nodes or avoid_edges):
-            path = self.route_avoiding(node, goal, avoid_nodes, avoid_edges)
-            if path is not None and len(path) > 1 and self._free_to_enter(vehicle, node, path[1]) \
+            path = self.routes.route_avoiding(node, goal, avoid_nodes, avoid_edges)
+            if path is not None and len(path) > 1 \
+                    and self._free_to_enter(client_id, node, path[1]) \
                     and (inside is None or any(n not in inside.members for n in path[1:])):
                 return Escape("reroute", tuple(path))
         if goal is not None and inside is None and (avoid_nodes or avoid_edges):
-            circle = self._circulate(vehicle, goal, avoid_nodes, avoid_edges)
+            circle = self._circulate(client_id, node, goal, avoid_nodes, avoid_edges)
             if circle is not None:
                 return circle
         for nxt in sorted(self.graph.successors(node)):
-            if nxt in avoid_nodes or (node, nxt) in avoid_edges or nxt == vehicle.next_node:
+            if nxt in avoid_nodes or (node, nxt) in avoid_edges or nxt == client.next_node:
                 continue
             if inside is not None and nxt in inside.members:
                 continue
-            if self._free_to_enter(vehicle, node, nxt):
+            if self._free_to_enter(client_id, node, nxt):
                 return Escape("backoff", (node, nxt))
         return None
 
-    def _circulate(self, vehicle: Vehicle, goal: str, avoid_nodes: set[str],
+    def _circulate(self, client_id: int, node: str, goal: str, avoid_nodes: set[str],
                    avoid_edges: set[tuple[str, str]]) -> Escape | None:
         """Drive on two hops past what blocks the way (a busy corridor, a full siding) and come
         back round by the usual route: a loop's answer to waiting in everyone's way."""
-        node = vehicle.node
         for first in sorted(self.graph.successors(node)):
             if first in avoid_nodes or (node, first) in avoid_edges:
                 continue
-            if not self._free_to_enter(vehicle, node, first):
+            if not self._free_to_enter(client_id, node, first):
                 continue
             for second in sorted(self.graph.successors(first)):
                 if second in avoid_nodes or (first, second) in avoid_edges or second == node:
@@ -309,25 +346,20 @@ class Traffic:
                 return Escape("circulate", (node, first, *back))
         return None
 
-    def blocks_others(self, vehicle: Vehicle) -> bool:
-        """True if another AGV waits for a node or corridor that `vehicle` holds."""
-        locks = self.node_locks
-        if any(locks[h.node].put_queue for h in vehicle.held):
-            return True
-        corridors = self.corridor_locks
-        return any(corridors[cid].put_queue for cid in vehicle.corridors)
+    def blocks_others(self, client_id: int) -> bool:
+        """True if another AGV waits for a node or corridor that the client holds."""
+        for claim in self._nodes[client_id]:
+            if claim.triggered and claim.resource.put_queue:
+                return True
+        for claim, _ in self._corridors[client_id].values():
+            if claim.triggered and claim.resource.put_queue:
+                return True
+        return False
 
-    def _free_to_enter(self, vehicle: Vehicle, node: str, nxt: str) -> bool:
+    def _free_to_enter(self, client_id: int, node: str, nxt: str) -> bool:
         if not self.node_locks[nxt].is_free:
             return False
         corridor = self.layout.corridor_of(node, nxt)
-        if corridor is None or corridor.id in vehicle.corridors:
+        if corridor is None or self.holds_corridor(client_id, corridor.id):
             return True
         return self.corridor_locks[corridor.id].is_free
-
-    def holders(self) -> Iterator[tuple[str, int]]:
-        """(node, AGV id) for every held node lock (for invariant checks)."""
-        for node, lock in self.node_locks.items():
-            if lock.users:
-                claim = cast(Claim, lock.users[0])
-                yield node, claim.agv_id

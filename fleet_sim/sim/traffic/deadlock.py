@@ -1,0 +1,108 @@
+"""Deadlocks: wait-for cycles, the ways out of one, and the strategy that picks the victim.
+
+A wait-for cycle is AGV a waiting for a lock b holds, b for one c holds, ..., back to a. Each
+member's possible escape lets go of the lock the member before it waits for (`Escape`); the
+`DeadlockPolicy` handed to `Traffic` picks which member moves. The victim, when it is not the AGV
+that found the cycle, is interrupted with a `DeadlockVictim` cause carrying its escape (like
+SimPy's `Preempted`: an object with fields, not a string).
+
+Decisions where the spec is silent (RSS-AGV-001 has no traffic rules):
+
+* The default policy (`GentlestEscapeFirst`) prefers the move that disturbs least: giving up a
+  corridor reserved but not entered (`yield`), then another route (`reroute`), then driving on
+  and coming back round (`circulate`), then one hop back (`backoff`); among members with the
+  same kind, the first in wait order (starting from the AGV that looked).
+* A cycle is counted once while it persists with the same members (`KnownCycles`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Literal, Protocol
+
+from fleet_sim.sim.traffic.locks import Lock
+
+EscapeKind = Literal["yield", "reroute", "circulate", "backoff"]
+
+
+@dataclass(frozen=True)
+class Escape:
+    """How a blocked AGV gets out: another route, or a step back to a free node."""
+
+    kind: EscapeKind
+    path: tuple[str, ...]
+    """Nodes from the AGV's node onwards (reroute, circulate: to its goal; backoff: one hop;
+    yield: none, the AGV gives up a corridor it reserved and tries again a little later)."""
+
+
+@dataclass(frozen=True)
+class DeadlockVictim:
+    """Interrupt cause: the AGV was chosen to break a wait-for cycle and should take `escape`."""
+
+    escape: Escape
+
+
+def find_cycle(start: int, waiting: Mapping[int, Lock]) -> list[int] | None:
+    """The wait-for cycle through client `start`, as client ids in wait order, if there is one.
+    `waiting` maps each waiting client to the lock it waits for."""
+    chain = [start]
+    seen = {start}
+    client = start
+    while True:
+        lock = waiting.get(client)
+        if lock is None:
+            return None
+        holder = lock.holder
+        if holder is None or holder == client:
+            return None
+        if holder == start:
+            return chain
+        if holder in seen:
+            return None  # a cycle that does not pass through start: its members handle it
+        seen.add(holder)
+        chain.append(holder)
+        client = holder
+
+
+class KnownCycles:
+    """The cycles already counted, forgotten once they no longer stand."""
+
+    def __init__(self) -> None:
+        self._cycles: set[frozenset[int]] = set()
+
+    def is_new(self, cycle: Sequence[int], waiting: Mapping[int, Lock]) -> bool:
+        """True the first time a cycle with these members is seen while it persists."""
+        key = frozenset(cycle)
+        self._cycles = {c for c in self._cycles if _still_cycle(c, waiting)}
+        if key in self._cycles:
+            return False
+        self._cycles.add(key)
+        return True
+
+
+def _still_cycle(members: frozenset[int], waiting: Mapping[int, Lock]) -> bool:
+    cycle = find_cycle(min(members), waiting)
+    return cycle is not None and frozenset(cycle) == members
+
+
+class DeadlockPolicy(Protocol):
+    """Picks the member of a wait-for cycle that moves, and its escape."""
+
+    def choose(self, options: Sequence[tuple[int, Escape | None]]) -> tuple[int, Escape] | None:
+        """`options`: (client id, its escape or None) for each member, in wait order starting
+        with the client that found the cycle. None: nobody can move yet."""
+        ...
+
+
+class GentlestEscapeFirst:
+    """The default policy: the gentlest kind of escape any member has; the first such member."""
+
+    ORDER: tuple[EscapeKind, ...] = ("yield", "reroute", "circulate", "backoff")
+
+    def choose(self, options: Sequence[tuple[int, Escape | None]]) -> tuple[int, Escape] | None:
+        for kind in self.ORDER:
+            for client_id, escape in options:
+                if escape is not None and escape.kind == kind:
+                    return client_id, escape
+        return None

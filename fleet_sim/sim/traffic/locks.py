@@ -1,0 +1,68 @@
+"""Lock keys and locks: what the reservation table (fleet_sim.sim.traffic.control.Traffic) hands
+out.
+
+A lock is a SimPy resource of capacity one (`Lock`), named by a typed key: `NodeLock(node)` for a
+node, `CorridorLock(corridor_id)` for a single-track corridor. A `Claim` is a request for a lock
+that knows which client (AGV) made it. The key's `str` is the name the run's events show
+("M011", "corridor 3"); nothing parses it back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import cast
+
+import simpy
+from simpy.resources.resource import Request
+
+
+@dataclass(frozen=True, slots=True)
+class NodeLock:
+    """The lock on one node: one AGV per node."""
+
+    node: str
+
+    def __str__(self) -> str:
+        return self.node
+
+
+@dataclass(frozen=True, slots=True)
+class CorridorLock:
+    """The lock on one single-track corridor (fleet_sim.config.layout.Corridor)."""
+
+    corridor_id: int
+
+    def __str__(self) -> str:
+        return f"corridor {self.corridor_id}"
+
+
+LockKey = NodeLock | CorridorLock
+
+
+class Claim(Request):
+    """A request for a lock that knows which client made it."""
+
+    def __init__(self, resource: Lock, client_id: int) -> None:
+        self.client_id = client_id
+        super().__init__(resource)
+
+
+class Lock(simpy.Resource):
+    """An exclusive lock on a node or a corridor: a SimPy resource of capacity one."""
+
+    def __init__(self, env: simpy.Environment, key: LockKey) -> None:
+        super().__init__(env, capacity=1)
+        self.key = key
+
+    @property
+    def holder(self) -> int | None:
+        """The client holding the lock, if any."""
+        if not self.users:
+            return None
+        claim = cast(Claim, self.users[0])
+        return claim.client_id
+
+    @property
+    def is_free(self) -> bool:
+        """Nobody holds it and nobody waits for it."""
+        return not self.users and not self.put_queue
