@@ -50,7 +50,7 @@ class Facts(Protocol):
     def load_on(self) -> bool: ...
 
     @property
-    def charger_free(self) -> bool: ...
+    def charger_assigned(self) -> bool: ...
 
     @property
     def error_flags(self) -> bool: ...
@@ -115,10 +115,10 @@ TRANSITIONS: tuple[Transition, ...] = (
       "stopped within +/-10 mm", "", "4.2.7"),
     T(S.UNLOADING, "Event_Unload_Complete", S.IDLE, lambda f, p: not f.load_on,
       "load sensor OFF", "go to the waiting position or stay idle here", "4.2.8"),
-    T(S.IDLE, "Event_Go_Charge", S.MOVING, lambda f, p: f.charger_free,
+    T(S.IDLE, "Event_Go_Charge", S.MOVING, lambda f, p: f.charger_assigned,
       "a charger is free (FMS)", "drive to the charger", "4.2.9",
       "travel to the charger is recorded as Moving (DESIGN reading)"),
-    T(S.IDLE, "Event_Low_Battery", S.MOVING, lambda f, p: f.charger_free,
+    T(S.IDLE, "Event_Low_Battery", S.MOVING, lambda f, p: f.charger_assigned,
       "a charger is free (FMS)", "drive to the charger", "4.2.9",
       "travel to the charger is recorded as Moving (DESIGN reading)"),
     T(S.MOVING, "Event_Arrived_Charger", S.CHARGING, None, "at the charger node",

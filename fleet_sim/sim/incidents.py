@@ -9,7 +9,6 @@ starts (a loss shorter than that goes unnoticed, like an obstacle seen for less 
 from __future__ import annotations
 
 from collections.abc import Generator
-from functools import partial
 from typing import Any
 
 import numpy as np
@@ -115,11 +114,6 @@ def _charging_call(env: simpy.Environment, scenario: Scenario, vehicles: list[Ve
     yield env.timeout(first)
     while True:
         for vehicle in vehicles:
-            fleet.commands.send("stop", partial(_call_to_charge, vehicle))
+            fleet.commands.send("stop", vehicle.call_to_charge)
         yield env.timeout(24 * 3600.0)
 
-
-def _call_to_charge(vehicle: Vehicle) -> None:
-    vehicle.charge_due = True
-    if not vehicle.work.triggered:
-        vehicle.work.succeed()

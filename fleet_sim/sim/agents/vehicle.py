@@ -24,12 +24,16 @@ sensor, link, obstacle timing...) and records the transition. The behaviours:
   the track), repairs it, and switches back to AUTO (-> Idle after position re-estimation). An
   order not yet loaded goes back to the queue; a loaded one is recorded as failed. SafeMode per
   4.2.14/6.3; only an operator rescue brings an AGV back from it.
+
+The AGV knows the fleet manager only through `FleetManagerLink` (declared here); the fleet
+manager hands it work by calling `assign`, and a scheduled charging call by `call_to_charge`.
+Both wake the AGV if it waits idle; nothing outside writes its attributes.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, NoReturn
+from typing import NoReturn, Protocol
 
 import networkx as nx
 import numpy as np
@@ -43,10 +47,40 @@ from fleet_sim.model.records import Order, Recorder
 from fleet_sim.model.state_machine import transition_for
 from fleet_sim.model.states import State
 from fleet_sim.sim.agents.driving import Driver, Proc
+from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.traffic.control import Traffic
 
-if TYPE_CHECKING:
-    from fleet_sim.sim.agents.fleet_manager import FleetManager
+
+class FleetManagerLink(Protocol):
+    """What the AGV asks of the fleet manager (fleet_sim.sim.agents.fleet_manager)."""
+
+    @property
+    def commands(self) -> CommandPath: ...
+
+    @property
+    def park_idle(self) -> bool: ...
+
+    def vehicle_idle(self, agv: Vehicle) -> None: ...
+
+    def withdraw(self, agv: Vehicle) -> None: ...
+
+    def requeue(self, agv: Vehicle, order: Order) -> None: ...
+
+    def order_failed(self, order: Order, code: str) -> None: ...
+
+    def left_station(self, node: str) -> None: ...
+
+    def reserve_parking(self, agv: Vehicle) -> Place | None: ...
+
+    def release_parking(self, place: Place) -> None: ...
+
+    def charger_available(self) -> bool: ...
+
+    def request_charger(self, agv: Vehicle) -> simpy.Event: ...
+
+    def cancel_charger_request(self, agv: Vehicle) -> None: ...
+
+    def release_charger(self, place: Place) -> None: ...
 
 
 class Failure:
@@ -59,7 +93,7 @@ class Failure:
 
 class Vehicle(Driver):
     def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
-                 fleet: FleetManager, recorder: Recorder, scenario: Scenario,
+                 fleet: FleetManagerLink, recorder: Recorder, scenario: Scenario,
                  rng: np.random.Generator, incident_rng: np.random.Generator) -> None:
         super().__init__(agv_id, env, traffic, recorder, scenario.fleet.vehicle,
                          scenario.traffic, rng)
@@ -69,7 +103,8 @@ class Vehicle(Driver):
         self.incidents: IncidentsConfig = scenario.incidents
         self.incident_rng = incident_rng
         self.battery = Battery(scenario.fleet.vehicle.battery, env.now)
-        self.work: simpy.Event = env.event()
+        self._wake_up: simpy.Event = env.event()
+        """Succeeds when an order or a charging call comes for the AGV waiting idle."""
         self.loaded = False
         self._position_known = True
         self._stop_error_mm = 0.0
@@ -112,7 +147,7 @@ class Vehicle(Driver):
         return self.loaded
 
     @property
-    def charger_free(self) -> bool:
+    def charger_assigned(self) -> bool:
         return self.charger is not None
 
     @property
@@ -168,6 +203,22 @@ class Vehicle(Driver):
         self.process.interrupt(Failure(code, detail))
         return True
 
+    # ---- what the fleet manager hands it ------------------------------------------------------
+    def assign(self, order: Order) -> None:
+        """The assign command with `order` has reached the AGV."""
+        self.order = order
+        self.note("order_assigned", f"order {order.id} {order.pickup} -> {order.dropoff}")
+        self._wake()
+
+    def call_to_charge(self) -> None:
+        """A scheduled charging call (the `stop` command) has reached the AGV."""
+        self.charge_due = True
+        self._wake()
+
+    def _wake(self) -> None:
+        if not self._wake_up.triggered:
+            self._wake_up.succeed()
+
     # ---- its day ------------------------------------------------------------------------------
     def run(self) -> Proc:
         yield self.env.timeout(self.profile.boot_s)
@@ -204,11 +255,11 @@ class Vehicle(Driver):
             yield self.env.timeout(
                 self.battery.seconds_until(self.env.now, self.rules.bat_critical_pct) + 1e-6)
             self.fail_now("E_201")
-        self.work = self.env.event()
+        self._wake_up = self.env.event()
         self.fleet.vehicle_idle(self)
         if self.order is not None:
             return
-        if self.parked_in is None and self.fleet.config.park_idle and self.fms_link:
+        if self.parked_in is None and self.fleet.park_idle and self.fms_link:
             place = self.fleet.reserve_parking(self)
             if place is not None:
                 self.parking_target = place
@@ -234,7 +285,7 @@ class Vehicle(Driver):
         threshold = max(self.charging.threshold_pct, self.rules.bat_low_pct) \
             if self.charging.enabled else self.rules.bat_critical_pct
         until_low = self.battery.seconds_until(self.env.now, threshold)
-        events = [self.work]
+        events = [self._wake_up]
         if math.isfinite(until_low):
             events.append(self.env.timeout(until_low + 1e-6))
         lost = not self.fms_link
@@ -260,7 +311,7 @@ class Vehicle(Driver):
 
     def _serve(self, order: Order) -> Proc:
         if not self.fire("Event_Transport_Order", f"to_pickup order {order.id}"):
-            self.fleet.give_back(self, order)
+            self.fleet.requeue(self, order)
             self.order = None
             return
         if self.parked_in is not None:
@@ -532,7 +583,7 @@ class Vehicle(Driver):
             if self.loaded:
                 self.fleet.order_failed(order, failure.code)
             else:
-                self.fleet.give_back(self, order)
+                self.fleet.requeue(self, order)
         self.loaded = False
         if self.parking_target is not None:
             self.fleet.release_parking(self.parking_target)
