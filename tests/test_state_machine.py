@@ -11,13 +11,13 @@ import pytest
 
 from fleet_sim.config.layout import Layout
 from fleet_sim.model.state_machine import TABLE, TRANSITIONS, InvalidTransition
-from fleet_sim.model.states import State
+from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.agents.vehicle import Vehicle
 from fleet_sim.sim.engine import Model, build_model
 
 from .conftest import make_scenario
 
-S = State
+S = VehicleState
 
 # Section 4.2 of RSS-AGV-001, written down from the spec: (section, from, event, to).
 SPEC_4_2 = [
@@ -41,14 +41,14 @@ SPEC_4_2 = [
 
 
 def test_ten_states_with_their_spec_ids() -> None:
-    assert [s.spec_id for s in State] == [f"ST_{i:03d}" for i in range(1, 11)]
-    assert [s.value for s in State] == ["Booting", "Idle", "Moving", "Loading", "Unloading",
+    assert [s.spec_id for s in VehicleState] == [f"ST_{i:03d}" for i in range(1, 11)]
+    assert [s.value for s in VehicleState] == ["Booting", "Idle", "Moving", "Loading", "Unloading",
                                         "Charging", "Paused", "Error", "Maintenance", "SafeMode"]
 
 
 @pytest.mark.parametrize("section,source,event,target", SPEC_4_2)
-def test_table_holds_every_transition_of_4_2(section: str, source: State | None, event: str,
-                                             target: State) -> None:
+def test_table_holds_every_transition_of_4_2(section: str, source: VehicleState | None, event: str,
+                                             target: VehicleState) -> None:
     row = TABLE[(source, event)]
     assert row.target is target and row.spec == section
 
@@ -101,9 +101,9 @@ def satisfy(agv: Vehicle, event: str) -> None:
         agv.rssi_override = -90.0  # type: ignore[attr-defined]
 
 
-def reach(agv: Vehicle, state: State) -> None:
+def reach(agv: Vehicle, state: VehicleState) -> None:
     """Drive the AGV from Booting to `state` through the table's own transitions."""
-    paths: dict[State, list[str]] = {S.BOOTING: []}
+    paths: dict[VehicleState, list[str]] = {S.BOOTING: []}
     todo = deque([S.BOOTING])
     while todo:
         here = todo.popleft()

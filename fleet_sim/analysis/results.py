@@ -27,14 +27,14 @@ import yaml
 
 from fleet_sim.config.scenario import resolved
 from fleet_sim.model.records import EVENT_COLUMNS
-from fleet_sim.model.states import State
+from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.engine import RunOutput
 
 ORDER_COLUMNS = ("order_id", "created_s", "pickup", "dropoff", "pickup_node", "dropoff_node",
                  "agv", "assigned_s", "pickup_arrival_s", "picked_s", "dropoff_arrival_s",
                  "delivered_s", "pickup_handling_s", "dropoff_handling_s", "lead_time_s",
                  "failed_s", "failure", "reassigned")
-DOWN_STATES = (State.ERROR, State.MAINTENANCE, State.SAFE_MODE)
+DOWN_STATES = (VehicleState.ERROR, VehicleState.MAINTENANCE, VehicleState.SAFE_MODE)
 """States in which an AGV is not available (availability_pct)."""
 
 
@@ -73,7 +73,7 @@ def soc_table(run: RunOutput) -> pd.DataFrame:
 def state_seconds(events: pd.DataFrame, n_agvs: int, start_s: float,
                   end_s: float) -> dict[str, float]:
     """Total AGV-seconds in each state within [start_s, end_s], from the transition events."""
-    totals = {s.value: 0.0 for s in State}
+    totals = {s.value: 0.0 for s in VehicleState}
     changes = events[events["from_state"] != events["to_state"]]
     for _, group in changes.groupby("agv", sort=True):
         times = group["time_s"].to_numpy()
@@ -124,7 +124,7 @@ def kpis(run: RunOutput, events: pd.DataFrame, orders: pd.DataFrame) -> dict[str
         "order_wait_mean_s": _round(float(waits.mean())) if waits.notna().any() else None,
         "order_queue_mean": _round(queue_mean(rec.queue_lengths, start, end)),
     }
-    for state in State:
+    for state in VehicleState:
         out[f"state_{state.key}_pct"] = _round(100.0 * states[state.value] / agv_s)
     down = sum(states[s.value] for s in DOWN_STATES)
     charge_waits = [b - a for a, b in rec.charge_waits]

@@ -15,25 +15,23 @@ import math
 from fleet_sim.config.vehicle import BatteryProfile
 
 
-class Battery:
-    """One AGV's battery: SOC now, from a continuous draw (idle, handling) and per-metre use."""
+class StateOfCharge:
+    """One AGV's state of charge over time: from a continuous draw (idle, handling) and
+    per-metre use. (The battery's data is `BatteryProfile`; agv_model's `Battery` is a vehicle
+    profile's figures, not this.)"""
 
     def __init__(self, profile: BatteryProfile, now_s: float) -> None:
         self.profile = profile
         self._soc = profile.initial_soc_pct
         self._draw_w = profile.idle_w
         self._since_s = now_s
-        self.used_wh = 0.0
-        self.charged_wh = 0.0
 
     def soc_pct(self, now_s: float) -> float:
         return self._soc - self._draw_w * (now_s - self._since_s) / 3600.0 \
             * self.profile.pct_per_wh()
 
     def settle(self, now_s: float) -> None:
-        soc = self.soc_pct(now_s)
-        self.used_wh += (self._soc - soc) / self.profile.pct_per_wh()
-        self._soc, self._since_s = soc, now_s
+        self._soc, self._since_s = self.soc_pct(now_s), now_s
 
     def draw(self, now_s: float, watts: float) -> None:
         """From now on, a continuous draw of `watts` (idle, handling)."""
@@ -44,7 +42,6 @@ class Battery:
         self.settle(now_s)
         per_m = self.profile.drive_loaded_wh_per_m if loaded else self.profile.drive_wh_per_m
         self._soc -= per_m * length_m * self.profile.pct_per_wh()
-        self.used_wh += per_m * length_m
 
     def seconds_until(self, now_s: float, soc_pct: float) -> float:
         """Time until the continuous draw alone takes the SOC down to `soc_pct` (inf if never)."""
@@ -58,8 +55,6 @@ class Battery:
     def set_soc(self, now_s: float, soc_pct: float) -> None:
         """After charging (or a manual recharge by an operator)."""
         self.settle(now_s)
-        if soc_pct > self._soc:
-            self.charged_wh += (soc_pct - self._soc) / self.profile.pct_per_wh()
         self._soc = soc_pct
 
 

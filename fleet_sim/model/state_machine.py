@@ -25,7 +25,7 @@ from typing import Protocol
 
 from fleet_sim.config.scenario import Rules
 from fleet_sim.errors import SimulationError
-from fleet_sim.model.states import State
+from fleet_sim.model.states import VehicleState
 
 
 class Facts(Protocol):
@@ -74,10 +74,10 @@ Guard = Callable[[Facts, Rules], bool]
 
 @dataclass(frozen=True)
 class Transition:
-    source: State | None
+    source: VehicleState | None
     """None: from any state (4.2.11 Global -> Error)."""
     event: str
-    target: State
+    target: VehicleState
     guard: Guard | None
     condition: str
     action: str
@@ -91,7 +91,7 @@ def _soc_above_low(f: Facts, p: Rules) -> bool:
 
 
 T = Transition
-S = State
+S = VehicleState
 TRANSITIONS: tuple[Transition, ...] = (
     T(S.BOOTING, "Event_Init_Complete", S.IDLE, lambda f, p: f.post_passed,
       "POST passed in every module", "notify the FMS of start-up; connect Wi-Fi", "4.2.1"),
@@ -152,21 +152,22 @@ TRANSITIONS: tuple[Transition, ...] = (
       "resume the interrupted trip", None, "Req.Err.011: resume after reconnecting"),
 )
 
-TABLE: dict[tuple[State | None, str], Transition] = {(t.source, t.event): t for t in TRANSITIONS}
+TABLE: dict[tuple[VehicleState | None, str], Transition] = {
+    (t.source, t.event): t for t in TRANSITIONS}
 EVENTS = frozenset(t.event for t in TRANSITIONS)
 
 
 class InvalidTransition(SimulationError):
     """An event fired in a state that has no transition for it."""
 
-    def __init__(self, agv: int, state: State, event: str) -> None:
+    def __init__(self, agv: int, state: VehicleState, event: str) -> None:
         self.agv, self.state, self.event = agv, state, event
         known = sorted(e for (s, e) in TABLE if s in (state, None))
         super().__init__(f"AGV {agv}: event {event} has no transition from state "
                          f"{state.value} ({state.spec_id}); from there: {', '.join(known)}")
 
 
-def transition_for(agv: int, state: State, event: str) -> Transition:
+def transition_for(agv: int, state: VehicleState, event: str) -> Transition:
     found = TABLE.get((state, event)) or TABLE.get((None, event))
     if found is None:
         raise InvalidTransition(agv, state, event)

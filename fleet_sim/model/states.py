@@ -10,7 +10,7 @@ from __future__ import annotations
 from enum import Enum
 
 
-class State(Enum):
+class VehicleState(Enum):
     BOOTING = "Booting"
     IDLE = "Idle"
     MOVING = "Moving"
@@ -25,7 +25,7 @@ class State(Enum):
     @property
     def spec_id(self) -> str:
         """The spec's id, ST_001 ... ST_010."""
-        return f"ST_{list(State).index(self) + 1:03d}"
+        return f"ST_{list(VehicleState).index(self) + 1:03d}"
 
     @property
     def key(self) -> str:

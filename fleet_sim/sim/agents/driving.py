@@ -34,7 +34,7 @@ from fleet_sim.config.vehicle import VehicleProfile
 from fleet_sim.errors import SimulationError
 from fleet_sim.model.kinematics import Piece, traverse
 from fleet_sim.model.records import Order, Recorder
-from fleet_sim.model.states import State
+from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.traffic.control import Traffic
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim
 from fleet_sim.sim.traffic.locks import Claim, Lock
@@ -80,7 +80,7 @@ class Driver:
         self.order: Order | None = None
         self.parked_in: Place | None = None
         self.failing = False
-        self.state = State.BOOTING
+        self.state = VehicleState.BOOTING
         self.process: simpy.Process | None = None
         self._leg: simpy.Event | None = None
         """The motion backend's event for the hop under way."""

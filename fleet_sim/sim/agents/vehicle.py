@@ -41,11 +41,11 @@ import simpy
 
 from fleet_sim.config.layout import MARKER_SPEED_MPS, Place
 from fleet_sim.config.scenario import ChargingConfig, IncidentsConfig, Rules, Scenario
-from fleet_sim.model.battery import Battery, charge_time_s
+from fleet_sim.model.battery import StateOfCharge, charge_time_s
 from fleet_sim.model.error_codes import describe
 from fleet_sim.model.records import Order, Recorder
 from fleet_sim.model.state_machine import transition_for
-from fleet_sim.model.states import State
+from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.agents.driving import Driver, Proc
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.traffic.control import Traffic
@@ -102,7 +102,7 @@ class Vehicle(Driver):
         self.charging: ChargingConfig = scenario.charging
         self.incidents: IncidentsConfig = scenario.incidents
         self.incident_rng = incident_rng
-        self.battery = Battery(scenario.fleet.vehicle.battery, env.now)
+        self.battery = StateOfCharge(scenario.fleet.vehicle.battery, env.now)
         self._wake_up: simpy.Event = env.event()
         """Succeeds when an order or a charging call comes for the AGV waiting idle."""
         self.loaded = False
@@ -191,7 +191,7 @@ class Vehicle(Driver):
 
     def start(self) -> None:
         self.in_dead_spot = self.rssi_dbm < self.rules.link_min_rssi_dbm
-        self.recorder.event(self.env.now, self.id, "Event_Power_On", "", State.BOOTING.value,
+        self.recorder.event(self.env.now, self.id, "Event_Power_On", "", VehicleState.BOOTING.value,
                             self.node)
         self.process = self.env.process(self.run())
 
