@@ -84,9 +84,7 @@ def satisfy(agv: Vehicle, event: str) -> None:
     agv.battery.set_soc(agv.env.now, 50.0)
     agv._obstacle_near_s = 0.3
     agv._obstacle_clear_s = 2.0
-    agv._stop_error_mm = 0.0
     agv.error_code = None
-    agv.post_failed = False  # type: ignore[attr-defined]
     agv.rssi_override = -55.0  # type: ignore[attr-defined]
     agv.links_down, agv.in_dead_spot, agv.docked = 0, False, False
     agv.loaded = event == "Event_Load_Complete"
@@ -122,13 +120,10 @@ def reach(agv: Vehicle, state: VehicleState) -> None:
 
 # (event, what breaks its guard) for every guarded transition
 BREAK_GUARD: dict[str, Callable[[Vehicle], None]] = {
-    "Event_Init_Complete": lambda a: setattr(a, "post_failed", True),
     "Event_Transport_Order": lambda a: a.battery.set_soc(a.env.now, 20.0),
     "Event_Obstacle_Detected": lambda a: setattr(a, "_obstacle_near_s", 0.299),
     "Event_Obstacle_Cleared": lambda a: setattr(a, "_obstacle_clear_s", 1.999),
-    "Event_Arrived_Pickup": lambda a: setattr(a, "_stop_error_mm", 10.5),
     "Event_Load_Complete": lambda a: setattr(a, "loaded", False),
-    "Event_Arrived_Dropoff": lambda a: setattr(a, "_stop_error_mm", -10.5),
     "Event_Unload_Complete": lambda a: setattr(a, "loaded", True),
     "Event_Go_Charge": lambda a: setattr(a, "charger", None),
     "Event_Low_Battery": lambda a: setattr(a, "charger", None),
@@ -146,8 +141,6 @@ def test_each_transition(harness: Harness, transition: object, monkeypatch: pyte
     assert isinstance(transition, Transition)
     agv = harness.agv
     agv.model_charger = tiny_layout.places["PICK"]  # type: ignore[attr-defined]
-    monkeypatch.setattr(Vehicle, "post_passed",
-                        property(lambda a: not getattr(a, "post_failed", False)))
     monkeypatch.setattr(Vehicle, "rssi_dbm",
                         property(lambda a: getattr(a, "rssi_override", -55.0)))
     source = transition.source or S.LOADING  # a Global row: from any state, here Loading

@@ -156,10 +156,6 @@ class Rules:
     """4.2.4: path clear for >= 2000 ms."""
     obstacle_timeout_s: float = 300.0
     """6.1 E_101: paused for 5 minutes."""
-    obs_detect_dist_m: float = 1.5
-    """P_005 OBS_DETECT_DIST 1500 mm: slowing starts here."""
-    obs_stop_dist_m: float = 0.5
-    """P_006 OBS_STOP_DIST 500 mm."""
     obstacle_slow_speed_mps: float = 0.3
     """Assumed: creep speed inside the detection zone."""
     comm_policy: Literal["req_err_011", "timeout_60s"] = "req_err_011"
@@ -178,8 +174,6 @@ class Rules:
     """Assumed: E_002 (Wi-Fi signal low, warning) below this signal."""
     line_keep_heading_m: float = 0.5
     """Req.Err.010: keep the last heading for up to 50 cm looking for the tape."""
-    stop_tolerance_mm: float = 10.0
-    """4.2.5: stop within +/-10 mm at a station."""
     marker_pause_s: float = 3.0
     """5.3 TYPE_CMD 0x20: pause 3 s."""
 
@@ -193,7 +187,7 @@ class Rules:
                              f"below bat_low_pct ({self.bat_low_pct})")
         for name in ("obstacle_pause_s", "obstacle_clear_s", "obstacle_timeout_s",
                      "comm_timeout_s", "reconnect_timeout_s", "heartbeat_timeout_s",
-                     "line_keep_heading_m", "stop_tolerance_mm", "marker_pause_s"):
+                     "line_keep_heading_m", "marker_pause_s"):
             if getattr(self, name) < 0:
                 raise InputError(file, f"{element}.{name}", getattr(self, name), "a number >= 0")
         for name in ("obstacle_slow_speed_mps", "comm_loss_speed_mps"):

@@ -107,7 +107,6 @@ class Vehicle(Driver):
         """Succeeds when an order or a charging call comes for the AGV waiting idle."""
         self.loaded = False
         self._position_known = True
-        self._stop_error_mm = 0.0
         self._obstacle_near_s = 0.0
         self._obstacle_clear_s = 0.0
         self.error_code: str | None = None
@@ -139,10 +138,6 @@ class Vehicle(Driver):
         return self._obstacle_clear_s
 
     @property
-    def stop_error_mm(self) -> float:
-        return self._stop_error_mm
-
-    @property
     def load_on(self) -> bool:
         return self.loaded
 
@@ -169,10 +164,6 @@ class Vehicle(Driver):
     @property
     def on_charger(self) -> bool:
         return self.docked
-
-    @property
-    def post_passed(self) -> bool:
-        return True
 
     # ---- the state machine ------------------------------------------------------------------
     def fire(self, event: str, detail: str = "") -> bool:
