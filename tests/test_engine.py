@@ -195,17 +195,6 @@ def test_deadlock_layout_under_orders_keeps_delivering() -> None:
     assert last_hour, "deliveries stopped: the fleet is stuck"
 
 
-@pytest.mark.parametrize("policy,expected_agv", [("nearest_idle", 1), ("fcfs", 0)])
-def test_dispatch_policies(tiny_layout: Layout, policy: str, expected_agv: int) -> None:
-    """AGV 0 stands at N1 (far from the pickup), AGV 1 at S1 (4 m before it). Both become idle
-    at the same moment; AGV 0 first."""
-    scenario = make_scenario(duration_h=0.1, warmup_h=0, fleet={"size": 2,
-                             "start_nodes": ["N1", "S1"]}, dispatch={"policy": policy,
-                             "park_idle": False}, demand={"kind": "trace", "trace_csv": "x.csv"})
-    run = simulate(scenario, tiny_layout, [TraceOrder(60.0, "PICK", "DROP")])
-    assert run.recorder.orders[0].agv == expected_agv
-
-
 def test_idle_agvs_go_to_parking(warehouse_layout: Layout) -> None:
     scenario = make_scenario("warehouse.yaml", duration_h=0.5, warmup_h=0,
                              fleet={"size": 3, "start_nodes": ["M010", "M030", "A05_12"]},

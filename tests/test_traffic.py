@@ -1,0 +1,196 @@
+"""The reservation table (fleet_sim.sim.traffic): locks keyed by client, wait-for cycles and the
+deadlock strategy, with stand-in clients rather than whole AGVs."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import pytest
+import simpy
+
+from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.errors import SimulationError
+from fleet_sim.model.kinematics import Motion
+from fleet_sim.model.records import Recorder
+from fleet_sim.sim.traffic.control import Traffic
+from fleet_sim.sim.traffic.deadlock import DeadlockVictim, Escape, GentlestEscapeFirst
+from fleet_sim.sim.traffic.locks import Claim, CorridorLock, NodeLock
+
+from .conftest import DATA
+
+
+@dataclass
+class Client:
+    """A stand-in AGV: what traffic may know of it, and what it is told."""
+
+    id: int
+    node: str
+    goal: str | None = None
+    next_node: str | None = None
+    failing: bool = False
+    notes: list[tuple[str, str]] = field(default_factory=list)
+    causes: list[DeadlockVictim] = field(default_factory=list)
+
+    def note(self, event: str, detail: str = "") -> None:
+        self.notes.append((event, detail))
+
+    def on_deadlock_victim(self, cause: DeadlockVictim) -> None:
+        self.causes.append(cause)
+
+
+def make_traffic(layout: Layout, clients: int = 0, **kwargs: object) -> Traffic:
+    """Traffic on `layout`, with stand-in clients 0 .. clients-1 registered."""
+    recorder = Recorder(0.0, 3600.0)
+    traffic = Traffic(simpy.Environment(), layout, Motion(1.0, 0.5, 0.5, 0.3), recorder,
+                      **kwargs)  # type: ignore[arg-type]
+    for i in range(clients):
+        traffic.register(Client(i, ""))
+    return traffic
+
+
+@pytest.fixture
+def ring() -> Layout:
+    return load_layout(DATA / "deadlock_ring.yaml")
+
+
+def test_lock_keys_name_what_they_lock() -> None:
+    assert str(NodeLock("N0")) == "N0" and str(CorridorLock(3)) == "corridor 3"
+    assert NodeLock("N0") == NodeLock("N0") and NodeLock("N0") != NodeLock("N1")
+
+
+def test_request_and_free_keyed_by_client(ring: Layout) -> None:
+    traffic = make_traffic(ring, clients=2)
+    lock = traffic.node_locks["N0"]
+    assert lock.key == NodeLock("N0")
+    first = traffic.request(0, lock)
+    second = traffic.request(1, lock)
+    assert first.triggered and not second.triggered
+    assert lock.holder == 0 and dict(traffic.holders()) == {"N0": 0}
+    traffic.free(0, first)
+    traffic.env.run()  # the lock passes to the one waiting
+    assert second.triggered and lock.holder == 1
+    traffic.free(1, second)
+    assert lock.holder is None and lock.is_free
+
+
+def test_a_client_cannot_free_what_it_does_not_hold(ring: Layout) -> None:
+    traffic = make_traffic(ring, clients=2)
+    lock = traffic.node_locks["N1"]
+    held = traffic.request(0, lock)
+    waiting = traffic.request(1, lock)
+    with pytest.raises(SimulationError, match="AGV 1 cannot free N1: it does not hold it"):
+        traffic.free(1, held)
+    with pytest.raises(SimulationError, match="AGV 1 cannot free N1"):
+        traffic.free(1, waiting)  # still waiting: not held
+    with pytest.raises(SimulationError, match="AGV 0 cannot withdraw"):
+        traffic.withdraw(0, held)  # granted: free it instead
+    traffic.withdraw(1, waiting)
+    assert lock.holder == 0 and not lock.put_queue
+
+
+def test_a_corridor_lock_excludes_a_second_client(warehouse_layout: Layout) -> None:
+    traffic = make_traffic(warehouse_layout, clients=2)
+    corridor = warehouse_layout.corridors[0]
+    lock = traffic.corridor_locks[corridor.id]
+    entry = sorted(corridor.members)[0]
+    first = traffic.request(0, lock, entry=entry)
+    second = traffic.request(1, lock, entry=entry)
+    assert first.triggered and not second.triggered
+    assert traffic.holds_corridor(0, corridor.id) and not traffic.holds_corridor(1, corridor.id)
+    assert traffic.corridors_of(0)[corridor.id] == (first, entry)
+    traffic.entered_corridor(0, corridor.id)
+    assert traffic.corridors_of(0)[corridor.id] == (first, None)
+    assert traffic.blocks_others(0) and not traffic.blocks_others(1)
+    traffic.free(0, first)
+    traffic.env.run()
+    assert second.triggered and traffic.holds_corridor(1, corridor.id)
+    assert corridor.id not in traffic.corridors_of(0)
+
+
+def four_in_a_ring(traffic: Traffic) -> list[Client]:
+    """AGV i on Ni, bound two nodes ahead, holding Ni and waiting for the next node, which the
+    next AGV holds: a wait-for cycle 0 -> 1 -> 2 -> 3 -> 0."""
+    clients = [Client(i, f"N{i}", goal=f"N{(i + 2) % 4}", next_node=f"N{(i + 1) % 4}")
+               for i in range(4)]
+    claims: list[Claim] = []
+    for c in clients:
+        traffic.register(c)
+        claims.append(traffic.request(c.id, traffic.node_locks[c.node]))
+    for c in clients:
+        assert c.next_node is not None
+        lock = traffic.node_locks[c.next_node]
+        assert not traffic.request(c.id, lock).triggered
+        traffic.start_waiting(c.id, lock)
+    assert all(claim.triggered for claim in claims)
+    return clients
+
+
+def test_a_wait_for_cycle_is_found_and_the_caller_takes_the_bypass(ring: Layout) -> None:
+    traffic = make_traffic(ring)
+    clients = four_in_a_ring(traffic)
+    escape = traffic.resolve_deadlock(clients[0])
+    # each AGV's way round the node it waits for is the bypass: N0 -> B0 -> N2, B0 free
+    assert escape == Escape("reroute", ("N0", "B0", "N2"))
+    assert traffic.recorder.deadlocks == 1
+    assert clients[0].notes == [("deadlock_detected", "agvs 0 1 2 3 waiting for N1 N2 N3 N0"),
+                                ("deadlock_resolved", "reroute via N0 B0 N2")]
+    assert not any(c.causes for c in clients)
+    assert traffic.take_escape(0) == escape and traffic.take_escape(0) is None
+
+
+class LastMember:
+    """A strategy that always picks the last member that can move."""
+
+    def choose(self, options: Sequence[tuple[int, Escape | None]]) -> tuple[int, Escape] | None:
+        movable = [(i, e) for i, e in options if e is not None]
+        return movable[-1] if movable else None
+
+
+def test_the_victim_chosen_by_the_strategy_gets_a_deadlock_victim_cause(ring: Layout) -> None:
+    traffic = make_traffic(ring, policy=LastMember())
+    clients = four_in_a_ring(traffic)
+    assert traffic.resolve_deadlock(clients[0]) is None  # someone else moves
+    victim = clients[3]
+    assert victim.causes == [DeadlockVictim(Escape("reroute", ("N3", "B3", "N1")))]
+    assert victim.notes == [("deadlock_resolved", "reroute via N3 B3 N1")]
+    # while the victim has not taken its escape, the cycle is not resolved twice
+    assert traffic.resolve_deadlock(clients[1]) is None
+    assert victim.causes == [DeadlockVictim(Escape("reroute", ("N3", "B3", "N1")))]
+    assert traffic.recorder.deadlocks == 1
+
+
+def test_a_cycle_with_a_failing_member_is_left_to_the_fault(ring: Layout) -> None:
+    traffic = make_traffic(ring)
+    clients = four_in_a_ring(traffic)
+    clients[2].failing = True
+    assert traffic.resolve_deadlock(clients[0]) is None
+    assert traffic.recorder.deadlocks == 0 and not clients[0].notes
+
+
+def test_no_cycle_without_a_closed_chain(ring: Layout) -> None:
+    traffic = make_traffic(ring)
+    clients = four_in_a_ring(traffic)
+    traffic.stop_waiting(3)  # AGV 3 no longer waits for N0: the chain is open
+    assert traffic.resolve_deadlock(clients[0]) is None
+    assert traffic.recorder.deadlocks == 0
+
+
+def test_the_default_strategy_prefers_the_gentlest_escape() -> None:
+    yield_ = Escape("yield", ("A",))
+    reroute = Escape("reroute", ("B", "C"))
+    backoff = Escape("backoff", ("D", "E"))
+    policy = GentlestEscapeFirst()
+    assert policy.choose([(0, backoff), (1, None), (2, reroute), (3, yield_)]) == (3, yield_)
+    assert policy.choose([(0, backoff), (1, reroute), (2, reroute)]) == (1, reroute)
+    assert policy.choose([(0, None), (1, None)]) is None
+
+
+def test_routes_go_round_what_they_must_avoid(ring: Layout) -> None:
+    traffic = make_traffic(ring)
+    assert traffic.route("N0", "N2") == ["N0", "N1", "N2"]
+    assert traffic.routes.route_avoiding("N0", "N2", {"N1"}) == ["N0", "B0", "N2"]
+    assert traffic.routes.route_avoiding("N0", "N2", {"N1", "B0"}) is None
+    traffic.block("N0", "N1", 0.0, 100.0)
+    assert traffic.blocked_until("N0", "N1", 50.0) == 100.0
+    assert traffic.route("N0", "N2") == ["N0", "B0", "N2"]  # reported blocks are avoided
