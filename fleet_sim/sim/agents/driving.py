@@ -87,6 +87,8 @@ class Driver:
         self._moved = 0.0
         """Share of the hop under way already driven (see `_move`)."""
         traffic.register(self)
+        self._corridors = traffic.corridors_of(self.id)
+        """The corridors traffic has given this AGV (its view of the table, read-only)."""
 
     def note(self, event: str, detail: str = "") -> None:
         """Record an event that changes no state (deadlock, reroute, assignment...)."""
@@ -176,7 +178,7 @@ class Driver:
         for held in self.held:
             self._release(held)
         self.held = []
-        for cid in list(self.traffic.corridors_of(self.id)):
+        for cid in list(self._corridors):
             self._release_corridor(cid)
         self.parked_in = place
         self.prev = None
@@ -188,7 +190,7 @@ class Driver:
         for held in self.held + self.ahead:
             self._release(held)
         self.held, self.ahead = [], []
-        for cid in list(self.traffic.corridors_of(self.id)):
+        for cid in list(self._corridors):
             self._release_corridor(cid)
         self.prev, self.speed_mps = None, 0.0
         if self.traffic.motion_backend is not None:
@@ -245,7 +247,7 @@ class Driver:
         u = self.node
         traffic = self.traffic
         corridor = traffic.layout.corridor_of(u, nxt)
-        if corridor is not None and corridor.id not in traffic.corridors_of(self.id):
+        if corridor is not None and corridor.id not in self._corridors:
             raise SimulationError(f"AGV {self.id} about to enter corridor {corridor.id} "
                                   f"({u} -> {nxt}) without holding it")
         cap = self._speed_cap_mps()
@@ -296,7 +298,7 @@ class Driver:
         taken_corridors: list[int] = []
         for a, b in ((self.node, node), (node, after)):
             corridor = traffic.entry_corridor(a, b)
-            if corridor is None or corridor.id in traffic.corridors_of(self.id):
+            if corridor is None or corridor.id in self._corridors:
                 continue
             lock = traffic.corridor_locks[corridor.id]
             claim = traffic.request(self.id, lock, entry=a)
@@ -322,7 +324,7 @@ class Driver:
         needed: list[tuple[int, str]] = []
         for a, b in ((via, node), (node, after)):
             corridor = traffic.entry_corridor(a, b)
-            if corridor is None or corridor.id in traffic.corridors_of(self.id):
+            if corridor is None or corridor.id in self._corridors:
                 continue
             if not traffic.corridor_locks[corridor.id].is_free:
                 return False
@@ -403,13 +405,13 @@ class Driver:
         self.recorder.occupied("node", held.node, self.id, held.since_s, self.env.now)
 
     def _release_corridor(self, cid: int) -> None:
-        claim, _ = self.traffic.corridors_of(self.id)[cid]
+        claim, _ = self._corridors[cid]
         self.traffic.free(self.id, claim)
 
     def _release_left_corridors(self) -> None:
         """Let go of corridors the AGV has entered and fully left, and of pending ones whose
         entry node it is no longer at or heading to."""
-        corridors = self.traffic.corridors_of(self.id)
+        corridors = self._corridors
         if not corridors:
             return
         layout = self.traffic.layout
@@ -428,6 +430,6 @@ class Driver:
             self._release_corridor(cid)
 
     def _drop_pending_corridors(self) -> None:
-        for cid, (_, entry) in list(self.traffic.corridors_of(self.id).items()):
+        for cid, (_, entry) in list(self._corridors.items()):
             if entry is not None:
                 self._release_corridor(cid)
