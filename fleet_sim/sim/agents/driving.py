@@ -148,8 +148,8 @@ class Driver:
         if self.traffic.motion_backend is not None:
             self.traffic.motion_backend.halt(self.id)
 
-    def _arrived(self, u: str, v: str, length_m: float, start_s: float) -> Proc:
-        """After each hop (the vehicle adds battery use and markers here)."""
+    def _arrived(self, v: str, length_m: float) -> Proc:
+        """At `v` after a hop of `length_m` (the vehicle adds battery use and markers here)."""
         yield from ()
 
     # ---- placement --------------------------------------------------------------------------
@@ -289,7 +289,7 @@ class Driver:
         if corridor is not None:
             traffic.entered_corridor(self.id, corridor.id)
         self._release_left_corridors()
-        yield from self._arrived(u, nxt, length, start)
+        yield from self._arrived(nxt, length)
 
     def _take(self, node: str, after: str | None) -> Generator[simpy.Event, Any, bool]:
         """Take `node` (and the corridors the AGV enters on its way), waiting if need be.

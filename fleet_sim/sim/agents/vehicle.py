@@ -526,7 +526,7 @@ class Vehicle(Driver):
         self._obstacle_clear_s = rules.obstacle_clear_s
         self.fire("Event_Obstacle_Cleared", f"paused {wait:.2f} s")
 
-    def _arrived(self, u: str, v: str, length_m: float, start_s: float) -> Proc:
+    def _arrived(self, v: str, length_m: float) -> Proc:
         self.battery.drive(self.env.now, length_m, self.loaded)
         marker = self.traffic.layout.markers.get(v)
         if marker is not None:
