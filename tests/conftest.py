@@ -46,6 +46,18 @@ def write_yaml(path: Path, data: Any) -> Path:
     return path
 
 
+ACCEL_MPS2 = 0.5  # P_002 / P_003: 500 mm/s2, both ways
+TURN_MPS = 0.3  # Req.Nav.005: a turn is driven at 0.3 m/s
+
+
+def trapezoid_s(length_m: float, v0: float, v1: float, vmax: float = 1.0) -> float:
+    """By hand: accelerate from v0 to vmax, cruise, brake to v1 (long enough to cruise)."""
+    d_acc = (vmax**2 - v0**2) / (2 * ACCEL_MPS2)
+    d_dec = (vmax**2 - v1**2) / (2 * ACCEL_MPS2)
+    assert d_acc + d_dec <= length_m
+    return (vmax - v0) / ACCEL_MPS2 + (vmax - v1) / ACCEL_MPS2 + (length_m - d_acc - d_dec) / vmax
+
+
 GOLDEN = Path(__file__).parent / "golden"
 
 
