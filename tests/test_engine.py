@@ -11,7 +11,9 @@ from fleet_sim.analysis.results import events_table, kpis, orders_table, write_r
 from fleet_sim.config.layout import Layout
 from fleet_sim.sim.engine import build_model, simulate
 
-from .conftest import make_scenario
+from .conftest import HALF_LOOP_S, make_scenario
+
+__all__ = ["HALF_LOOP_S"]  # test_sizing imports it from here; it lives in conftest now
 
 
 def test_the_fleet_starts_in_parking_or_on_its_start_nodes(warehouse_layout: Layout,
