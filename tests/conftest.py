@@ -46,6 +46,35 @@ def write_yaml(path: Path, data: Any) -> Path:
     return path
 
 
+ACCEL_MPS2 = 0.5  # P_002 / P_003: 500 mm/s2, both ways
+TURN_MPS = 0.3  # Req.Nav.005: a turn is driven at 0.3 m/s
+
+
+def trapezoid_s(length_m: float, v0: float, v1: float, vmax: float = 1.0) -> float:
+    """By hand: accelerate from v0 to vmax, cruise, brake to v1 (long enough to cruise)."""
+    d_acc = (vmax**2 - v0**2) / (2 * ACCEL_MPS2)
+    d_dec = (vmax**2 - v1**2) / (2 * ACCEL_MPS2)
+    assert d_acc + d_dec <= length_m
+    return (vmax - v0) / ACCEL_MPS2 + (vmax - v1) / ACCEL_MPS2 + (length_m - d_acc - d_dec) / vmax
+
+
+# The tiny loop has tags every 4 m and a 90-degree left turn at each corner. A turn is driven at
+# 0.3 m/s (Req.Nav.005) over the first 1.0 m after the corner (layout turn_length_m), so an AGV
+# slows to 0.3 m/s before each corner and speeds up again 1 m after it.
+TURN = TURN_MPS
+INTO_CORNER = trapezoid_s(4, 1.0, TURN)  # 1.0 m/s -> 0.3 m/s at the corner
+OUT_OF_CORNER = 1.0 / TURN + trapezoid_s(3, TURN, 1.0)  # curve, then back up to 1.0 m/s
+START = trapezoid_s(4, 0.0, 1.0)
+STOP = trapezoid_s(4, 1.0, 0.0)
+# P -> D: start, into SE, out of SE, into NE, out of NE, stop at D. D -> P is the mirror image.
+HALF_LOOP_S = START + INTO_CORNER + OUT_OF_CORNER + INTO_CORNER + OUT_OF_CORNER + STOP
+# K -> P after leaving parking: K->SW (start, slow for the corner), out of SW, stop at P.
+K_TO_P_S = trapezoid_s(4, 0.0, TURN) + OUT_OF_CORNER + STOP
+# L_Approach 1.5 s + L_Handshake 1.0 s + L_Transfer (the station's handling) + L_Verify 0.5 s
+SUB_STATES_S = 1.5 + 1.0 + 0.5
+PICK_S, DROP_S = 20.0 + SUB_STATES_S, 30.0 + SUB_STATES_S
+
+
 GOLDEN = Path(__file__).parent / "golden"
 
 

@@ -13,8 +13,7 @@ from fleet_sim.config.trace import TraceOrder
 from fleet_sim.errors import InputError
 from fleet_sim.sim.engine import simulate
 
-from .conftest import make_scenario
-from .test_engine import DROP_S, HALF_LOOP_S, K_TO_P_S, PICK_S
+from .conftest import DROP_S, HALF_LOOP_S, K_TO_P_S, PICK_S, make_scenario
 
 ONE_ORDER = [TraceOrder(100.0, "PICK", "DROP")]
 

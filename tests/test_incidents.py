@@ -250,13 +250,28 @@ def test_fault_operator_maintenance_and_back(tmp_path: Path) -> None:
     assert orders[0].reassigned == 1 and orders[0].agv == 1
 
 
-def test_transfer_failure_loses_a_loaded_order_visibly(tmp_path: Path) -> None:
+def test_a_failed_transfer_at_the_pickup_puts_the_order_back(tmp_path: Path) -> None:
+    """Every transfer fails: the first at the pickup's L_Transfer, 20 + 17.3133 (K -> P) +
+    1.5 + 1.0 + 20 s after the start. Nothing was loaded, so the order goes back to the queue
+    rather than being lost."""
     out = run(tiny(tmp_path), ONE_ORDER, duration_h=0.5,
               incidents={"transfer_failure_prob": 1.0})
-    assert error_events(out, "E_102")
+    first = error_events(out, "E_102")[0]
+    assert first[0] == pytest.approx(20.0 + 17.3133 + 22.5, abs=1e-4) and first[5] == "P"
     order = out.recorder.orders[0]
-    assert order.delivered_s is None
-    assert order.reassigned >= 1 or order.failed_s is not None
+    assert order.delivered_s is None and order.picked_s is None and order.failed_s is None
+    assert order.reassigned >= 1
+
+
+def test_a_fault_with_the_load_on_loses_the_order_visibly(tmp_path: Path) -> None:
+    """Loaded at 20 + 17.3133 + 23 = 60.31 s, the AGV fails at 80 s on its way to D: the order
+    is recorded as failed with the fault's code, at that moment, and is not put back."""
+    out = run(tiny(tmp_path), ONE_ORDER, duration_h=0.5,
+              incidents={"faults": [{"agv": 0, "at_s": 80.0, "code": "E_999"}]})
+    order = out.recorder.orders[0]
+    assert order.picked_s == pytest.approx(60.3133, abs=1e-4)
+    assert (order.failed_s, order.failure) == (80.0, "E_999")
+    assert order.delivered_s is None and order.reassigned == 0
 
 
 # ---- markers (5.3) ----------------------------------------------------------------------------
@@ -307,19 +322,18 @@ def test_long_run_with_every_incident_loses_no_order(warehouse_layout: object) -
     for order in out.recorder.orders:
         assert order.delivered_s is not None or order.failed_s is not None \
             or order.id in in_hand or order.id in waiting, order
-    # every AGV's time in states adds up to the run
-    per_agv: dict[int, float] = defaultdict(float)
-    last: dict[int, tuple[float, str]] = {}
+    # every AGV's record of states is one unbroken chain from power-on: each change leaves the
+    # state the one before entered, in time order, so time in states is accounted for
+    chain: dict[int, list[tuple[float, str, str]]] = defaultdict(list)
     for t, agv, _, before, after, *_ in out.recorder.events:
-        if before == after:
-            continue
-        if agv in last:
-            per_agv[agv] += t - last[agv][0]
-        last[agv] = (t, after)
-    for agv, (t, _) in last.items():
-        per_agv[agv] += scenario.duration_s - t
-    assert all(total == pytest.approx(8 * 3600.0) for total in per_agv.values())
-    assert len(per_agv) == 12
+        if before != after:
+            chain[agv].append((t, before, after))
+    assert sorted(chain) == list(range(12))
+    for agv, changes in chain.items():
+        assert changes[0] == (0.0, "", "Booting"), agv
+        for (t0, _, entered), (t1, left, _) in itertools.pairwise(changes):
+            assert left == entered and t1 >= t0, (agv, t0, entered, t1, left)
+        assert len(changes) > 20, agv
 
 
 def test_opportunity_charging_while_idle(tmp_path: Path) -> None:

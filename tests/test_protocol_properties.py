@@ -15,7 +15,7 @@ from __future__ import annotations
 import itertools
 import string
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import pytest
@@ -621,10 +621,13 @@ def test_chunking_at_one_instant_does_not_change_the_output(protocol: str,
 
 @pytest.mark.parametrize("protocol", PROTOCOLS)
 def test_the_harness_sync_command_is_answered_without_garbage(protocol: str) -> None:
-    """Guards the harness: the sync command alone gets exactly its documented reply."""
-    run = Run(HARNESSES[protocol])
-    run.check_sync()
-    assert type(run.device) is type(get_device(protocol))
+    """Guards the harness: the sync command alone gets exactly its documented reply, from the
+    harness's device and from the device registered under the protocol's name (a device of
+    another protocol neither answers `echo: sync`, KTM-02's distance request, `GBI` nor
+    `*IDN?` this way)."""
+    harness = HARNESSES[protocol]
+    Run(harness).check_sync()
+    Run(replace(harness, new_device=lambda: get_device(protocol))).check_sync()
 
 
 @pytest.mark.parametrize("protocol", PROTOCOLS)

@@ -40,12 +40,6 @@ SPEC_4_2 = [
 ]
 
 
-def test_ten_states_with_their_spec_ids() -> None:
-    assert [s.spec_id for s in VehicleState] == [f"ST_{i:03d}" for i in range(1, 11)]
-    assert [s.value for s in VehicleState] == ["Booting", "Idle", "Moving", "Loading", "Unloading",
-                                        "Charging", "Paused", "Error", "Maintenance", "SafeMode"]
-
-
 @pytest.mark.parametrize("section,source,event,target", SPEC_4_2)
 def test_table_holds_every_transition_of_4_2(section: str, source: VehicleState | None, event: str,
                                              target: VehicleState) -> None:

@@ -1,0 +1,217 @@
+"""The fleet manager (fleet_sim.sim.agents.fleet_manager): assigning orders, putting back the
+order of an AGV that cannot carry it out, the charger queue, parking; and, in whole runs, idle
+AGVs parked, no order lost, Little's law on the order queue."""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+import simpy
+import yaml
+
+from fleet_sim.analysis.results import events_table, kpis, orders_table
+from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.config.scenario import DispatchConfig
+from fleet_sim.model.kinematics import Motion
+from fleet_sim.model.records import Order, Recorder
+from fleet_sim.sim.agents.fleet_manager import FleetManager
+from fleet_sim.sim.commands import CommandPath
+from fleet_sim.sim.engine import build_model, simulate
+from fleet_sim.sim.traffic.control import Traffic
+
+from .conftest import LAYOUTS, make_scenario, write_yaml
+
+
+@dataclass(eq=False)
+class StubAgv:
+    """An AGV as the fleet manager sees it (FleetAgv), standing at `node`."""
+
+    id: int
+    node: str
+    fms_link: bool = True
+    notes: list[tuple[str, str]] = field(default_factory=list)
+    orders: list[Order] = field(default_factory=list)
+
+    @property
+    def dispatch_node(self) -> str:
+        return self.node
+
+    def note(self, event: str, detail: str = "") -> None:
+        self.notes.append((event, detail))
+
+    def assign(self, order: Order) -> None:
+        self.orders.append(order)
+
+
+def fleet_manager(layout: Layout) -> FleetManager:
+    env = simpy.Environment()
+    recorder = Recorder(0.0, 3600.0)
+    traffic = Traffic(env, layout, Motion(1.0, 0.5, 0.5, 0.3), recorder)
+    commands = CommandPath(env, None, 0.0, np.random.default_rng(0), recorder)
+    return FleetManager(env, layout, traffic, DispatchConfig(), recorder, commands)
+
+
+@pytest.fixture(scope="module")
+def spurs_layout(tmp_path_factory: pytest.TempPathFactory) -> Layout:
+    """The tiny loop with two chargers and a second parking area, each on a 4 m two-way spur:
+    CN north of N1, CS south of S3, and a one-place parking Q north of D (PARK is K, west)."""
+    data = copy.deepcopy(yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text()))
+    data["nodes"] += [{"id": "CN", "x": 4, "y": 12, "kind": "charger"},
+                      {"id": "CS", "x": 12, "y": -4, "kind": "charger"},
+                      {"id": "Q", "x": 8, "y": 12, "kind": "parking"}]
+    data["segments"] += [{"from": "N1", "to": "CN", "direction": "two_way"},
+                         {"from": "S3", "to": "CS", "direction": "two_way"},
+                         {"from": "D", "to": "Q", "direction": "two_way"}]
+    data["chargers"] = [{"id": "CHG_N", "node": "CN", "power_kw": 1.0},
+                        {"id": "CHG_S", "node": "CS", "power_kw": 1.0}]
+    data["parking"].append({"id": "PARK2", "node": "Q", "capacity": 1})
+    path = write_yaml(tmp_path_factory.mktemp("spurs") / "spurs.yaml", data)
+    return load_layout(path)
+
+
+def test_an_idle_agv_gets_the_oldest_order_at_once(tiny_layout: Layout) -> None:
+    fm = fleet_manager(tiny_layout)
+    first, second = Order(0, 0.0, "PICK", "DROP"), Order(1, 0.0, "PICK", "DROP")
+    fm.submit(first)
+    fm.submit(second)
+    assert list(fm.waiting) == [first, second]
+    agv = StubAgv(3, "S1")
+    fm.vehicle_idle(agv)
+    assert agv.orders == [first] and list(fm.waiting) == [second]
+    assert (first.agv, first.assigned_s, first.pickup_node, first.dropoff_node) == \
+        (3, 0.0, "P", "D")
+    assert fm.idle == []
+    assert fm.recorder.queue_lengths == [(0.0, 0), (0.0, 1), (0.0, 2), (0.0, 1)]
+
+
+def test_an_agv_without_the_fms_link_gets_no_order(tiny_layout: Layout) -> None:
+    fm = fleet_manager(tiny_layout)
+    fm.submit(Order(0, 0.0, "PICK", "DROP"))
+    lost = StubAgv(0, "S1", fms_link=False)
+    fm.vehicle_idle(lost)
+    assert lost.orders == [] and len(fm.waiting) == 1
+    heard = StubAgv(1, "NW")
+    fm.vehicle_idle(heard)
+    assert len(heard.orders) == 1 and not fm.waiting
+
+
+def test_requeue_puts_the_order_back_at_the_front_unassigned(tiny_layout: Layout) -> None:
+    fm = fleet_manager(tiny_layout)
+    first, second = Order(0, 0.0, "PICK", "DROP"), Order(1, 0.0, "PICK", "DROP")
+    fm.submit(first)
+    fm.submit(second)
+    broken = StubAgv(0, "S1")
+    fm.vehicle_idle(broken)
+    assert fm.bound_for["P"] == 1 and fm.bound_for["D"] == 1
+    fm.requeue(broken, first)
+    assert list(fm.waiting) == [first, second]
+    assert (first.agv, first.assigned_s, first.pickup_node, first.dropoff_node) == \
+        (None, None, None, None)
+    assert first.reassigned == 1
+    assert fm.bound_for["P"] == 0 and fm.bound_for["D"] == 0
+    assert broken.notes == [("order_reassigned", "order 0")]
+    other = StubAgv(1, "NW")
+    fm.vehicle_idle(other)
+    assert other.orders == [first]  # the put-back order before the younger one
+
+
+def test_order_failed_records_the_code_and_frees_the_dropoff(tiny_layout: Layout) -> None:
+    fm = fleet_manager(tiny_layout)
+    order = Order(0, 0.0, "PICK", "DROP")
+    fm.submit(order)
+    fm.vehicle_idle(StubAgv(0, "S1"))
+    order.picked_s = 10.0
+    fm.left_station("P")  # loaded: the AGV has left the pickup
+    fm.env.run(until=50.0)
+    fm.order_failed(order, "E_102")
+    assert (order.failed_s, order.failure) == (50.0, "E_102")
+    assert fm.bound_for["P"] == 0 and fm.bound_for["D"] == 0
+
+
+def test_chargers_nearest_free_first_then_first_come_first_served(spurs_layout: Layout) -> None:
+    fm = fleet_manager(spurs_layout)
+    at_d, at_p = StubAgv(0, "D"), StubAgv(1, "P")
+    got_d, got_p = fm.request_charger(at_d), fm.request_charger(at_p)
+    # D -> N1 -> CN is 8 m; P -> S3 -> CS is 8 m; the other way round, most of the loop
+    assert (got_d.value.id, got_p.value.id) == ("CHG_N", "CHG_S")
+    assert not fm.charger_available()
+    second, third = StubAgv(2, "N3"), StubAgv(3, "S1")
+    wait_2, wait_3 = fm.request_charger(second), fm.request_charger(third)
+    assert not wait_2.triggered and not wait_3.triggered
+    fm.release_charger(spurs_layout.places["CHG_S"])
+    assert wait_2.triggered and wait_2.value.id == "CHG_S" and not wait_3.triggered
+    fm.cancel_charger_request(third)
+    fm.release_charger(spurs_layout.places["CHG_N"])
+    assert not wait_3.triggered
+    assert fm.charger_available() and [c.id for c in fm.chargers_free] == ["CHG_N"]
+
+
+def test_asking_for_a_charger_withdraws_the_agv_from_orders(spurs_layout: Layout) -> None:
+    fm = fleet_manager(spurs_layout)
+    agv = StubAgv(0, "D")
+    fm.vehicle_idle(agv)
+    assert fm.idle == [agv]
+    fm.request_charger(agv)
+    fm.submit(Order(0, 0.0, "PICK", "DROP"))
+    assert fm.idle == [] and agv.orders == [] and len(fm.waiting) == 1
+
+
+def test_parking_nearest_with_room(spurs_layout: Layout) -> None:
+    fm = fleet_manager(spurs_layout)
+
+    def park(agv: int, node: str) -> str | None:
+        place = fm.reserve_parking(StubAgv(agv, node))
+        return None if place is None else place.id
+
+    # from N3: Q (PARK2) is 8 m away, K (PARK) 16 m; from NW, K is 4 m away
+    assert park(0, "NW") == "PARK"
+    assert park(1, "N3") == "PARK2"
+    assert park(2, "N3") == "PARK"  # PARK2 holds one
+    assert fm.parking_free == {"PARK": 2, "PARK2": 0}
+    assert park(3, "E1") == "PARK"
+    assert park(4, "E1") == "PARK"
+    assert park(5, "E1") is None  # 4 + 1 places, all taken
+    fm.release_parking(spurs_layout.places["PARK2"])
+    assert park(5, "E1") == "PARK2"
+
+
+def test_idle_agvs_go_to_parking(warehouse_layout: Layout) -> None:
+    scenario = make_scenario("warehouse.yaml", duration_h=0.5, warmup_h=0,
+                             fleet={"size": 3, "start_nodes": ["M010", "M030", "A05_12"]},
+                             demand={"rate_per_hour": 0})
+    run = simulate(scenario, warehouse_layout)
+    parked = [e for e in run.recorder.events if e[2] == "Event_Arrived_Parking"]
+    assert sorted(e[1] for e in parked) == [0, 1, 2]
+    assert all(v.parked_in is not None for v in run.vehicles)
+    assert all(not v.held for v in run.vehicles)
+
+
+def test_orders_are_never_lost(warehouse_layout: Layout) -> None:
+    """Every order created is waiting, being served, or delivered at the end of a run."""
+    scenario = make_scenario("warehouse.yaml", duration_h=2, warmup_h=0, seed=9,
+                             fleet={"size": 6}, demand={"rate_per_hour": 200})
+    model = build_model(scenario, warehouse_layout)
+    model.env.run(until=2 * 3600)
+    waiting = {o.id for o in model.fleet.waiting}
+    serving = {v.order.id for v in model.vehicles if v.order is not None}
+    delivered = {o.id for o in model.recorder.orders if o.delivered_s is not None}
+    assert waiting | serving | delivered == {o.id for o in model.recorder.orders}
+    assert not waiting & serving and not serving & delivered and not waiting & delivered
+
+
+def test_littles_law_on_the_order_queue(tiny_layout: Layout) -> None:
+    """Time-average number of orders waiting = arrival rate x mean wait, within sampling error."""
+    scenario = make_scenario(duration_h=40, warmup_h=1, seed=11, fleet={"size": 2},
+                             demand={"rate_per_hour": 45})
+    run = simulate(scenario, tiny_layout)
+    orders = orders_table(run)
+    figures = kpis(run, events_table(run), orders)
+    start, end = 3600.0, 40 * 3600.0
+    arrived = orders[orders["created_s"].between(start, end)]
+    rate = len(arrived) / (end - start)
+    wait = (arrived["assigned_s"].fillna(end) - arrived["created_s"]).mean()
+    assert figures["order_queue_mean"] > 0.2  # a queue worth checking
+    assert figures["order_queue_mean"] == pytest.approx(rate * wait, rel=0.05)
