@@ -90,7 +90,7 @@ class StrictModel(BaseModel):
     no NaN or infinity, field docstrings as schema descriptions."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False,
-                              coerce_numbers_to_str=True, populate_by_name=True,
+                              coerce_numbers_to_str=True,
                               use_attribute_docstrings=True, validate_default=False)
 
 
@@ -272,7 +272,7 @@ class _Walk:
 
 def _field(fields: Mapping[str, FieldInfo], key: str) -> tuple[str, FieldInfo | None]:
     for name, info in fields.items():
-        if key in (name, info.alias):
+        if key == (info.alias or name):
             return name, info
     return key, None
 
