@@ -55,9 +55,19 @@ def test_resolved_config_writes_every_default_and_reloads(tmp_path: Path) -> Non
     assert plain["dispatch"]["policy"] == "nearest_idle"
     assert plain["traffic"]["replan_after_s"] == 30.0
     assert "_base_dir" not in plain
-    plain["layout"] = str(LAYOUTS / "tiny_loop.yaml")
+    assert plain["layout"] == str((LAYOUTS / "tiny_loop.yaml").resolve())  # runs from anywhere
     again = load_scenario(write_yaml(tmp_path / "again.yaml", plain))
     assert resolved(again) == plain
+    assert again.model_copy(update={"layout": scenario.layout}).model_dump() == \
+        scenario.model_dump()
+    assert again.path(again.layout) == scenario.path(scenario.layout).resolve()
+
+
+def test_overrides_copy_without_touching_the_original() -> None:
+    scenario = load_scenario(ROOT / "experiments" / "tiny_loop.yaml")
+    bigger = scenario.model_copy(update={"fleet": scenario.fleet.model_copy(update={"size": 5})})
+    assert (scenario.fleet.size, bigger.fleet.size) == (2, 5)
+    assert bigger.base_dir == scenario.base_dir and bigger.rules is scenario.rules
 
 
 def test_overrides_by_dotted_key() -> None:

@@ -3,6 +3,19 @@
 Every key has a default written here, with its source: RSS-AGV-001 section 7.1 where the spec
 gives a figure, "assumed" where it does not. Unknown keys are errors. The resolved config (every
 default written out) is `resolved(scenario)`, saved with each run.
+
+Decisions, where the issue is silent:
+
+* The models are pydantic (`agv_model.inputs.StrictModel`): frozen and hashable; copy one with
+  ``model_copy(update=...)``. Checks that tie fields together are model validators whose errors
+  name the field (``warmup_h``, ``fleet.start_nodes``); checks against the layout are
+  `check_against_layout`.
+* The scenario file's folder, against which the files it names are resolved, is a private
+  attribute (`base_dir`), set from the validation context: no key of the file and not in the
+  schema. It takes part in equality (the same text read from two folders may name two
+  layouts), not in the hash.
+* The resolved config names the layout and the order trace by absolute path, so
+  ``fleet-sim run results/<run>/config.resolved.yaml`` reruns the run from any folder.
 """
 
 from __future__ import annotations
