@@ -138,7 +138,8 @@ def input_error(exc: ValidationError, model: type[BaseModel], file: str,
     if kind == "value_error" and isinstance(ctx.get("error"), Problem):
         problem = ctx["error"]
         path = _join(path, problem.key)
-        return InputError(file, _join(element, path), problem.value, problem.expected)
+        return InputError(file, _join(element, path) or "top level", problem.value,
+                          problem.expected)
     if kind == "missing" and walk.fixed_length is not None:
         path, expected = walk.parent_path, f"a list of {walk.fixed_length} items"
     elif kind in ("too_long", "too_short") and walk.fixed_length is not None:

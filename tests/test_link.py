@@ -200,7 +200,7 @@ def test_no_jitter_draws_nothing() -> None:
     ({}, "baud", None, "a value for required key 'baud'"),
     ({"baud": 9600, "data_bits": 9}, "data_bits", 9, "one of 5, 6, 7, 8"),
     ({"baud": 9600, "parity": "E"}, "parity", "E", "one of 'none', 'even', 'odd', 'mark', 'space'"),
-    ({"baud": 9600, "stop_bits": 3}, "stop_bits", 3, "1, 1.5 or 2"),
+    ({"baud": 9600, "stop_bits": 3}, "stop_bits", 3.0, "1, 1.5 or 2"),
     ({"baud": 9600, "stop_bits": True}, "stop_bits", True, "a number"),
     ({"baud": 9600, "latency_s": -0.1}, "latency_s", -0.1, "a number >= 0"),
     ({"baud": 9600, "processing_s": float("nan")}, "processing_s", None, "a finite number"),
