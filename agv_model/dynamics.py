@@ -33,13 +33,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import StrEnum
 from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
+from pydantic import InstanceOf
 
+from agv_model.inputs import NonNegative, Positive, StrictModel
 from agv_model.line_sensor import LineSensor
 from agv_model.pid import PidGains, SteeringPid
 from agv_model.track import PAUSE_S, SPEED_TAG_MPS, Marker, TagType, Track
@@ -62,37 +64,29 @@ class State(StrEnum):
     ERROR = "error"
 
 
-@dataclass(frozen=True)
-class VehicleParams:
-    max_speed_mps: float = 1.0
-    """P_001 VEL_MAX 1000 mm/s."""
-    accel_mps2: float = 0.5
-    """P_002 VEL_ACC 500 mm/s2."""
-    decel_mps2: float = 0.5
-    """P_003 VEL_DEC 500 mm/s2."""
-    turn_speed_mps: float = 0.3
-    """P_004 TURN_SPEED 300 mm/s; Req.Nav.005 0.3 m/s on a branch."""
-    sensor: LineSensor = field(default_factory=LineSensor)
-    pid: PidGains = field(default_factory=PidGains)
-    sensor_ahead_m: float = 0.2
-    """Assumed: line sensor 0.2 m ahead of the drive-axle centre."""
-    max_steer_rad: float = math.radians(60.0)
-    """Assumed: steering angle limit of the virtual front wheel."""
-    line_loss_limit_m: float = 0.5
-    """Req.Err.010: hold the last steering for at most 50 cm without tape."""
-    pause_s: float = PAUSE_S
-    """RSS-AGV-001 5.3: TYPE_CMD 0x20 pauses 3 s."""
-    tag_jitter_m: float = 0.0
-    """Assumed 0: standard deviation of where along the track an RFID tag is read."""
+class VehicleParams(StrictModel):
+    """The vehicle's figures (a bad one is an InputError naming it)."""
 
-    def __post_init__(self) -> None:
-        for name in ("max_speed_mps", "accel_mps2", "decel_mps2", "turn_speed_mps",
-                     "sensor_ahead_m", "max_steer_rad"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} ({getattr(self, name)}) must be > 0")
-        for name in ("line_loss_limit_m", "pause_s", "tag_jitter_m"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} ({getattr(self, name)}) must be >= 0")
+    max_speed_mps: Positive = 1.0
+    """P_001 VEL_MAX 1000 mm/s."""
+    accel_mps2: Positive = 0.5
+    """P_002 VEL_ACC 500 mm/s2."""
+    decel_mps2: Positive = 0.5
+    """P_003 VEL_DEC 500 mm/s2."""
+    turn_speed_mps: Positive = 0.3
+    """P_004 TURN_SPEED 300 mm/s; Req.Nav.005 0.3 m/s on a branch."""
+    sensor: InstanceOf[LineSensor] = LineSensor()
+    pid: InstanceOf[PidGains] = PidGains()
+    sensor_ahead_m: Positive = 0.2
+    """Assumed: line sensor 0.2 m ahead of the drive-axle centre."""
+    max_steer_rad: Positive = math.radians(60.0)
+    """Assumed: steering angle limit of the virtual front wheel."""
+    line_loss_limit_m: NonNegative = 0.5
+    """Req.Err.010: hold the last steering for at most 50 cm without tape."""
+    pause_s: NonNegative = PAUSE_S
+    """RSS-AGV-001 5.3: TYPE_CMD 0x20 pauses 3 s."""
+    tag_jitter_m: NonNegative = 0.0
+    """Assumed 0: standard deviation of where along the track an RFID tag is read."""
 
 
 @dataclass(frozen=True)

@@ -31,8 +31,9 @@ from typing import Final, TextIO
 
 import numpy as np
 
+from agv_model.inputs import InputError
 from agv_model.link import LinkSettings, device_settings
-from agv_model.profile import Profile, ProfileError, load_profile, profile_for, profile_names
+from agv_model.profile import Profile, load_profile, profile_for, profile_names
 from agv_model.protocols import Device, get_device, names
 
 IDLE_WAKE_S: Final = 0.05  # longest sleep, so that a stop request is seen promptly
@@ -52,7 +53,7 @@ def choose_profile(protocol: str, profile_name: str | None = None) -> Profile:
                            f"{', '.join(names())}")
     try:
         profile = profile_for(protocol) if profile_name is None else load_profile(profile_name)
-    except ProfileError as exc:
+    except InputError as exc:
         raise EmulateError(str(exc)) from None
     if profile.protocol != protocol:
         speakers = [n for n in profile_names() if load_profile(n).protocol == protocol]

@@ -73,7 +73,6 @@ Timing rules:
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -162,7 +161,7 @@ class CommandTiming:
     def __init__(self, protocol: str | None, settings: LinkSettings) -> None:
         self.protocol = protocol
         self.settings = settings
-        base = dataclasses.replace(settings, jitter=Jitter())
+        base = settings.model_copy(update={"jitter": Jitter()})
         self.exchanges: dict[Kind, tuple[Exchange, ...]]
         if protocol is None:
             self.exchanges = {kind: (_generic_exchange(base, *GENERIC_MESSAGE_BYTES[kind]),)

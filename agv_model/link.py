@@ -30,6 +30,8 @@ Readings (documented here; the profiles in `agv_model/profiles/` carry the figur
   after that command, which is the stale-reply hazard a real host has to handle.
 - `host_gap_s` follows each reply (CarriRo 処理: 10 ms after the reply is received); it is not
   part of the reply time but delays the next command (`Exchange.ready_s`).
+- Settings are a pydantic model (`agv_model.inputs`): a bad setting, in a profile file or in
+  code, is an InputError naming the setting, the value and what was expected.
 - `processing_s` is handed to the virtual device, which is where the time is spent (CarriRo's
   `processing_s`, the others' `reply_delay_s`); None keeps the device's own default.
 """
@@ -38,46 +40,28 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Final, Literal
 
 import numpy as np
+from pydantic import Field, field_validator, model_validator
 
+from agv_model.inputs import NonNegative, Problem, StrictModel
 from agv_model.protocols import Command, Device, get_codec, get_device, names
 
 Parity = Literal["none", "even", "odd", "mark", "space"]
 JitterDistribution = Literal["none", "uniform", "normal", "exponential"]
 
-PARITIES: Final = ("none", "even", "odd", "mark", "space")
-DATA_BITS: Final = (5, 6, 7, 8)
-STOP_BITS: Final = (1, 1.5, 2)
-JITTER_DISTRIBUTIONS: Final = ("none", "uniform", "normal", "exponential")
 # The device setting that holds each protocol's answer time (see the protocol modules).
 PROCESSING_SETTING: Final[Mapping[str, str]] = {
     "carriro": "processing_s", "ktm02": "reply_delay_s", "tabo": "reply_delay_s",
     "agv3": "reply_delay_s",
 }
+STOP_BITS: Final = (1, 1.5, 2)
 SETTLE_LIMIT_S: Final = 60.0  # how long a new device may take to send its start-up output
 
 
-class LinkSettingsError(ValueError):
-    """A link setting that cannot describe a real wire: names the setting, value, expectation."""
-
-    def __init__(self, label: str, setting: str, value: object, expected: str) -> None:
-        self.setting = setting
-        self.value = value
-        self.expected = expected
-        super().__init__(f"Not a valid {label}: {value!r}; expected {expected}")
-
-
-def _check_time(label: str, setting: str, value: object) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not (
-            math.isfinite(value) and value >= 0):
-        raise LinkSettingsError(label, setting, value, "a time in seconds >= 0")
-
-
-@dataclass(frozen=True)
-class Jitter:
+class Jitter(StrictModel):
     """Random extra delay on each reply, drawn from a seeded `numpy.random.Generator`.
 
     uniform: between `low_s` and `high_s`; normal: `mean_s`, `sd_s`, cut at 0;
@@ -85,20 +69,16 @@ class Jitter:
     """
 
     distribution: JitterDistribution = "none"
-    low_s: float = 0.0
-    high_s: float = 0.0
-    mean_s: float = 0.0
-    sd_s: float = 0.0
+    low_s: NonNegative = 0.0
+    high_s: NonNegative = 0.0
+    mean_s: NonNegative = 0.0
+    sd_s: NonNegative = 0.0
 
-    def __post_init__(self) -> None:
-        if self.distribution not in JITTER_DISTRIBUTIONS:
-            raise LinkSettingsError("jitter distribution", "distribution", self.distribution,
-                                    f"one of {', '.join(JITTER_DISTRIBUTIONS)}")
-        for setting in ("low_s", "high_s", "mean_s", "sd_s"):
-            _check_time(f"jitter {setting}", setting, getattr(self, setting))
+    @model_validator(mode="after")
+    def _ordered(self) -> Jitter:
         if self.high_s < self.low_s:
-            raise LinkSettingsError("jitter high_s", "high_s", self.high_s,
-                                    f"at least low_s ({self.low_s!r})")
+            raise Problem("high_s", self.high_s, f"at least low_s ({self.low_s!r})")
+        return self
 
     def draw_s(self, rng: np.random.Generator) -> float:
         if self.distribution == "uniform":
@@ -110,40 +90,29 @@ class Jitter:
         return 0.0
 
 
-@dataclass(frozen=True)
-class LinkSettings:
+class LinkSettings(StrictModel):
     """One wire between host and vehicle. Every time is in seconds."""
 
-    baud: int
-    data_bits: int = 8
+    baud: int = Field(gt=0)
+    """Bits per second."""
+    data_bits: Literal[5, 6, 7, 8] = 8
     parity: Parity = "none"
-    stop_bits: float = 1
-    processing_s: float | None = None
-    host_gap_s: float = 0.0
-    reply_timeout_s: float = 1.0
-    latency_s: float = 0.0
-    jitter: Jitter = field(default_factory=Jitter)
+    stop_bits: float = Field(default=1, json_schema_extra={"enum": list(STOP_BITS)})
+    processing_s: NonNegative | None = None
+    """The vehicle's answer time; none: the virtual device's own default."""
+    host_gap_s: NonNegative = 0.0
+    """How long the host waits after a reply before it sends again."""
+    reply_timeout_s: NonNegative = 1.0
+    latency_s: NonNegative = 0.0
+    """One-way delay of a radio hop."""
+    jitter: Jitter = Jitter()
 
-    def __post_init__(self) -> None:
-        if isinstance(self.baud, bool) or not isinstance(self.baud, int) or self.baud <= 0:
-            raise LinkSettingsError("baud rate", "baud", self.baud,
-                                    "a whole number of bits per second > 0")
-        if isinstance(self.data_bits, bool) or self.data_bits not in DATA_BITS:
-            raise LinkSettingsError("number of data bits", "data_bits", self.data_bits,
-                                    f"one of {', '.join(map(str, DATA_BITS))}")
-        if self.parity not in PARITIES:
-            raise LinkSettingsError("parity", "parity", self.parity,
-                                    f"one of {', '.join(PARITIES)}")
-        if isinstance(self.stop_bits, bool) or self.stop_bits not in STOP_BITS:
-            raise LinkSettingsError("number of stop bits", "stop_bits", self.stop_bits,
-                                    "1, 1.5 or 2")
-        if self.processing_s is not None:
-            _check_time("processing time", "processing_s", self.processing_s)
-        _check_time("host gap", "host_gap_s", self.host_gap_s)
-        _check_time("latency", "latency_s", self.latency_s)
-        _check_time("reply timeout", "reply_timeout_s", self.reply_timeout_s)
-        if not isinstance(self.jitter, Jitter):
-            raise LinkSettingsError("jitter", "jitter", self.jitter, "a Jitter")
+    @field_validator("stop_bits")
+    @classmethod
+    def _real_stop_bits(cls, stop_bits: float) -> float:
+        if stop_bits not in STOP_BITS:
+            raise Problem("", stop_bits, "1, 1.5 or 2")
+        return stop_bits
 
     @property
     def bits_per_char(self) -> float:

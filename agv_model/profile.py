@@ -5,23 +5,31 @@ A profile holds a vehicle's kinematics (the document's units: mm, mm/s, mm/s2), 
 Each section carries a `source` mapping with one entry per figure: a citation that starts with
 the document's tag (`DOCUMENTS`) and names the section, or text starting with `assumed` that
 says why. A figure without a source, a source without a figure, an unknown key, a wrong type or
-an impossible value is a `ProfileError` naming the file, the key, the value and what was
-expected. A profile's name is its file name without `.yaml`.
+an impossible value is an `InputError` naming the file, the key, the value and what was
+expected (`ProfileFile` is the file as written, `fleet-sim schema profile` its JSON Schema). A
+profile's name is its file name without `.yaml`.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import types
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final
+from typing import Annotated, Final
 
-import yaml
+from pydantic import Field, field_validator, model_validator
 
-from agv_model.link import Jitter, LinkSettings, LinkSettingsError
+from agv_model.inputs import (
+    InputError,
+    NonNegative,
+    Positive,
+    Problem,
+    StrictModel,
+    read_yaml,
+    validate,
+)
+from agv_model.link import LinkSettings
 from agv_model.protocols import names as protocol_names
 
 PROFILE_DIR: Final = Path(__file__).resolve().parent / "profiles"
@@ -35,25 +43,20 @@ DOCUMENTS: Final[Mapping[str, str]] = {
 }
 
 
-class ProfileError(ValueError):
-    """A profile file holds something the loader cannot use."""
-
-    def __init__(self, file: str, key: str, value: object, expected: str) -> None:
-        self.file = file
-        self.key = key
-        self.value = value
-        self.expected = expected
-        super().__init__(f"{file}: {key}: got {value!r}; expected {expected}")
-
-
-@dataclass(frozen=True)
-class Kinematics:
-    max_speed_mmps: float
-    accel_mmps2: float
-    decel_mmps2: float
-    turn_speed_mmps: float
+class Kinematics(StrictModel):
+    max_speed_mmps: Positive
+    accel_mmps2: Positive
+    decel_mmps2: Positive
+    turn_speed_mmps: Positive
     """Speed through branch turns and spins."""
-    length_mm: float
+    length_mm: Positive
+
+    @model_validator(mode="after")
+    def _turn_within_top_speed(self) -> Kinematics:
+        if self.turn_speed_mmps > self.max_speed_mmps:
+            raise Problem("turn_speed_mmps", self.turn_speed_mmps,
+                          f"at most max_speed_mmps ({self.max_speed_mmps})")
+        return self
 
     @property
     def max_speed_mps(self) -> float:
@@ -76,19 +79,100 @@ class Kinematics:
         return self.length_mm / 1000
 
 
-@dataclass(frozen=True)
-class Battery:
-    capacity_wh: float
-    moving_w: float
+class Battery(StrictModel):
+    capacity_wh: Positive
+    moving_w: NonNegative
     """Mean power drawn while driving."""
-    idle_w: float
+    idle_w: NonNegative
     """Mean power drawn while standing (Idle, Loading, Paused)."""
-    charge_w: float
+    charge_w: Positive
     """Power put into the battery while charging."""
+
+
+def _check_sources(model: StrictModel, source: Mapping[str, str]) -> None:
+    """Exactly one citation or `assumed ...` per figure of `model`'s section."""
+    figures = tuple(n for n in type(model).model_fields if n != "source")
+    for name, text in source.items():
+        if name not in figures:
+            raise Problem(f"source.{name}", text,
+                          f"a figure of this section: {', '.join(figures)}")
+        if not (text.startswith(ASSUMED) or any(text.startswith(tag) for tag in DOCUMENTS)):
+            raise Problem(f"source.{name}", text,
+                          f"'{ASSUMED} ...' or a citation starting with one of "
+                          f"{', '.join(DOCUMENTS)}")
+    for name in figures:
+        if name not in source:
+            raise Problem(f"source.{name}", None, "a citation or 'assumed ...' for this figure")
+
+
+Sources = dict[str, str]
+"""Figure name -> `assumed ...` or a citation starting with a document's tag."""
+
+
+class KinematicsSection(Kinematics):
+    """`kinematics` as written in a profile file: the figures and their sources."""
+
+    source: Sources
+
+    @model_validator(mode="after")
+    def _sourced(self) -> KinematicsSection:
+        _check_sources(self, self.source)
+        return self
+
+
+class BatterySection(Battery):
+    """`battery` as written in a profile file: the figures and their sources."""
+
+    source: Sources
+
+    @model_validator(mode="after")
+    def _sourced(self) -> BatterySection:
+        _check_sources(self, self.source)
+        return self
+
+
+class LinkSection(LinkSettings):
+    """`link` as written in a profile file: the settings and their sources."""
+
+    source: Sources
+
+    @model_validator(mode="after")
+    def _sourced(self) -> LinkSection:
+        _check_sources(self, self.source)
+        return self
+
+
+class ProfileFile(StrictModel):
+    """A vehicle profile file (`agv_model/profiles/<name>.yaml`)."""
+
+    title: Annotated[str, Field(min_length=1)]
+    document: str
+    """The file name of the vehicle's document in specs/."""
+    protocol: str | None
+    """The wire protocol (agv_model.protocols); null: the document defines none."""
+    kinematics: KinematicsSection
+    battery: BatterySection
+    link: LinkSection
+
+    @field_validator("document")
+    @classmethod
+    def _known_document(cls, document: str) -> str:
+        if document not in DOCUMENTS.values():
+            raise Problem("", document, f"one of {', '.join(DOCUMENTS.values())}")
+        return document
+
+    @field_validator("protocol")
+    @classmethod
+    def _known_protocol(cls, protocol: str | None) -> str | None:
+        if protocol is not None and protocol not in protocol_names():
+            raise Problem("", protocol, f"null or one of {', '.join(protocol_names())}")
+        return protocol
 
 
 @dataclass(frozen=True)
 class Profile:
+    """A loaded profile: its figures, in plain models, and their sources by dotted key."""
+
     name: str
     title: str
     document: str
@@ -101,135 +185,23 @@ class Profile:
     """Citation or `assumed ...` for every figure, by dotted key (`kinematics.length_mm`)."""
 
 
-_POSITIVE: Final = {"max_speed_mmps", "accel_mmps2", "decel_mmps2", "turn_speed_mmps",
-                    "length_mm", "capacity_wh", "charge_w"}
-_TOP_KEYS: Final = ("title", "document", "protocol", "kinematics", "battery", "link")
-
-
-def _mapping(file: str, key: str, value: object) -> dict[str, Any]:
-    if not isinstance(value, dict) or not all(isinstance(k, str) for k in value):
-        raise ProfileError(file, key, value, "a mapping with text keys")
-    return value
-
-
-def _unknown(file: str, key: str, data: Mapping[str, Any], allowed: tuple[str, ...]) -> None:
-    for name, value in data.items():
-        if name not in allowed:
-            raise ProfileError(file, f"{key}.{name}" if key else name, value,
-                               f"one of the keys {', '.join(allowed)}")
-    for name in allowed:
-        if name not in data:
-            raise ProfileError(file, f"{key}.{name}" if key else name, None,
-                               "a value (the key is missing)")
-
-
-def _number(file: str, key: str, value: object, *, whole: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ProfileError(file, key, value, "a whole number" if whole else "a number")
-    if whole and not isinstance(value, int):
-        raise ProfileError(file, key, value, "a whole number")
-    return value
-
-
-def _sources(file: str, key: str, data: Mapping[str, Any],
-             figures: tuple[str, ...]) -> dict[str, str]:
-    """Check a section's `source` mapping: exactly one citation or `assumed` per figure."""
-    source = _mapping(file, f"{key}.source", data.get("source"))
-    for name, text in source.items():
-        if name not in figures:
-            raise ProfileError(file, f"{key}.source.{name}", text,
-                               f"a figure of {key}: {', '.join(figures)}")
-        cites = isinstance(text, str) and any(text.startswith(tag) for tag in DOCUMENTS)
-        if not cites and not (isinstance(text, str) and text.startswith(ASSUMED)):
-            raise ProfileError(file, f"{key}.source.{name}", text,
-                               f"'{ASSUMED} ...' or a citation starting with one of "
-                               f"{', '.join(DOCUMENTS)}")
-    for name in figures:
-        if name not in source:
-            raise ProfileError(file, f"{key}.source.{name}", None,
-                               "a citation or 'assumed ...' for this figure")
-    return {f"{key}.{name}": text for name, text in source.items()}
-
-
-def _figures(file: str, key: str, data: Mapping[str, Any], cls: type[Any]) -> dict[str, float]:
-    fields = tuple(f.name for f in dataclasses.fields(cls))
-    _unknown(file, key, data, (*fields, "source"))
-    values: dict[str, float] = {}
-    for name in fields:
-        value = _number(file, f"{key}.{name}", data[name])
-        if value < 0 or (name in _POSITIVE and value == 0):
-            raise ProfileError(file, f"{key}.{name}", value,
-                               "a number > 0" if name in _POSITIVE else "a number >= 0")
-        values[name] = float(value)
-    return values
-
-
-def _kinematics(file: str, data: Mapping[str, Any]) -> Kinematics:
-    kinematics = Kinematics(**_figures(file, "kinematics", data, Kinematics))
-    if kinematics.turn_speed_mmps > kinematics.max_speed_mmps:
-        raise ProfileError(file, "kinematics.turn_speed_mmps", kinematics.turn_speed_mmps,
-                           f"at most max_speed_mmps ({kinematics.max_speed_mmps})")
-    return kinematics
-
-
-_LINK_KEYS: Final = tuple(f.name for f in dataclasses.fields(LinkSettings))
-_JITTER_KEYS: Final = tuple(f.name for f in dataclasses.fields(Jitter))
-
-
-def _link(file: str, data: Mapping[str, Any]) -> LinkSettings:
-    _unknown(file, "link", data, (*_LINK_KEYS, "source"))
-    jitter = _mapping(file, "link.jitter", data["jitter"])
-    for name, value in jitter.items():
-        if name not in _JITTER_KEYS:
-            raise ProfileError(file, f"link.jitter.{name}", value,
-                               f"one of the keys {', '.join(_JITTER_KEYS)}")
-    settings = {k: data[k] for k in _LINK_KEYS if k != "jitter"}
-    try:
-        return LinkSettings(**settings, jitter=Jitter(**jitter))
-    except LinkSettingsError as exc:
-        where = "link.jitter" if exc.setting in _JITTER_KEYS else "link"
-        raise ProfileError(file, f"{where}.{exc.setting}", exc.value, exc.expected) from None
-
-
 def parse_profile(name: str, data: object, file: str) -> Profile:
     """Build a profile from parsed YAML; `file` names it in errors."""
-    top = _mapping(file, "profile", data)
-    _unknown(file, "", top, _TOP_KEYS)
-    for key in ("title", "document"):
-        if not isinstance(top[key], str) or not top[key]:
-            raise ProfileError(file, key, top[key], "a non-empty text")
-    protocol = top["protocol"]
-    if protocol is not None and protocol not in protocol_names():
-        raise ProfileError(file, "protocol", protocol,
-                           f"null or one of {', '.join(protocol_names())}")
-    if top["document"] not in DOCUMENTS.values():
-        raise ProfileError(file, "document", top["document"],
-                           f"one of {', '.join(DOCUMENTS.values())}")
-    sections = {key: _mapping(file, key, top[key]) for key in ("kinematics", "battery", "link")}
-    kinematics = _kinematics(file, sections["kinematics"])
-    battery = Battery(**_figures(file, "battery", sections["battery"], Battery))
-    link = _link(file, sections["link"])
-    sources: dict[str, str] = {}
-    for key, section in sections.items():
-        figures = _LINK_KEYS if key == "link" else tuple(
-            f.name for f in dataclasses.fields(Kinematics if key == "kinematics" else Battery))
-        sources.update(_sources(file, key, section, figures))
-    return Profile(name, top["title"], top["document"], protocol, kinematics, battery, link,
+    written = validate(ProfileFile, data, file)
+    sources = {f"{key}.{figure}": text
+               for key, section in (("kinematics", written.kinematics),
+                                    ("battery", written.battery), ("link", written.link))
+               for figure, text in section.source.items()}
+    return Profile(name, written.title, written.document, written.protocol,
+                   Kinematics.model_validate(written.kinematics.model_dump(exclude={"source"})),
+                   Battery.model_validate(written.battery.model_dump(exclude={"source"})),
+                   LinkSettings.model_validate(written.link.model_dump(exclude={"source"})),
                    types.MappingProxyType(sources))
 
 
 def read_profile(path: Path) -> Profile:
     """Load one profile file."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ProfileError(str(path), "file", str(path),
-                           f"a readable profile file ({exc.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ProfileError(str(path), "file", type(exc).__name__, f"valid YAML: {exc}") from None
-    return parse_profile(path.stem, data, str(path))
+    return parse_profile(path.stem, read_yaml(path), str(path))
 
 
 def profile_names() -> tuple[str, ...]:
@@ -240,7 +212,7 @@ def profile_names() -> tuple[str, ...]:
 def load_profile(name: str) -> Profile:
     """A bundled profile by name."""
     if name not in profile_names():
-        raise ProfileError(str(PROFILE_DIR), "profile", name,
+        raise InputError(str(PROFILE_DIR), "profile", name,
                            f"one of {', '.join(profile_names())}")
     return read_profile(PROFILE_DIR / f"{name}.yaml")
 
@@ -254,5 +226,5 @@ def profile_for(protocol: str) -> Profile:
     for profile in load_profiles().values():
         if profile.protocol == protocol:
             return profile
-    raise ProfileError(str(PROFILE_DIR), "protocol", protocol,
+    raise InputError(str(PROFILE_DIR), "protocol", protocol,
                        f"a protocol of a bundled profile, one of {', '.join(protocol_names())}")

@@ -41,7 +41,7 @@ def main() -> None:
             "name": "sweep_bench", "scenario": str(ROOT / "experiments" / "warehouse_shift.yaml"),
             "overrides": {"warmup_h": 0.25}, "factors": {"fleet.size": args.fleets},
             "replications": args.replications, "master_seed": 1}), encoding="utf-8")
-        experiment = load_experiment(exp_file, check_kpis=False)
+        experiment = load_experiment(exp_file)
         specs = experiment.runs()
         specs.sort(key=lambda s: -int(s.factor_dict()["fleet.size"]))  # as the sweep does
         print(f"sweep of {len(specs)} runs (warehouse, 8 h shifts, fleets {args.fleets[0]}.."

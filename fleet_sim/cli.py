@@ -1,18 +1,21 @@
 """The `fleet-sim` command.
 
-Bad input (a layout, scenario or trace file) ends in one line naming the file, the element, the
-value and what was expected, and exit status 2; never a traceback.
+Bad input (a layout, scenario, experiment, trace or profile file) ends in one line naming the
+file, the element, the value and what was expected, and exit status 2; never a traceback.
+`fleet-sim schema KIND` prints the JSON Schema of a file kind, for editors that check YAML as it
+is typed.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from fleet_sim.errors import FleetSimError
+from fleet_sim.errors import FleetSimError, InputError
 
 MAX_WARNINGS = 4
 
@@ -61,6 +64,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     rep.add_argument("results", type=Path, help="results folder of `sweep` or `size`")
     rep.add_argument("--no-pdf", action="store_true", help="write the HTML report only")
 
+    schema = sub.add_parser("schema", help="print the JSON Schema of a file kind, for editors")
+    schema.add_argument("kind", choices=SCHEMA_KINDS, help="which file")
+    schema.add_argument("--out", type=Path, help="write it to this file instead")
+
     args = parser.parse_args(argv)
     try:
         if args.command == "run":
@@ -75,8 +82,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _report(args)
         if args.command == "crosscheck":
             return _crosscheck(args)
+        if args.command == "schema":
+            return _schema(args)
         return _layout(args)
-    except FleetSimError as exc:
+    except (FleetSimError, InputError) as exc:
         print(f"fleet-sim: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -91,7 +100,6 @@ def _run(args: argparse.Namespace) -> int:
     from fleet_sim.analysis.results import summary, write_run
     from fleet_sim.config.scenario import load_layout_for, load_scenario
     from fleet_sim.config.trace import load_trace
-    from fleet_sim.errors import InputError
     from fleet_sim.sim.engine import simulate
 
     overrides: dict[str, object] = {}
@@ -119,6 +127,25 @@ def _run(args: argparse.Namespace) -> int:
     print(summary(figures))
     print(f"  run directory               {out}  ({run.wall_s:.1f} s wall, "
           f"{run.sim_events:,} events)")
+    return 0
+
+
+SCHEMA_KINDS = ("layout", "scenario", "experiment", "profile")
+
+
+def _schema(args: argparse.Namespace) -> int:
+    from fleet_sim.config.schemas import json_schema
+
+    text = json.dumps(json_schema(args.kind), indent=2, ensure_ascii=False) + "\n"
+    if args.out is None:
+        sys.stdout.write(text)
+        return 0
+    try:
+        args.out.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise InputError("--out", "out", str(args.out), f"a writable file ({exc.strerror})") \
+            from None
+    print(f"{args.kind} schema: {args.out}")
     return 0
 
 
@@ -170,8 +197,6 @@ def _runner_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _check_workers(args: argparse.Namespace) -> None:
-    from fleet_sim.errors import InputError
-
     if args.workers < 0:
         raise InputError("--workers", "workers", args.workers, "an integer >= 0 (0: one per core)")
 
@@ -276,7 +301,6 @@ def _layout(args: argparse.Namespace) -> int:
 def _crosscheck(args: argparse.Namespace) -> int:
     """One table per fleet size: KPIs and wall time of each backend, and SUMO's difference."""
     from fleet_sim.config.scenario import load_layout_for, load_scenario
-    from fleet_sim.errors import InputError
     from fleet_sim.study.crosscheck import crosscheck, table
 
     base: dict[str, object] = {}

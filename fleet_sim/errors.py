@@ -1,24 +1,19 @@
-"""One error family for the project, so the command line can print one clear line and exit."""
+"""One error family for the project, so the command line can print one clear line and exit.
+
+`InputError` (a user file holds a value the program cannot use) is the one input error of both
+packages; it is defined in `agv_model.inputs`, the lowest layer, because vehicle profiles and
+link settings are read there and agv_model never imports fleet_sim. It is re-exported here.
+"""
 
 from __future__ import annotations
 
+from agv_model.inputs import InputError
+
+__all__ = ["FleetSimError", "InputError", "SimulationError"]
+
 
 class FleetSimError(Exception):
-    """Base class of every error fleet_sim raises on purpose."""
-
-
-class InputError(FleetSimError):
-    """A user file (layout, scenario, trace) holds a value fleet_sim cannot use.
-
-    The message names the file, the element, the bad value and what was expected.
-    """
-
-    def __init__(self, file: str, element: str, value: object, expected: str) -> None:
-        self.file = file
-        self.element = element
-        self.value = value
-        self.expected = expected
-        super().__init__(f"{file}: {element}: got {value!r}; expected {expected}")
+    """Base class of every error fleet_sim raises on purpose (input errors are `InputError`)."""
 
 
 class SimulationError(FleetSimError):

@@ -15,9 +15,8 @@ import serial
 import yaml
 
 from agv_model.protocols import Device
-from fleet_sim.config.confparse import build
 from fleet_sim.config.layout import Layout, load_layout
-from fleet_sim.config.scenario import Scenario
+from fleet_sim.config.scenario import Scenario, parse_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 LAYOUTS = ROOT / "layouts"
@@ -37,8 +36,7 @@ def warehouse_layout() -> Layout:
 def make_scenario(layout_file: str = "tiny_loop.yaml", base_dir: Path = LAYOUTS,
                   **fields: Any) -> Scenario:
     """A scenario from keyword fields, as if read from a file in `base_dir`."""
-    data: dict[str, Any] = {"layout": layout_file, **fields, "_base_dir": str(base_dir)}
-    return build(Scenario, data, "<test scenario>")
+    return parse_scenario({"layout": layout_file, **fields}, "<test scenario>", base_dir)
 
 
 def write_yaml(path: Path, data: Any) -> Path:

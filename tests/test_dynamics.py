@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
 from agv_model.dynamics import (
     Drive,
@@ -22,6 +23,7 @@ from agv_model.dynamics import (
     VehicleParams,
     simulate,
 )
+from agv_model.inputs import InputError, validate
 from agv_model.line_sensor import LineSensor
 from agv_model.pid import PidGains
 from agv_model.track import Marker, Straight, TagType, Track
@@ -260,8 +262,12 @@ def test_bad_inputs_name_the_value() -> None:
         simulate(Track.straight(1.0), dt_s=0)
     with pytest.raises(ValueError, match="speed_mps > 0"):
         simulate(Track.straight(1.0), [Drive(0.0, 0.0)])
-    with pytest.raises(ValueError, match=r"decel_mps2 \(-1"):
+    with pytest.raises(ValidationError, match="decel_mps2"):
         VehicleParams(decel_mps2=-1.0)
+    with pytest.raises(InputError, match=r"^params: decel_mps2: got -1.0; expected a number > 0$"):
+        validate(VehicleParams, {"decel_mps2": -1.0}, "params")
+    with pytest.raises(InputError, match=r"^params: pause_s: got nan; expected a finite number$"):
+        validate(VehicleParams, {"pause_s": float("nan")}, "params")
 
 
 # ---- determinism, output --------------------------------------------------------------------

@@ -164,11 +164,13 @@ def test_default_profile_per_protocol() -> None:
     assert {p: choose_profile(p).name for p in ("carriro", "ktm02", "tabo", "agv3")} == {
         "carriro": "carriro-ad-plus", "ktm02": "ktm-02", "tabo": "tabo", "agv3": "agv-3"}
     assert describe(load_profile("carriro-ad-plus").link) == "19200 8E1, 11 bits per character"
-    assert describe(LinkSettings(9600, 7, "odd", 1.5)) == "9600 7O1.5, 10.5 bits per character"
+    odd = LinkSettings(baud=9600, data_bits=7, parity="odd", stop_bits=1.5)
+    assert describe(odd) == "9600 7O1.5, 10.5 bits per character"
 
 
 def test_wire_delivers_each_character_when_its_last_bit_is_in() -> None:
-    wire = _Wire(LinkSettings(10000, 8, "none", 1, latency_s=0.5))  # 1 ms a character
+    wire = _Wire(LinkSettings(baud=10000, data_bits=8, parity="none", stop_bits=1,
+                              latency_s=0.5))  # 1 ms a character
     wire.send(b"ab", 1.0)
     wire.send(b"c", 1.0)  # queued behind "ab": the line is busy until 1.002
     assert [t for t, _ in wire.queue] == pytest.approx([1.501, 1.502, 1.503])

@@ -81,7 +81,6 @@ def test_latin_hypercube_uses_each_stratum_once(tmp_path: Path) -> None:
     ({"factors": {"fleet.size": [1, 9]}}, "design point (fleet.size=9)", "parking capacity"),
     ({"factors": {"seed": [1, 2]}}, "factors.seed", "master_seed"),
     ({"factors": {"fleet.size": {"min": 1, "max": 3}}}, "factors.fleet.size", "latin_hypercube"),
-    ({"targets": [{"kpi": "throughput", "at_least": 5}]}, "targets[0].kpi", "a KPI of the runs"),
     ({"targets": [{"kpi": "lead_time_p95_s"}]}, "targets[0]", "exactly one of"),
     ({"scenario": "missing.yaml"}, "scenario", "an existing scenario file"),
     ({"overrides": {"warmup_h": 5}}, "overrides", "shorter than duration_h"),

@@ -3,7 +3,6 @@ jitter draws, timeouts and the polling delay. Simulated time only, no wall clock
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -66,8 +65,8 @@ def test_generic_profile_uses_its_wifi_link_and_assumed_sizes() -> None:
 def test_slower_baud_rate_stretches_the_byte_time_in_proportion(name: str) -> None:
     profile = load_profile(name)
     fast = CommandTiming(profile.protocol, profile.link)
-    slow = CommandTiming(profile.protocol, dataclasses.replace(profile.link,
-                                                               baud=profile.link.baud // 2))
+    slow = CommandTiming(profile.protocol,
+                         profile.link.model_copy(update={"baud": profile.link.baud // 2}))
     for kind in KINDS:
         fixed_s = sum(2 * e.latency_s + e.processing_s + e.gap_s for e in fast.exchanges[kind])
         assert [e.command for e in slow.exchanges[kind]] == [
@@ -143,7 +142,8 @@ def test_tabo_jitter_is_one_draw_per_exchange() -> None:
 
 def test_normal_jitter_is_cut_at_zero() -> None:
     profile = load_profile("agv-3")
-    wide = dataclasses.replace(profile.link, jitter=Jitter("normal", mean_s=0.0, sd_s=0.05))
+    wide = profile.link.model_copy(
+        update={"jitter": Jitter(distribution="normal", mean_s=0.0, sd_s=0.05)})
     timing = CommandTiming(profile.protocol, wide)
     rng = np.random.default_rng(5)
     assert min(timing.seconds("stop", rng) for _ in range(500)) >= timing.round_trip_s("stop")
@@ -167,7 +167,7 @@ def test_mean_notice_delay_is_half_a_period_plus_the_status_reply() -> None:
 def test_a_reply_later_than_agv3_timeout_is_reported() -> None:
     profile = load_profile("agv-3")
     assert profile.link.reply_timeout_s == 0.25  # AGV-3 protocol, Syntax
-    slow = dataclasses.replace(profile.link, processing_s=0.3)
+    slow = profile.link.model_copy(update={"processing_s": 0.3})
     timing = CommandTiming(profile.protocol, slow)
     assert timing.timed_out("status")
     (exchange,) = timing.exchanges["status"]
@@ -185,7 +185,8 @@ def test_jitter_past_the_margin_times_out_as_the_link_says(over: bool) -> None:
     margin_s = timeout_margin_s(exchange, profile.link)
     assert margin_s == pytest.approx(0.25 - 0.010 - 10 / 9600)
     jitter_s = margin_s + (0.001 if over else -0.001)
-    fixed = dataclasses.replace(profile.link, jitter=Jitter("uniform", jitter_s, jitter_s))
+    fixed = profile.link.model_copy(
+        update={"jitter": Jitter(distribution="uniform", low_s=jitter_s, high_s=jitter_s)})
     jittery = CommandTiming(profile.protocol, fixed)
     attempt = jittery.attempt("stop", np.random.default_rng(1))
     on_link = Link("agv3", fixed).exchange(exchange.command)
@@ -195,7 +196,8 @@ def test_jitter_past_the_margin_times_out_as_the_link_says(over: bool) -> None:
 
 def test_a_timeout_stops_a_multi_message_command_at_that_message() -> None:
     profile = load_profile("carriro-ad-plus")
-    late = dataclasses.replace(profile.link, jitter=Jitter("uniform", 2.0, 2.0))  # timeout 1 s
+    late = profile.link.model_copy(  # timeout 1 s
+        update={"jitter": Jitter(distribution="uniform", low_s=2.0, high_s=2.0)})
     timing = CommandTiming(profile.protocol, late)
     first, _ = timing.exchanges["assign"]
     attempt = timing.attempt("assign", np.random.default_rng(2))

@@ -89,9 +89,9 @@ CASES = [
     ("duplicate id", lambda d: d["nodes"][1].update({"id": "SW"}),
      "nodes[1].id", "'SW'", "a unique node id"),
     ("zero length", lambda d: d["segments"][2].update({"length_m": 0}),
-     "segments[2].length_m", "0", "a length > 0 m"),
+     "segments[2].length_m", "0", "a number > 0"),
     ("negative length", lambda d: d["segments"][2].update({"length_m": -3}),
-     "segments[2].length_m", "-3", "a length > 0 m"),
+     "segments[2].length_m", "-3", "a number > 0"),
     ("shorter than the straight line", lambda d: d["segments"][2].update({"length_m": 2}),
      "segments[2].length_m", "2", "at least the straight distance"),
     ("no way out", lambda d: d["segments"].pop(3),
@@ -109,7 +109,18 @@ CASES = [
      "stations[0].nodes[0]", "'S1'", "a node of kind 'station'"),
     ("bad distribution", lambda d: d["stations"][0].update(
         {"handling": {"dist": "uniform", "low_s": 5}}),
-     "stations[0].handling.high_s", "None", "distribution 'uniform' needs"),
+     "stations[0].handling.high_s", "None", "a value for required key 'high_s'"),
+    ("parameter the distribution does not take", lambda d: d["stations"][0].update(
+        {"handling": {"dist": "fixed", "mean_s": 5, "sd_s": 1}}),
+     "stations[0].handling.sd_s", "1", "no such key for dist 'fixed' (known keys: dist, mean_s)"),
+    ("unknown distribution", lambda d: d["stations"][0].update(
+        {"handling": {"dist": "gamma", "mean_s": 5}}),
+     "stations[0].handling.dist", "'gamma'", "one of 'fixed', 'uniform', 'triangular'"),
+    ("zone area of three numbers", lambda d: d.update(
+        {"zones": [{"id": "Z", "area_m": [0, 0, 4]}]}),
+     "zones[0].area_m", "[0, 0, 4]", "a list of 4 items"),
+    ("a bool for a number", lambda d: d["nodes"][0].update({"y": True}),
+     "nodes[0].y", "True", "a number"),
     ("no parking", lambda d: d.update({"parking": []}),
      "parking", "[]", "at least one parking area"),
     ("same pair twice", lambda d: d["segments"].append({"from": "SW", "to": "S1"}),

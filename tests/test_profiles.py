@@ -9,14 +9,15 @@ from typing import Any
 
 import pytest
 import yaml
+from pydantic import ValidationError
 
+from agv_model.inputs import InputError
 from agv_model.link import Link
 from agv_model.profile import (
     ASSUMED,
     DOCUMENTS,
     PROFILE_DIR,
     Profile,
-    ProfileError,
     load_profile,
     load_profiles,
     profile_for,
@@ -96,8 +97,10 @@ def test_each_profile_link_drives_its_protocol(name: str) -> None:
 
 def test_profiles_are_frozen() -> None:
     profile = load_profile("tabo")
-    with pytest.raises(dataclasses.FrozenInstanceError):
+    with pytest.raises(ValidationError, match="frozen"):
         profile.kinematics.max_speed_mmps = 1.0  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        profile.title = "another"  # type: ignore[misc]
     with pytest.raises(TypeError):
         profile.sources["link.baud"] = "assumed"  # type: ignore[index]
 
@@ -115,17 +118,19 @@ def test_a_copy_loads_like_the_original(tmp_path: Path) -> None:
     copied = read_profile(broken(tmp_path, lambda d: None))
     original = load_profile("carriro-ad-plus")
     assert dataclasses.replace(copied, sources={}) == dataclasses.replace(original, sources={})
+    assert (copied.kinematics, copied.link) == (original.kinematics, original.link)
     assert dict(copied.sources) == dict(original.sources)
 
 
 def test_unknown_key_names_file_key_value_and_expectation(tmp_path: Path) -> None:
     path = broken(tmp_path, lambda d: d["kinematics"].update(top_speed_kmh=6))
-    with pytest.raises(ProfileError) as info:
+    with pytest.raises(InputError) as info:
         read_profile(path)
     message = str(info.value)
-    assert message.startswith(f"{path}: kinematics.top_speed_kmh: got 6; expected one of the "
-                              "keys max_speed_mmps, accel_mmps2")
-    assert (info.value.file, info.value.key, info.value.value) == (
+    assert message == (f"{path}: kinematics.top_speed_kmh: got 6; expected no such key here "
+                       "(known keys: max_speed_mmps, accel_mmps2, decel_mmps2, turn_speed_mmps, "
+                       "length_mm, source)")
+    assert (info.value.file, info.value.element, info.value.value) == (
         str(path), "kinematics.top_speed_kmh", 6)
 
 
@@ -148,28 +153,33 @@ def deleter(section: str, key: str) -> Any:
 
 
 @pytest.mark.parametrize(("change", "key", "expected"), [
-    (setter("", "colour", "red"), "colour", "one of the keys title, document"),
-    (setter("link.jitter", "spread_s", 0.1), "link.jitter.spread_s", "one of the keys distr"),
-    (setter("link", "baud", 0), "link.baud", "a whole number of bits per second > 0"),
-    (setter("link", "parity", "E"), "link.parity", "one of none, even"),
-    (setter("link.jitter", "distribution", "gauss"), "link.jitter.distribution", "one of none"),
+    (setter("", "colour", "red"), "colour", "no such key here (known keys: title, document"),
+    (setter("link.jitter", "spread_s", 0.1), "link.jitter.spread_s",
+     "no such key here (known keys: distribution"),
+    (setter("link", "baud", 0), "link.baud", "an integer > 0"),
+    (setter("link", "baud", 1e400), "link.baud", "an integer"),
+    (setter("link", "parity", "E"), "link.parity", "one of 'none', 'even'"),
+    (setter("link.jitter", "distribution", "gauss"), "link.jitter.distribution", "one of 'none'"),
+    (setter("link", "latency_s", float("nan")), "link.latency_s", "a finite number"),
+    (setter("battery", "idle_w", float("inf")), "battery.idle_w", "a finite number"),
+    (setter("", "title", ""), "title", "a non-empty text"),
     (setter("kinematics", "max_speed_mmps", "fast"), "kinematics.max_speed_mmps", "a number"),
     (setter("kinematics", "length_mm", 0), "kinematics.length_mm", "a number > 0"),
     (setter("battery", "idle_w", -1), "battery.idle_w", "a number >= 0"),
     (setter("kinematics", "turn_speed_mmps", 900), "kinematics.turn_speed_mmps", "at most"),
     (setter("", "protocol", "modbus"), "protocol", "null or one of carriro"),
     (setter("", "document", "brochure.pdf"), "document", "one of rss-agv-001"),
-    (deleter("battery", "charge_w"), "battery.charge_w", "a value (the key is missing)"),
+    (deleter("battery", "charge_w"), "battery.charge_w", "a value for required key 'charge_w'"),
     (deleter("link.source", "baud"), "link.source.baud", "a citation or 'assumed ...'"),
     (setter("link.source", "baud", "the brochure"), "link.source.baud", "'assumed ...' or a"),
-    (setter("link.source", "speed", "assumed"), "link.source.speed", "a figure of link"),
+    (setter("link.source", "speed", "assumed"), "link.source.speed", "a figure of this section"),
 ])
 def test_bad_profiles_are_rejected(tmp_path: Path, change: Any, key: str,
                                    expected: str) -> None:
     path = broken(tmp_path, change)
-    with pytest.raises(ProfileError) as info:
+    with pytest.raises(InputError) as info:
         read_profile(path)
-    assert info.value.key == key
+    assert info.value.element == key
     assert str(info.value).startswith(f"{path}: {key}: got ")
     assert info.value.expected.startswith(expected)
 
@@ -177,16 +187,16 @@ def test_bad_profiles_are_rejected(tmp_path: Path, change: Any, key: str,
 def test_bad_yaml_and_missing_files(tmp_path: Path) -> None:
     bad = tmp_path / "bad.yaml"
     bad.write_text("title: [unclosed\n", encoding="utf-8")
-    with pytest.raises(ProfileError, match="expected valid YAML"):
+    with pytest.raises(InputError, match=r"bad.yaml: line 2: got .*; expected valid YAML"):
         read_profile(bad)
-    with pytest.raises(ProfileError, match="a readable profile file"):
+    with pytest.raises(InputError, match=r"missing.yaml: file: got .*; expected an existing file"):
         read_profile(tmp_path / "missing.yaml")
-    with pytest.raises(ProfileError, match="got 'nope'; expected one of agv-3, carriro-ad-plus"):
+    with pytest.raises(InputError, match="got 'nope'; expected one of agv-3, carriro-ad-plus"):
         load_profile("nope")
 
 
 def test_profile_for_an_unbundled_protocol() -> None:
-    with pytest.raises(ProfileError, match="got 'modbus'"):
+    with pytest.raises(InputError, match="got 'modbus'"):
         profile_for("modbus")
 
 

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import pytest
 import yaml
+from pydantic import BaseModel, ValidationError
 
 from fleet_sim.config.scenario import (
     Scenario,
@@ -35,7 +35,7 @@ def test_bundled_scenarios_load() -> None:
 
     for path in sorted((ROOT / "experiments").glob("*.yaml")):
         if "scenario" in (yaml.safe_load(path.read_text(encoding="utf-8")) or {}):
-            load_experiment(path, check_kpis=False)  # an experiment file
+            load_experiment(path)  # an experiment file
             continue
         scenario = load_scenario(path)
         load_layout_for(scenario, str(path))
@@ -43,8 +43,9 @@ def test_bundled_scenarios_load() -> None:
 
 def test_config_is_frozen() -> None:
     scenario = load_scenario(ROOT / "experiments" / "tiny_loop.yaml")
-    with pytest.raises(dataclasses.FrozenInstanceError):
+    with pytest.raises(ValidationError, match="frozen"):
         scenario.seed = 3  # type: ignore[misc]
+    assert hash(scenario) == hash(load_scenario(ROOT / "experiments" / "tiny_loop.yaml"))
 
 
 def test_resolved_config_writes_every_default_and_reloads(tmp_path: Path) -> None:
@@ -54,9 +55,19 @@ def test_resolved_config_writes_every_default_and_reloads(tmp_path: Path) -> Non
     assert plain["dispatch"]["policy"] == "nearest_idle"
     assert plain["traffic"]["replan_after_s"] == 30.0
     assert "_base_dir" not in plain
-    plain["layout"] = str(LAYOUTS / "tiny_loop.yaml")
+    assert plain["layout"] == str((LAYOUTS / "tiny_loop.yaml").resolve())  # runs from anywhere
     again = load_scenario(write_yaml(tmp_path / "again.yaml", plain))
     assert resolved(again) == plain
+    assert again.model_copy(update={"layout": scenario.layout}).model_dump() == \
+        scenario.model_dump()
+    assert again.path(again.layout) == scenario.path(scenario.layout).resolve()
+
+
+def test_overrides_copy_without_touching_the_original() -> None:
+    scenario = load_scenario(ROOT / "experiments" / "tiny_loop.yaml")
+    bigger = scenario.model_copy(update={"fleet": scenario.fleet.model_copy(update={"size": 5})})
+    assert (scenario.fleet.size, bigger.fleet.size) == (2, 5)
+    assert bigger.base_dir == scenario.base_dir and bigger.rules is scenario.rules
 
 
 def test_overrides_by_dotted_key() -> None:
@@ -110,11 +121,20 @@ def test_trace_csv_errors_name_the_line(tmp_path: Path) -> None:
     assert [o.time_s for o in load_trace(good, layout)] == [5.0, 30.0]
     bad = tmp_path / "bad.csv"
     bad.write_text("time_s,pickup,dropoff\n30,PICK,DROP\nsoon,PICK,DROP\n")
-    with pytest.raises(InputError, match=r"bad.csv: line 3, time_s: got 'soon'"):
+    with pytest.raises(InputError, match=r"bad.csv: row 3.time_s: got 'soon'; expected a number"):
         load_trace(bad, layout)
+    endless = tmp_path / "endless.csv"
+    endless.write_text("time_s,pickup,dropoff\n30,PICK,DROP\ninf,PICK,DROP\n")
+    with pytest.raises(InputError, match=r"endless.csv: row 3.time_s: got 'inf'; expected a "
+                                         r"finite number"):
+        load_trace(endless, layout)
+    early = tmp_path / "early.csv"
+    early.write_text("time_s,pickup,dropoff\n-5,PICK,DROP\n")
+    with pytest.raises(InputError, match=r"row 2.time_s: got '-5'; expected a number >= 0"):
+        load_trace(early, layout)
     wrong = tmp_path / "wrong.csv"
     wrong.write_text("time_s,pickup,dropoff\n30,DROP,DROP\n")
-    with pytest.raises(InputError, match=r"line 2, pickup: got 'DROP'; expected a pickup"):
+    with pytest.raises(InputError, match=r"row 2.pickup: got 'DROP'; expected a pickup"):
         load_trace(wrong, layout)
     header = tmp_path / "header.csv"
     header.write_text("t,pickup,dropoff\n")
@@ -122,8 +142,8 @@ def test_trace_csv_errors_name_the_line(tmp_path: Path) -> None:
         load_trace(header, layout)
 
 
-def test_scenario_type_is_a_dataclass() -> None:
-    assert dataclasses.is_dataclass(Scenario)
+def test_scenario_type_is_a_pydantic_model() -> None:
+    assert issubclass(Scenario, BaseModel)
     text = yaml.safe_dump(resolved(load_scenario(ROOT / "experiments" / "warehouse_shift.yaml")))
     assert "rate_per_hour: 90" in text
 
@@ -138,4 +158,8 @@ def test_known_keys_do_not_list_internal_ones(tmp_path: Path) -> None:
     path = write_yaml(tmp_path / "s.yaml", {"layout": "x.yaml", "colour": "red"})
     with pytest.raises(InputError) as info:
         load_scenario(path)
-    assert "_base_dir" not in str(info.value) and "known keys: charging" in str(info.value)
+    assert "_base_dir" not in str(info.value)
+    assert "known keys: layout, name, description, duration_h" in str(info.value)
+    internal = write_yaml(tmp_path / "t.yaml", {"layout": "x.yaml", "_base_dir": "/etc"})
+    with pytest.raises(InputError, match=r"_base_dir: got '/etc'; expected no such key"):
+        load_scenario(internal)

@@ -44,13 +44,13 @@ def test_mean_and_interval_by_hand() -> None:
 
 def test_decisions_against_targets() -> None:
     values = np.array([1.0, 2.0, 3.0, 4.0])  # 95 % CI 0.4457 .. 4.5543 (see above)
-    assert decide(values, Target("k", at_least=0.4)) == "meets"
-    assert decide(values, Target("k", at_least=4.6)) == "fails"
-    assert decide(values, Target("k", at_least=3.0)) == "undecided"
-    assert decide(values, Target("k", at_most=4.6)) == "meets"
-    assert decide(values, Target("k", at_most=0.4)) == "fails"
-    assert decide(values, Target("k", at_most=2.0)) == "undecided"
-    assert decide(np.array([1.0, np.nan]), Target("k", at_most=100)) == "fails"
+    assert decide(values, Target(kpi="k", at_least=0.4)) == "meets"
+    assert decide(values, Target(kpi="k", at_least=4.6)) == "fails"
+    assert decide(values, Target(kpi="k", at_least=3.0)) == "undecided"
+    assert decide(values, Target(kpi="k", at_most=4.6)) == "meets"
+    assert decide(values, Target(kpi="k", at_most=0.4)) == "fails"
+    assert decide(values, Target(kpi="k", at_most=2.0)) == "undecided"
+    assert decide(np.array([1.0, np.nan]), Target(kpi="k", at_most=100)) == "fails"
 
 
 def test_replications_needed_by_hand() -> None:
@@ -94,8 +94,8 @@ def test_paired_differences_by_replication() -> None:
 def test_wide_interval_warning_says_how_many_replications() -> None:
     frame = pd.DataFrame({"status": ["ok"] * 4, "fleet.size": [3] * 4,
                           "replication": [0, 1, 2, 3], "x": [1.0, 2.0, 3.0, 4.0]})
-    checks = check_targets(frame, ["fleet.size"], [Target("x", at_least=3.0),
-                                                   Target("x", at_least=0.1)])
+    checks = check_targets(frame, ["fleet.size"], [Target(kpi="x", at_least=3.0),
+                                                   Target(kpi="x", at_least=0.1)])
     assert [c.decision for c in checks] == ["undecided", "meets"]
     warning = checks[0].warning()
     assert warning is not None

@@ -90,7 +90,7 @@ def test_one_sumo_simulation_per_process() -> None:
 @pytest.mark.parametrize(("fields", "element", "expected"), [
     ({"motion": "microscopic"}, "motion", "closed_form"),
     ({"motion": "sumo", "sumo": {"step_length_s": 0}}, "sumo.step_length_s",
-     "a time step in (0, 1] s"),
+     "a number in (0, 1]"),
     ({"motion": "sumo", "sumo": {"tau_s": 0.05, "step_length_s": 0.1}}, "sumo.tau_s",
      "a headway >= step_length_s"),
     ({"motion": "sumo", "sumo": {"step": 1}}, "sumo.step", ""),

@@ -21,14 +21,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import networkx as nx
+from pydantic import Field, Strict
 
-from fleet_sim.config.confparse import build, read_yaml
-from fleet_sim.config.distributions import Duration
+from agv_model.inputs import Items, NonNegative, Positive, StrictModel, Text, read_yaml, validate
+from fleet_sim.config.distributions import FixedTime, TimeDistribution
 from fleet_sim.errors import InputError
 
 NodeKind = Literal["tag", "junction", "station", "charger", "parking"]
@@ -46,83 +47,81 @@ MARKER_SPEED_MPS = {"speed_low": 0.2, "speed_mid": 0.5, "speed_high": 1.0}
 """RSS-AGV-001 5.3: TYPE_SPD 0x01/0x02/0x03 set the speed to 0.2/0.5/1.0 m/s."""
 
 
-@dataclass(frozen=True)
-class NodeSpec:
-    id: str
+class NodeSpec(StrictModel):
+    id: Text
     x: float
+    """Metres."""
     y: float
+    """Metres."""
     kind: NodeKind = "tag"
     marker: Marker | None = None
     """RFID marker action (RSS-AGV-001 5.3): speed tags, location correction, spin, pause."""
 
 
-@dataclass(frozen=True)
-class SegmentSpec:
-    from_node: str = field(metadata={"key": "from"})
-    to_node: str = field(metadata={"key": "to"})
-    length_m: float | None = None
-    speed_limit_mps: float | None = None
+class SegmentSpec(StrictModel):
+    from_node: Text = Field(alias="from")
+    to_node: Text = Field(alias="to")
+    length_m: Positive | None = None
+    """Default: the straight distance between the two nodes."""
+    speed_limit_mps: Positive | None = None
+    """Default: defaults.speed_limit_mps."""
     direction: Literal["one_way", "two_way"] = "one_way"
     branch: Branch = "auto"
     rssi_dbm: float | None = None
     """Wi-Fi signal on the segment; default: its zone's, else defaults.rssi_dbm."""
 
 
-@dataclass(frozen=True)
-class StationSpec:
-    id: str
+class StationSpec(StrictModel):
+    id: Text
     kind: Literal["pickup", "dropoff"]
-    nodes: tuple[str, ...]
-    handling: Duration = field(default_factory=lambda: Duration("fixed", mean_s=20.0))
+    nodes: Items[Text]
+    handling: TimeDistribution = FixedTime(mean_s=20.0)
 
 
-@dataclass(frozen=True)
-class ChargerSpec:
-    id: str
-    node: str
-    power_kw: float = 3.0
-    docking_s: float = 30.0
+class ChargerSpec(StrictModel):
+    id: Text
+    node: Text
+    power_kw: Positive = 3.0
+    docking_s: NonNegative = 30.0
 
 
-@dataclass(frozen=True)
-class ParkingSpec:
-    id: str
-    node: str
-    capacity: int = 1
+class ParkingSpec(StrictModel):
+    id: Text
+    node: Text
+    capacity: int = Field(default=1, ge=1)
 
 
-@dataclass(frozen=True)
-class LayoutDefaults:
-    speed_limit_mps: float = 1.0
-    turn_length_m: float = 1.0
+class LayoutDefaults(StrictModel):
+    speed_limit_mps: Positive = 1.0
+    turn_length_m: NonNegative = 1.0
     """Length of the curve after a branch node, driven at the vehicle's turn speed (assumed)."""
     rssi_dbm: float = -55.0
     """Assumed: good Wi-Fi coverage where nothing else is said."""
 
 
-@dataclass(frozen=True)
-class ZoneSpec:
+class ZoneSpec(StrictModel):
     """An area of the floor (x_min, y_min, x_max, y_max in metres) whose segments (by their
     midpoint) get their own Wi-Fi signal or obstacle rate."""
 
-    id: str
-    area_m: tuple[float, float, float, float]
+    id: Text
+    area_m: Annotated[tuple[float, float, float, float], Strict(False)]
     rssi_dbm: float | None = None
-    obstacle_rate_per_km: float | None = None
-    obstacle_duration: Duration | None = None
+    obstacle_rate_per_km: NonNegative | None = None
+    obstacle_duration: TimeDistribution | None = None
 
 
-@dataclass(frozen=True)
-class LayoutSpec:
-    name: str
-    nodes: tuple[NodeSpec, ...]
-    segments: tuple[SegmentSpec, ...]
-    stations: tuple[StationSpec, ...]
-    parking: tuple[ParkingSpec, ...]
-    chargers: tuple[ChargerSpec, ...] = ()
-    description: str = ""
+class LayoutSpec(StrictModel):
+    """A layout file: the nodes and segments of the track and the places on it."""
+
+    name: Text
+    nodes: Items[NodeSpec]
+    segments: Items[SegmentSpec]
+    stations: Items[StationSpec]
+    parking: Items[ParkingSpec]
+    chargers: Items[ChargerSpec] = ()
+    description: Text = ""
     defaults: LayoutDefaults = LayoutDefaults()
-    zones: tuple[ZoneSpec, ...] = ()
+    zones: Items[ZoneSpec] = ()
 
 
 @dataclass(frozen=True)
@@ -144,7 +143,7 @@ class Place:
     kind: Literal["pickup", "dropoff", "charger", "parking"]
     nodes: tuple[str, ...]
     capacity: int
-    handling: Duration | None = None
+    handling: TimeDistribution | None = None
     power_kw: float = 0.0
     docking_s: float = 0.0
 
@@ -228,7 +227,7 @@ def load_layout(path: str | Path, max_speed_mps: float | None = None) -> Layout:
     """Load and validate a layout file. `max_speed_mps` is the fleet's top speed, if known."""
     path = Path(path)
     file = str(path)
-    spec = build(LayoutSpec, read_yaml(path), file)
+    spec = validate(LayoutSpec, read_yaml(path), file)
     return layout_from_spec(spec, file, max_speed_mps)
 
 
@@ -248,12 +247,6 @@ def _build_graph(spec: LayoutSpec, file: str, max_speed_mps: float | None) -> nx
                              f"a unique node id (nodes[{first_index[node.id]}] has it already)")
         first_index[node.id] = i
         graph.add_node(node.id, x=node.x, y=node.y, kind=node.kind, index=i)
-    if spec.defaults.speed_limit_mps <= 0:
-        raise InputError(file, "defaults.speed_limit_mps", spec.defaults.speed_limit_mps,
-                         "a speed > 0 m/s")
-    if spec.defaults.turn_length_m < 0:
-        raise InputError(file, "defaults.turn_length_m", spec.defaults.turn_length_m,
-                         "a length >= 0 m")
     for i, seg in enumerate(spec.segments):
         where = f"segments[{i}]"
         for key, node_id in (("from", seg.from_node), ("to", seg.to_node)):
@@ -275,8 +268,6 @@ def _build_graph(spec: LayoutSpec, file: str, max_speed_mps: float | None) -> nx
                              f"{seg.from_node} and {seg.to_node}")
         limit = seg.speed_limit_mps if seg.speed_limit_mps is not None \
             else spec.defaults.speed_limit_mps
-        if limit <= 0:
-            raise InputError(file, f"{where}.speed_limit_mps", limit, "a speed > 0 m/s")
         if max_speed_mps is not None and limit > max_speed_mps + 1e-9:
             raise InputError(file, f"{where}.speed_limit_mps", limit,
                              f"at most the vehicle's maximum speed {max_speed_mps} m/s")
@@ -310,9 +301,6 @@ def _apply_zones(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None:
         if x0 >= x1 or y0 >= y1:
             raise InputError(file, f"zones[{i}].area_m", list(spec_zone.area_m),
                              "[x_min, y_min, x_max, y_max] with x_min < x_max, y_min < y_max")
-        rate = spec_zone.obstacle_rate_per_km
-        if rate is not None and rate < 0:
-            raise InputError(file, f"zones[{i}].obstacle_rate_per_km", rate, "a rate >= 0")
     for u, v, data in graph.edges(data=True):
         mx = (graph.nodes[u]["x"] + graph.nodes[v]["x"]) / 2
         my = (graph.nodes[u]["y"] + graph.nodes[v]["y"]) / 2
@@ -355,15 +343,9 @@ def _check_places(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None:
     for i, ch in enumerate(spec.chargers):
         unique(f"chargers[{i}].id", ch.id)
         claim(f"chargers[{i}].node", ch.id, ch.node, "charger")
-        if ch.power_kw <= 0:
-            raise InputError(file, f"chargers[{i}].power_kw", ch.power_kw, "a power > 0 kW")
-        if ch.docking_s < 0:
-            raise InputError(file, f"chargers[{i}].docking_s", ch.docking_s, "a time >= 0 s")
     for i, pk in enumerate(spec.parking):
         unique(f"parking[{i}].id", pk.id)
         claim(f"parking[{i}].node", pk.id, pk.node, "parking")
-        if pk.capacity < 1:
-            raise InputError(file, f"parking[{i}].capacity", pk.capacity, "an integer >= 1")
     kinds = {st.kind for st in spec.stations}
     for needed in ("pickup", "dropoff"):
         if needed not in kinds:

@@ -3,99 +3,106 @@
 Every key has a default written here, with its source: RSS-AGV-001 section 7.1 where the spec
 gives a figure, "assumed" where it does not. Unknown keys are errors. The resolved config (every
 default written out) is `resolved(scenario)`, saved with each run.
+
+Decisions, where the issue is silent:
+
+* The models are pydantic (`agv_model.inputs.StrictModel`): frozen and hashable; copy one with
+  ``model_copy(update=...)``. Checks that tie fields together are model validators whose errors
+  name the field (``warmup_h``, ``fleet.start_nodes``); checks against the layout are
+  `check_against_layout`.
+* The scenario file's folder, against which the files it names are resolved, is a private
+  attribute (`base_dir`), set from the validation context: no key of the file and not in the
+  schema. It takes part in equality (the same text read from two folders may name two
+  layouts), not in the hash.
+* The resolved config names the layout and the order trace by absolute path, so
+  ``fleet-sim run results/<run>/config.resolved.yaml`` reruns the run from any folder.
 """
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
+
+from agv_model.inputs import (
+    HourOfDay,
+    Items,
+    NonNegative,
+    Percent,
+    Positive,
+    Problem,
+    Share,
+    StrictModel,
+    Text,
+    read_yaml,
+    validate,
+)
 from agv_model.profile import profile_names
-from fleet_sim.config.confparse import build, read_yaml, to_plain
-from fleet_sim.config.distributions import Duration
+from fleet_sim.config.distributions import ExponentialTime, TimeDistribution, TriangularTime
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.vehicle import VehicleProfile
 from fleet_sim.errors import InputError
 
 
-@dataclass(frozen=True)
-class FleetConfig:
-    size: int = 4
-    vehicle: VehicleProfile = field(default_factory=VehicleProfile)
-    start_nodes: tuple[str, ...] = ()
+class FleetConfig(StrictModel):
+    size: int = Field(default=4, ge=1)
+    vehicle: VehicleProfile = VehicleProfile()
+    start_nodes: Items[Text] = ()
     """Where AGVs start, one node each; empty: inside the parking areas, filled in file order."""
-    command_profile: str | None = None
+    command_profile: Text | None = None
     """agv_model vehicle profile whose protocol and link carry the fleet manager's commands
     (rss-agv-001, carriro-ad-plus, ktm-02, tabo, agv-3); none: commands take no time."""
-    status_poll_s: float = 0.0
+    status_poll_s: NonNegative = 0.0
     """The fleet manager polls each AGV this often and learns it is free at the next poll;
     0: AGVs report at once."""
 
-    def check(self, file: str, element: str) -> None:
-        if self.size < 1:
-            raise InputError(file, f"{element}.size", self.size, "an integer >= 1")
+    @model_validator(mode="after")
+    def _consistent(self) -> FleetConfig:
         if self.start_nodes and len(self.start_nodes) < self.size:
-            raise InputError(file, f"{element}.start_nodes", list(self.start_nodes),
-                             f"at least one start node per AGV ({self.size})")
-        if self.status_poll_s < 0:
-            raise InputError(file, f"{element}.status_poll_s", self.status_poll_s,
-                             "a period >= 0 s")
+            raise Problem("start_nodes", list(self.start_nodes),
+                          f"at least one start node per AGV ({self.size})")
         if self.command_profile is not None and self.command_profile not in profile_names():
-            raise InputError(file, f"{element}.command_profile", self.command_profile,
-                             f"one of {', '.join(profile_names())}")
+            raise Problem("command_profile", self.command_profile,
+                          f"one of {', '.join(profile_names())}")
         if len(set(self.start_nodes)) != len(self.start_nodes):
-            raise InputError(file, f"{element}.start_nodes", list(self.start_nodes),
-                             "distinct nodes (one AGV per node)")
+            raise Problem("start_nodes", list(self.start_nodes),
+                          "distinct nodes (one AGV per node)")
+        return self
 
 
-@dataclass(frozen=True)
-class Flow:
-    from_station: str = field(metadata={"key": "from"})
-    to_station: str = field(metadata={"key": "to"})
-    weight: float = 1.0
-
-    def check(self, file: str, element: str) -> None:
-        if self.weight <= 0:
-            raise InputError(file, f"{element}.weight", self.weight, "a weight > 0")
+class Flow(StrictModel):
+    from_station: Text = Field(alias="from")
+    to_station: Text = Field(alias="to")
+    weight: Positive = 1.0
 
 
-@dataclass(frozen=True)
-class RatePeriod:
-    from_h: float
+class RatePeriod(StrictModel):
+    from_h: HourOfDay
     """Time of day (hours, 0-24) from which `multiplier` applies, until the next period."""
-    multiplier: float
-
-    def check(self, file: str, element: str) -> None:
-        if not 0 <= self.from_h < 24:
-            raise InputError(file, f"{element}.from_h", self.from_h, "an hour of day in [0, 24)")
-        if self.multiplier < 0:
-            raise InputError(file, f"{element}.multiplier", self.multiplier, "a number >= 0")
+    multiplier: NonNegative
 
 
-@dataclass(frozen=True)
-class DemandConfig:
+class DemandConfig(StrictModel):
     kind: Literal["poisson", "trace"] = "poisson"
-    rate_per_hour: float = 60.0
+    rate_per_hour: NonNegative = 60.0
     """Mean orders per hour at multiplier 1 (poisson)."""
-    flows: tuple[Flow, ...] = ()
+    flows: Items[Flow] = ()
     """Order flows between stations; empty: every pickup to every dropoff, equal weights."""
-    profile: tuple[RatePeriod, ...] = ()
+    profile: Items[RatePeriod] = ()
     """Time-of-day rate multipliers, repeating daily; empty: constant rate."""
-    trace_csv: str | None = None
+    trace_csv: Text | None = None
     """Order trace (columns time_s, pickup, dropoff), relative to the scenario file."""
 
-    def check(self, file: str, element: str) -> None:
-        if self.rate_per_hour < 0:
-            raise InputError(file, f"{element}.rate_per_hour", self.rate_per_hour, "a rate >= 0")
+    @model_validator(mode="after")
+    def _consistent(self) -> DemandConfig:
         if self.kind == "trace" and self.trace_csv is None:
-            raise InputError(file, f"{element}.trace_csv", None,
-                             "the path of an order trace CSV when kind is 'trace'")
+            raise Problem("trace_csv", None,
+                          "the path of an order trace CSV when kind is 'trace'")
         hours = [p.from_h for p in self.profile]
         if hours and (hours[0] != 0 or hours != sorted(set(hours))):
-            raise InputError(file, f"{element}.profile", hours,
-                             "periods in increasing from_h, the first at 0")
+            raise Problem("profile", hours, "periods in increasing from_h, the first at 0")
+        return self
 
     def multiplier_at(self, hour_of_day: float) -> float:
         value = 1.0
@@ -109,8 +116,7 @@ class DemandConfig:
         return max((p.multiplier for p in self.profile), default=1.0)
 
 
-@dataclass(frozen=True)
-class DispatchConfig:
+class DispatchConfig(StrictModel):
     policy: Literal["nearest_idle", "fcfs"] = "nearest_idle"
     """nearest_idle: each order, oldest first, to the idle AGV with the shortest travel time to
     its pickup. fcfs: each order, oldest first, to the AGV that has been idle longest."""
@@ -118,217 +124,171 @@ class DispatchConfig:
     """Send AGVs with nothing to do to the nearest parking area with room."""
 
 
-@dataclass(frozen=True)
-class TrafficConfig:
-    deadlock_check_s: float = 10.0
+class TrafficConfig(StrictModel):
+    deadlock_check_s: Positive = 10.0
     """How often an AGV that is still blocked looks again for a wait-for cycle."""
-    replan_after_s: float = 30.0
+    replan_after_s: Positive = 30.0
     """Blocked this long, an AGV takes another route if one exists."""
-    give_way_after_s: float = 10.0
+    give_way_after_s: Positive = 10.0
     """Blocked this long with another AGV queued behind it, an AGV drives on and comes back
     round rather than block the way (assumed; see fleet_sim.sim.traffic.control)."""
-    backoff_s: float = 5.0
+    backoff_s: Positive = 5.0
     """Mean wait before a deadlocked AGV that cannot move tries again."""
 
-    def check(self, file: str, element: str) -> None:
-        for name in ("deadlock_check_s", "replan_after_s", "give_way_after_s", "backoff_s"):
-            if getattr(self, name) <= 0:
-                raise InputError(file, f"{element}.{name}", getattr(self, name), "a time > 0 s")
 
-
-@dataclass(frozen=True)
-class Rules:
+class Rules(StrictModel):
     """Thresholds and timings of RSS-AGV-001, each configurable, each defaulting to the spec."""
 
-    bat_low_pct: float = 20.0
+    bat_low_pct: Percent = 20.0
     """P_050 BAT_LOW_TH: Idle -> Moving only above it (4.2.2); Event_Low_Battery at it."""
-    bat_critical_pct: float = 10.0
+    bat_critical_pct: Percent = 10.0
     """P_051 BAT_CRIT_TH: below it the AGV shuts down with E_201."""
-    charge_done_pct: float = 95.0
+    charge_done_pct: Percent = 95.0
     """4.2.10: charging ends once SOC > 95 %."""
-    safe_mode_soc_pct: float = 15.0
+    safe_mode_soc_pct: Percent = 15.0
     """4.2.14 / 6.3."""
     safe_mode_rssi_dbm: float = -80.0
     """4.2.14."""
-    obstacle_pause_s: float = 0.3
+    obstacle_pause_s: NonNegative = 0.3
     """4.2.3: obstacle within 1.0 m for >= 300 ms."""
-    obstacle_clear_s: float = 2.0
+    obstacle_clear_s: NonNegative = 2.0
     """4.2.4: path clear for >= 2000 ms."""
-    obstacle_timeout_s: float = 300.0
+    obstacle_timeout_s: NonNegative = 300.0
     """6.1 E_101: paused for 5 minutes."""
-    obstacle_slow_speed_mps: float = 0.3
+    obstacle_slow_speed_mps: Positive = 0.3
     """Assumed: creep speed inside the detection zone."""
     comm_policy: Literal["req_err_011", "timeout_60s"] = "req_err_011"
     """FMS heartbeat loss: Req.Err.011 (default, DESIGN reading) or 4.2.11's 60 s to Error."""
-    comm_timeout_s: float = 60.0
+    comm_timeout_s: NonNegative = 60.0
     """4.2.11: communication timeout to Error (policy timeout_60s; internal links always)."""
-    reconnect_timeout_s: float = 600.0
+    reconnect_timeout_s: NonNegative = 600.0
     """Req.Err.011: Error after 10 minutes without reconnecting."""
-    heartbeat_timeout_s: float = 3.0
+    heartbeat_timeout_s: NonNegative = 3.0
     """Assumed: the FMS and the AGV notice a lost link after 3 missed 1-s heartbeats."""
-    comm_loss_speed_mps: float = 0.3
+    comm_loss_speed_mps: Positive = 0.3
     """Assumed: the slow mode of Req.Err.011."""
     link_min_rssi_dbm: float = -80.0
     """Assumed: no Wi-Fi link below this signal (the 4.2.14 threshold)."""
     weak_rssi_dbm: float = -70.0
     """Assumed: E_002 (Wi-Fi signal low, warning) below this signal."""
-    line_keep_heading_m: float = 0.5
+    line_keep_heading_m: NonNegative = 0.5
     """Req.Err.010: keep the last heading for up to 50 cm looking for the tape."""
-    marker_pause_s: float = 3.0
+    marker_pause_s: NonNegative = 3.0
     """5.3 TYPE_CMD 0x20: pause 3 s."""
 
-    def check(self, file: str, element: str) -> None:
-        for name in ("bat_low_pct", "bat_critical_pct", "charge_done_pct", "safe_mode_soc_pct"):
-            if not 0 <= getattr(self, name) <= 100:
-                raise InputError(file, f"{element}.{name}", getattr(self, name),
-                                 "a percentage in [0, 100]")
+    @model_validator(mode="after")
+    def _critical_below_low(self) -> Rules:
         if self.bat_critical_pct >= self.bat_low_pct:
-            raise InputError(file, f"{element}.bat_critical_pct", self.bat_critical_pct,
-                             f"below bat_low_pct ({self.bat_low_pct})")
-        for name in ("obstacle_pause_s", "obstacle_clear_s", "obstacle_timeout_s",
-                     "comm_timeout_s", "reconnect_timeout_s", "heartbeat_timeout_s",
-                     "line_keep_heading_m", "marker_pause_s"):
-            if getattr(self, name) < 0:
-                raise InputError(file, f"{element}.{name}", getattr(self, name), "a number >= 0")
-        for name in ("obstacle_slow_speed_mps", "comm_loss_speed_mps"):
-            if getattr(self, name) <= 0:
-                raise InputError(file, f"{element}.{name}", getattr(self, name), "a speed > 0")
+            raise Problem("bat_critical_pct", self.bat_critical_pct,
+                          f"below bat_low_pct ({self.bat_low_pct})")
+        return self
 
 
-@dataclass(frozen=True)
-class ChargingConfig:
+class ChargingConfig(StrictModel):
     enabled: bool = True
-    threshold_pct: float = 30.0
+    threshold_pct: Percent = 30.0
     """Assumed policy: an AGV with nothing to do goes to charge at or below this SOC."""
     opportunity: bool = False
     """Charge while idle whenever a charger is free and SOC is below opportunity_below_pct."""
-    opportunity_below_pct: float = 80.0
-    schedule_h: tuple[float, ...] = ()
+    opportunity_below_pct: Percent = 80.0
+    schedule_h: Items[HourOfDay] = ()
     """Clock hours (0-24) at which every AGV goes to charge once it is free (scheduled)."""
 
-    def check(self, file: str, element: str) -> None:
-        for name in ("threshold_pct", "opportunity_below_pct"):
-            if not 0 <= getattr(self, name) <= 100:
-                raise InputError(file, f"{element}.{name}", getattr(self, name),
-                                 "a percentage in [0, 100]")
-        for i, hour in enumerate(self.schedule_h):
-            if not 0 <= hour < 24:
-                raise InputError(file, f"{element}.schedule_h[{i}]", hour, "an hour in [0, 24)")
 
-
-@dataclass(frozen=True)
-class SegmentBlock:
+class SegmentBlock(StrictModel):
     """A scripted obstacle: the segment between two nodes is blocked for a while."""
 
-    from_node: str = field(metadata={"key": "from"})
-    to_node: str = field(metadata={"key": "to"})
-    at_s: float = 0.0
-    duration_s: float = 900.0
+    from_node: Text = Field(alias="from")
+    to_node: Text = Field(alias="to")
+    at_s: NonNegative = 0.0
+    duration_s: NonNegative = 900.0
 
 
-@dataclass(frozen=True)
-class LinkLoss:
+class LinkLoss(StrictModel):
     """A scripted Wi-Fi loss: AGV `agv` loses the FMS link at `at_s` for `duration_s`."""
 
     agv: int
-    at_s: float
-    duration_s: float
+    at_s: NonNegative
+    duration_s: NonNegative
 
 
-@dataclass(frozen=True)
-class Fault:
+class Fault(StrictModel):
     """A scripted fault: AGV `agv` raises `code` at `at_s`."""
 
     agv: int
-    at_s: float
+    at_s: NonNegative
     code: Literal["E_101", "E_102", "E_201", "E_202", "E_999", "E_301"] = "E_999"
 
 
-@dataclass(frozen=True)
-class IncidentsConfig:
-    obstacle_rate_per_km: float = 0.0
+class IncidentsConfig(StrictModel):
+    obstacle_rate_per_km: NonNegative = 0.0
     """People and forklifts met per km driven (layout zones may set their own)."""
-    obstacle_duration: Duration = field(
-        default_factory=lambda: Duration("exponential", mean_s=4.0))
+    obstacle_duration: TimeDistribution = ExponentialTime(dist="exponential", mean_s=4.0)
     """How long an obstacle stays within range (assumed: exponential, mean 4 s)."""
-    blocks: tuple[SegmentBlock, ...] = ()
-    link_loss_rate_per_h: float = 0.0
+    blocks: Items[SegmentBlock] = ()
+    link_loss_rate_per_h: NonNegative = 0.0
     """Random FMS link losses per AGV and hour (dead spots come from the layout's RSSI)."""
-    link_loss_duration: Duration = field(
-        default_factory=lambda: Duration("exponential", mean_s=30.0))
-    link_losses: tuple[LinkLoss, ...] = ()
-    internal_link_loss_rate_per_h: float = 0.0
+    link_loss_duration: TimeDistribution = ExponentialTime(dist="exponential", mean_s=30.0)
+    link_losses: Items[LinkLoss] = ()
+    internal_link_loss_rate_per_h: NonNegative = 0.0
     """Losses of the vehicle's internal links (sensor bus); > comm_timeout_s means Error."""
-    internal_link_loss_duration: Duration = field(
-        default_factory=lambda: Duration("exponential", mean_s=20.0))
-    mtbf_h: float = 0.0
+    internal_link_loss_duration: TimeDistribution = ExponentialTime(dist="exponential",
+                                                                    mean_s=20.0)
+    mtbf_h: NonNegative = 0.0
     """Mean operating hours between random critical faults (E_999) per AGV; 0: none."""
-    transfer_failure_prob: float = 0.0
+    transfer_failure_prob: Share = 0.0
     """Chance that a load transfer fails (E_102)."""
-    line_loss_per_km: float = 0.0
+    line_loss_per_km: NonNegative = 0.0
     """Times per km an AGV loses the tape (Req.Err.010)."""
-    line_found_prob: float = 0.8
+    line_found_prob: Share = 0.8
     """Assumed: share of line losses where the tape is found again within 50 cm (E_001)."""
     line_search_s: float = 2.0
     """Assumed: time lost finding the tape again."""
-    faults: tuple[Fault, ...] = ()
-    operator_response: Duration = field(
-        default_factory=lambda: Duration("triangular", low_s=60.0, mode_s=180.0, high_s=600.0))
+    faults: Items[Fault] = ()
+    operator_response: TimeDistribution = TriangularTime(dist="triangular", low_s=60.0,
+                                                         mode_s=180.0, high_s=600.0)
     """Assumed: time until an operator reaches a failed AGV and turns it to MANUAL."""
-    repair: Duration = field(
-        default_factory=lambda: Duration("triangular", low_s=120.0, mode_s=300.0,
-                                         high_s=1200.0))
+    repair: TimeDistribution = TriangularTime(dist="triangular", low_s=120.0, mode_s=300.0,
+                                              high_s=1200.0)
     """Assumed: time in Maintenance."""
-    relocalise_s: float = 10.0
+    relocalise_s: NonNegative = 10.0
     """Assumed: initial position estimation on return to AUTO (4.2.13)."""
-    rescue: Duration = field(
-        default_factory=lambda: Duration("triangular", low_s=300.0, mode_s=900.0,
-                                         high_s=1800.0))
+    rescue: TimeDistribution = TriangularTime(dist="triangular", low_s=300.0, mode_s=900.0,
+                                              high_s=1800.0)
     """Assumed: time until an operator rescues an AGV in SafeMode."""
     rescue_soc_pct: float = 50.0
     """Assumed: SOC an operator leaves a rescued or shut-down AGV with (manual charge)."""
 
-    def check(self, file: str, element: str) -> None:
-        for name in ("obstacle_rate_per_km", "link_loss_rate_per_h", "mtbf_h",
-                     "internal_link_loss_rate_per_h", "line_loss_per_km", "relocalise_s"):
-            if getattr(self, name) < 0:
-                raise InputError(file, f"{element}.{name}", getattr(self, name), "a number >= 0")
-        for name in ("transfer_failure_prob", "line_found_prob"):
-            if not 0 <= getattr(self, name) <= 1:
-                raise InputError(file, f"{element}.{name}", getattr(self, name),
-                                 "a probability in [0, 1]")
 
-
-@dataclass(frozen=True)
-class SumoConfig:
+class SumoConfig(StrictModel):
     """Settings of the SUMO motion backend (used when `motion` is ``sumo``)."""
 
-    step_length_s: float = 0.1
+    step_length_s: float = Field(default=0.1, gt=0, le=1.0)
     """SUMO's time step; SUMO and SimPy advance together in steps of this length."""
     tau_s: float = 1.0
     """Krauss time headway (assumed): at 1 m/s the following gap is min_gap_m + 1.0 m,
     P_005's 1.5 m detection distance."""
 
-    def check(self, file: str, element: str) -> None:
-        if not 0 < self.step_length_s <= 1.0:
-            raise InputError(file, f"{element}.step_length_s", self.step_length_s,
-                             "a time step in (0, 1] s")
+    @model_validator(mode="after")
+    def _headway_at_least_a_step(self) -> SumoConfig:
         if self.tau_s < self.step_length_s:
-            raise InputError(file, f"{element}.tau_s", self.tau_s,
-                             f"a headway >= step_length_s ({self.step_length_s} s)")
+            raise Problem("tau_s", self.tau_s,
+                          f"a headway >= step_length_s ({self.step_length_s} s)")
+        return self
 
 
-@dataclass(frozen=True)
-class Scenario:
-    layout: str
+class Scenario(StrictModel):
+    """A scenario file: one run's layout, fleet, demand, policies, rules and incidents."""
+
+    layout: Text
     """Layout file, relative to the scenario file."""
-    name: str = "scenario"
-    description: str = ""
-    duration_h: float = 8.0
-    warmup_h: float = 0.5
+    name: Text = "scenario"
+    description: Text = ""
+    duration_h: Positive = 8.0
+    warmup_h: NonNegative = 0.5
     """KPIs count from the end of the warm-up; orders and events are recorded from t=0."""
-    seed: int = 1
-    start_h: float = 0.0
+    seed: int = Field(default=1, ge=0)
+    start_h: HourOfDay = 0.0
     """Time of day at t=0, for the demand profile."""
     fleet: FleetConfig = FleetConfig()
     demand: DemandConfig = DemandConfig()
@@ -343,18 +303,21 @@ class Scenario:
     fleet_sim.sim.motion.sumo, stepping with SimPy; dispatching, states, charging, incidents and
     traffic locks stay in the SimPy model). See docs/sumo.md."""
     sumo: SumoConfig = SumoConfig()
-    base_dir: str = field(default=".", metadata={"key": "_base_dir"}, compare=False)
+    _base_dir: str = PrivateAttr(default=".")
+    """The scenario file's folder (files it names are relative to it); not a key of the file."""
 
-    def check(self, file: str, element: str) -> None:
-        if self.duration_h <= 0:
-            raise InputError(file, "duration_h", self.duration_h, "a duration > 0 h")
-        if not 0 <= self.warmup_h < self.duration_h:
-            raise InputError(file, "warmup_h", self.warmup_h,
-                             f"a warm-up >= 0 h and shorter than duration_h ({self.duration_h})")
-        if self.seed < 0:
-            raise InputError(file, "seed", self.seed, "an integer >= 0")
-        if not 0 <= self.start_h < 24:
-            raise InputError(file, "start_h", self.start_h, "an hour of day in [0, 24)")
+    @model_validator(mode="after")
+    def _warmup_within_run(self, info: ValidationInfo) -> Scenario:
+        if self.warmup_h >= self.duration_h:
+            raise Problem("warmup_h", self.warmup_h,
+                          f"a warm-up >= 0 h and shorter than duration_h ({self.duration_h})")
+        if info.context and "base_dir" in info.context:
+            self._base_dir = str(info.context["base_dir"])
+        return self
+
+    @property
+    def base_dir(self) -> str:
+        return self._base_dir
 
     @property
     def duration_s(self) -> float:
@@ -367,7 +330,7 @@ class Scenario:
     def path(self, relative: str) -> Path:
         """A file named in the scenario, relative to the scenario file's folder."""
         p = Path(relative)
-        return p if p.is_absolute() else Path(self.base_dir) / p
+        return p if p.is_absolute() else Path(self._base_dir) / p
 
 
 def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> Scenario:
@@ -381,13 +344,14 @@ def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> 
         raise InputError(str(path), "top level", "an experiment file (scenario, factors...)",
                          "a scenario file; run experiments with `fleet-sim sweep` or "
                          "`fleet-sim size`")
-    if "_base_dir" in data:
-        raise InputError(str(path), "_base_dir", data["_base_dir"], "no such key (it is internal)")
     for dotted, value in (overrides or {}).items():
         _set_dotted(data, dotted, value)
-    data["_base_dir"] = str(path.parent)
-    return build(Scenario, data, str(path))
+    return parse_scenario(data, str(path), path.parent)
 
+
+def parse_scenario(data: Any, file: str, base_dir: str | Path = ".") -> Scenario:
+    """A scenario from parsed YAML; `file` names it in errors, `base_dir` is its folder."""
+    return validate(Scenario, data, file, context={"base_dir": str(base_dir)})
 
 def _set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
     keys = dotted.split(".")
@@ -445,13 +409,10 @@ def check_against_layout(scenario: Scenario, layout: Layout, file: str) -> None:
 
 
 def resolved(scenario: Scenario) -> dict[str, Any]:
-    """The scenario with every default written out, as plain data for YAML."""
-    plain = to_plain(scenario)
-    assert isinstance(plain, dict)
-    plain.pop("_base_dir", None)
+    """The scenario with every default written out, as plain data for YAML: a scenario file
+    that `fleet-sim run` reads from anywhere (the files it names are made absolute)."""
+    plain = scenario.model_dump(mode="json", by_alias=True)
+    plain["layout"] = str(scenario.path(scenario.layout).resolve())
+    if scenario.demand.trace_csv is not None:
+        plain["demand"]["trace_csv"] = str(scenario.path(scenario.demand.trace_csv).resolve())
     return plain
-
-
-def with_overrides(scenario: Scenario, **changes: Any) -> Scenario:
-    """A copy with top-level fields replaced (``fleet=...``)."""
-    return dataclasses.replace(scenario, **changes)

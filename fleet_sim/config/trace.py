@@ -1,19 +1,38 @@
-"""Order trace CSV files (columns time_s, pickup, dropoff; extra columns are ignored)."""
+"""Order trace CSV files (columns time_s, pickup, dropoff; extra columns are ignored).
+
+Each row is checked by the same models and messages as the YAML files; its element is
+``row N.column``, N the row's line in the file (the header is row 1, as in a spreadsheet).
+"""
 
 from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
+from pydantic import Field, Strict
+
+from agv_model.inputs import StrictModel, Text, validate
 from fleet_sim.config.layout import Layout
 from fleet_sim.errors import InputError
 
 REQUIRED = ("time_s", "pickup", "dropoff")
 
 
+class TraceRow(StrictModel):
+    """One row as written: CSV cells are text, so the time is read from its text."""
+
+    time_s: Annotated[float, Strict(False), Field(ge=0)]
+    """Seconds from the start of the run."""
+    pickup: Text
+    dropoff: Text
+
+
 @dataclass(frozen=True)
 class TraceOrder:
+    """One order of a trace, checked against the layout."""
+
     time_s: float
     pickup: str
     dropoff: str
@@ -33,21 +52,16 @@ def load_trace(path: Path, layout: Layout) -> list[TraceOrder]:
             raise InputError(file, "header", ",".join(header),
                              f"columns {', '.join(REQUIRED)} (missing {', '.join(missing)})")
         orders: list[TraceOrder] = []
-        for row in reader:
-            line = reader.line_num
-            try:
-                time_s = float(row["time_s"])
-            except (TypeError, ValueError):
-                raise InputError(file, f"line {line}, time_s", row["time_s"],
-                                 "a time in seconds") from None
-            if time_s < 0:
-                raise InputError(file, f"line {line}, time_s", time_s, "a time >= 0 s")
+        for cells in reader:
+            where = f"row {reader.line_num}"
+            row = validate(TraceRow, {c: cells[c] for c in REQUIRED}, file, where)
             for column, kind in (("pickup", "pickup"), ("dropoff", "dropoff")):
-                place = layout.places.get(row[column] or "")
+                station = getattr(row, column)
+                place = layout.places.get(station)
                 if place is None or place.kind != kind:
                     names = ", ".join(p.id for p in layout.places.values() if p.kind == kind)
-                    raise InputError(file, f"line {line}, {column}", row[column],
+                    raise InputError(file, f"{where}.{column}", station,
                                      f"a {kind} station of layout {layout.name} ({names})")
-            orders.append(TraceOrder(time_s, row["pickup"], row["dropoff"]))
+            orders.append(TraceOrder(row.time_s, row.pickup, row.dropoff))
     orders.sort(key=lambda o: o.time_s)
     return orders

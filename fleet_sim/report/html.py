@@ -131,7 +131,7 @@ def load(out_dir: Path) -> ReportData:
         summary = collect_summary(out_dir, factors)
     if summary.empty or "status" not in summary.columns:
         raise InputError(str(out_dir), "runs", 0, "at least one run in the results folder")
-    targets = [Target(t["kpi"], t.get("at_least"), t.get("at_most"))
+    targets = [Target(kpi=t["kpi"], at_least=t.get("at_least"), at_most=t.get("at_most"))
                for t in experiment.get("targets") or []]
     sizing_file = out_dir / "sizing.json"
     sizing = json.loads(sizing_file.read_text(encoding="utf-8")) if sizing_file.exists() \

@@ -133,7 +133,8 @@ def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
         return RunResult(spec.run_id, OK, wall)
     except Exception as exc:  # a failing run is recorded, never raised
         wall = time.perf_counter() - start
-        message = str(exc) if isinstance(exc, FleetSimError) else f"{type(exc).__name__}: {exc}"
+        message = str(exc) if isinstance(exc, FleetSimError | InputError) \
+            else f"{type(exc).__name__}: {exc}"
         record_failure(run_dir, FAILED, message, traceback.format_exc(), wall)
         shutil.rmtree(partial, ignore_errors=True)
         return RunResult(spec.run_id, FAILED, wall, message)
