@@ -110,11 +110,12 @@ def test_no_two_agvs_share_a_node_or_segment(warehouse_layout: Layout) -> None:
                              fleet={"size": 20}, demand={"rate_per_hour": 150})
     run = simulate(scenario, warehouse_layout, record_occupancy=True)
     spans: dict[tuple[str, str], list[tuple[float, float, int]]] = defaultdict(list)
-    for kind, key, agv, t0, t1 in run.recorder.occupancy:
-        assert t1 >= t0
-        if kind == "segment":  # one physical segment, whichever way it is driven
+    for spell in run.recorder.occupancy:
+        assert spell.end_s >= spell.start_s
+        key = spell.key
+        if spell.kind == "segment":  # one physical segment, whichever way it is driven
             key = "|".join(sorted(key.split(">")))
-        spans[(kind, key)].append((t0, t1, agv))
+        spans[(spell.kind, key)].append((spell.start_s, spell.end_s, spell.agv))
     assert sum(1 for kind, _ in spans if kind == "segment") > 100
     assert len(run.recorder.occupancy) > 10_000
     for (kind, key), items in spans.items():
@@ -145,11 +146,12 @@ def test_gap_to_the_agv_ahead_is_kept(tmp_path: Path) -> None:
                              demand={"rate_per_hour": 120})
     run = simulate(scenario, load_layout(layout_file), record_occupancy=True)
     hops: dict[int, list[tuple[float, float, str, str]]] = defaultdict(list)
-    for kind, key, agv, t0, t1 in run.recorder.occupancy:
-        if kind == "segment":
-            u, v = key.split(">")
-            hops[agv].append((t0, t1, u, v))
-    parked = {(e[1], e[0]) for e in run.recorder.events if e[2] == "Event_Arrived_Parking"}
+    for spell in run.recorder.occupancy:
+        if spell.kind == "segment":
+            u, v = spell.key.split(">")
+            hops[spell.agv].append((spell.start_s, spell.end_s, u, v))
+    parked = {(e.agv, e.time_s) for e in run.recorder.events
+              if e.event == "Event_Arrived_Parking"}
     checked = 0
     for kind, node, agv, t0, t1 in run.recorder.occupancy:
         if kind != "node" or (agv, t1) in parked:
@@ -177,7 +179,7 @@ def test_deadlock_built_on_purpose_is_detected_and_resolved() -> None:
         drives.append(vehicle.process)
     model.env.run(until=600)
     assert model.recorder.deadlocks >= 1
-    names = [e[2] for e in model.recorder.events]
+    names = [e.event for e in model.recorder.events]
     assert "deadlock_detected" in names and "deadlock_resolved" in names
     assert all(not p.is_alive for p in drives), "an AGV is still stuck"
     assert {v.id: v.node for v in model.vehicles} == goals
@@ -211,8 +213,8 @@ def test_idle_agvs_go_to_parking(warehouse_layout: Layout) -> None:
                              fleet={"size": 3, "start_nodes": ["M010", "M030", "A05_12"]},
                              demand={"rate_per_hour": 0})
     run = simulate(scenario, warehouse_layout)
-    parked = [e for e in run.recorder.events if e[2] == "Event_Arrived_Parking"]
-    assert sorted(e[1] for e in parked) == [0, 1, 2]
+    parked = [e for e in run.recorder.events if e.event == "Event_Arrived_Parking"]
+    assert sorted(e.agv for e in parked) == [0, 1, 2]
     assert all(v.parked_in is not None for v in run.vehicles)
     assert all(not v.held for v in run.vehicles)
 
@@ -282,7 +284,7 @@ def test_giving_way_keeps_the_main_loop_flowing(warehouse_layout: Layout) -> Non
         run = simulate(scenario, warehouse_layout)
         late = sum(1 for o in run.recorder.orders
                    if o.delivered_s is not None and o.delivered_s > 3600)
-        return late, sum(1 for e in run.recorder.events if e[2] == "circulate")
+        return late, sum(1 for e in run.recorder.events if e.event == "circulate")
 
     assert deliveries_after_first_hour(1e9) == (0, 0)
     late, circulated = deliveries_after_first_hour(10.0)

@@ -16,11 +16,10 @@ from fleet_sim.analysis.results import events_table, kpis, orders_table
 from fleet_sim.config.layout import load_layout
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.model.battery import charge_time_s
+from fleet_sim.model.records import EventRecord
 from fleet_sim.sim.engine import RunOutput, simulate
 
 from .conftest import LAYOUTS, make_scenario, write_yaml
-
-Event = tuple[float, int, str, str, str, str, str]
 
 
 def tiny(tmp_path: Path, **changes: Any) -> Path:
@@ -45,12 +44,12 @@ def run(layout_file: Path, trace: list[TraceOrder] | None = None, **fields: Any)
     return simulate(scenario, load_layout(layout_file), trace or [])
 
 
-def events(out: RunOutput, name: str) -> list[Event]:
-    return [e for e in out.recorder.events if e[2] == name]
+def events(out: RunOutput, name: str) -> list[EventRecord]:
+    return [e for e in out.recorder.events if e.event == name]
 
 
-def error_events(out: RunOutput, code: str) -> list[Event]:
-    return [e for e in events(out, "Event_Critical_Error") if e[6].startswith(code)]
+def error_events(out: RunOutput, code: str) -> list[EventRecord]:
+    return [e for e in events(out, "Event_Critical_Error") if e.detail.startswith(code)]
 
 
 ONE_ORDER = [TraceOrder(20.0, "PICK", "DROP")]
@@ -81,8 +80,9 @@ def test_obstacle_seen_300_ms_pauses_and_resumes_2000_ms_after_it_left(tmp_path:
     assert out.recorder.obstacle_pauses == len(paused)
     for p, c in zip(paused, cleared, strict=True):
         # paused 300 ms after the obstacle appeared; it left 1 ms later; 2000 ms of clear path
-        assert c[0] - p[0] == pytest.approx(0.001 + 2.0, abs=1e-9)
-        assert (p[3], p[4], c[3], c[4]) == ("Moving", "Paused", "Paused", "Moving")
+        assert c.time_s - p.time_s == pytest.approx(0.001 + 2.0, abs=1e-9)
+        assert (p.from_state, p.to_state) == ("Moving", "Paused")
+        assert (c.from_state, c.to_state) == ("Paused", "Moving")
 
 
 def block_run(tmp_path: Path, until_s: float) -> RunOutput:
@@ -92,15 +92,15 @@ def block_run(tmp_path: Path, until_s: float) -> RunOutput:
 
 def test_e101_after_five_minutes_paused_and_not_before(tmp_path: Path) -> None:
     long = block_run(tmp_path, 3000.0)
-    paused_at = events(long, "Event_Obstacle_Detected")[0][0]
-    assert error_events(long, "E_101")[0][0] == pytest.approx(paused_at + 300.0, abs=1e-9)
+    paused_at = events(long, "Event_Obstacle_Detected")[0].time_s
+    assert error_events(long, "E_101")[0].time_s == pytest.approx(paused_at + 300.0, abs=1e-9)
     appeared = paused_at - 0.3
     # the AGV drives on 2 s after the block is lifted; the pause lasts until then
     for pause_s, errs in ((299.9, False), (300.1, True)):
         out = block_run(tmp_path, appeared + 0.3 + pause_s - 2.0)
         assert bool(error_events(out, "E_101")) is errs, pause_s
         if not errs:
-            cleared = events(out, "Event_Obstacle_Cleared")[0][0]
+            cleared = events(out, "Event_Obstacle_Cleared")[0].time_s
             assert cleared - paused_at == pytest.approx(pause_s, abs=1e-6)
             assert out.recorder.orders[0].delivered_s is not None
 
@@ -113,7 +113,7 @@ def test_60_second_timeout_policy(tmp_path: Path) -> None:
         found = error_events(out, "E_301")
         assert bool(found) is errs, duration
         if errs:
-            assert found[0][0] == pytest.approx(110.0)
+            assert found[0].time_s == pytest.approx(110.0)
 
 
 def link_run(tmp_path: Path, duration: float) -> RunOutput:
@@ -124,10 +124,10 @@ def link_run(tmp_path: Path, duration: float) -> RunOutput:
 def test_req_err_011_waits_at_the_next_tag_and_errs_after_10_minutes(tmp_path: Path) -> None:
     long = link_run(tmp_path, 3000.0)
     lost = events(long, "Event_Heartbeat_Lost")
-    assert len(lost) == 1 and (lost[0][3], lost[0][4]) == ("Moving", "Idle")
-    assert lost[0][5] in {"S1", "P", "SW"}  # stopped at a tag, not between tags
-    waiting_from = lost[0][0]
-    assert error_events(long, "E_301")[0][0] == pytest.approx(waiting_from + 600.0, abs=1e-9)
+    assert len(lost) == 1 and (lost[0].from_state, lost[0].to_state) == ("Moving", "Idle")
+    assert lost[0].node in {"S1", "P", "SW"}  # stopped at a tag, not between tags
+    waiting_from = lost[0].time_s
+    assert error_events(long, "E_301")[0].time_s == pytest.approx(waiting_from + 600.0, abs=1e-9)
     assert long.recorder.orders[0].delivered_s is None
     for wait_s, errs in ((599.9, False), (600.1, True)):
         out = link_run(tmp_path, waiting_from + wait_s - 27.0)
@@ -172,16 +172,16 @@ def test_charging_until_above_95_percent(tmp_path: Path) -> None:
     done = events(out, "Event_Charge_Complete")
     assert len(done) == 1
     soc_at = {(t, a): s for t, a, s in out.recorder.soc_samples}
-    assert 95.0 < soc_at[(done[0][0], 0)] <= 95.2
+    assert 95.0 < soc_at[(done[0].time_s, 0)] <= 95.2
     gone = events(out, "Event_Low_Battery") + events(out, "Event_Go_Charge")
-    assert gone and gone[0][4] == "Moving" and "to_charger" in gone[0][6]
+    assert gone and gone[0].to_state == "Moving" and "to_charger" in gone[0].detail
     arrived = events(out, "Event_Arrived_Charger")[0]
-    assert (arrived[3], arrived[4]) == ("Moving", "Charging")
+    assert (arrived.from_state, arrived.to_state) == ("Moving", "Charging")
     # docking 10 s + the charge curve from the SOC on arrival + undocking 10 s
     profile = out.scenario.fleet.vehicle.battery
-    soc_arrival = soc_at[(arrived[0], 0)]
+    soc_arrival = soc_at[(arrived.time_s, 0)]
     expected = 10 + charge_time_s(profile, soc_arrival, 95.1, 1.0) + 10
-    assert done[0][0] - arrived[0] == pytest.approx(expected, abs=1e-6)
+    assert done[0].time_s - arrived.time_s == pytest.approx(expected, abs=1e-6)
 
 
 def test_charger_serves_one_agv_at_a_time_and_queues(tmp_path: Path) -> None:
@@ -189,11 +189,11 @@ def test_charger_serves_one_agv_at_a_time_and_queues(tmp_path: Path) -> None:
     out = run(tiny(tmp_path), duration_h=3.0, fleet=fleet)
     spans = []
     starts: dict[int, float] = {}
-    for t, agv, name, *_ in out.recorder.events:
-        if name == "Event_Arrived_Charger":
-            starts[agv] = t
-        elif name == "Event_Charge_Complete":
-            spans.append((starts.pop(agv), t))
+    for e in out.recorder.events:
+        if e.event == "Event_Arrived_Charger":
+            starts[e.agv] = e.time_s
+        elif e.event == "Event_Charge_Complete":
+            spans.append((starts.pop(e.agv), e.time_s))
     assert len(spans) == 3
     spans.sort()
     for (_, end), (start, _) in itertools.pairwise(spans):
@@ -210,7 +210,7 @@ def test_shutdown_below_10_percent_not_above(tmp_path: Path) -> None:
                           "dist": "fixed", "mean_s": 1000}})
     shutdown = error_events(out, "E_201")
     assert len(shutdown) == 1
-    assert shutdown[0][0] == pytest.approx(18.0, abs=1e-6)
+    assert shutdown[0].time_s == pytest.approx(18.0, abs=1e-6)
     assert all(s >= 10.0 - 1e-9 for t, _, s in out.recorder.soc_samples if t < 18.0)
 
 
@@ -224,8 +224,8 @@ def test_safe_mode_when_no_link_low_battery_and_no_charger(tmp_path: Path) -> No
                   charging={"enabled": False}, dispatch={"park_idle": False},
                   incidents={"faults": [{"agv": 0, "at_s": 30.0, "code": "E_999"}]},
                   rules={"bat_low_pct": 12.0, "bat_critical_pct": 5.0})
-        after_error = [e for e in out.recorder.events if e[3] == "Error" != e[4]]
-        assert after_error and after_error[0][4] == expected, soc
+        after_error = [e for e in out.recorder.events if e.from_state == "Error" != e.to_state]
+        assert after_error and after_error[0].to_state == expected, soc
 
 
 # ---- faults and recovery ----------------------------------------------------------------------
@@ -235,12 +235,13 @@ def test_fault_operator_maintenance_and_back(tmp_path: Path) -> None:
               incidents={"faults": [{"agv": 0, "at_s": 25.0, "code": "E_999"}],
                          "operator_response": {"dist": "fixed", "mean_s": 120},
                          "repair": {"dist": "fixed", "mean_s": 300}, "relocalise_s": 10})
-    path = [(e[0], e[2]) for e in out.recorder.events
-            if e[1] == 0 and e[2].startswith("Event_") and e[0] >= 25.0][:4]
-    assert [p[1] for p in path] == ["Event_Critical_Error", "Event_Switch_Manual",
-                                    "Event_Switch_Auto", path[3][1]]
-    assert path[1][0] - path[0][0] == pytest.approx(120.0)
-    assert path[2][0] - path[1][0] == pytest.approx(310.0)  # repair + position re-estimation
+    path = [e for e in out.recorder.events
+            if e.agv == 0 and e.event.startswith("Event_") and e.time_s >= 25.0][:4]
+    assert [p.event for p in path] == ["Event_Critical_Error", "Event_Switch_Manual",
+                                       "Event_Switch_Auto", path[3].event]
+    assert path[1].time_s - path[0].time_s == pytest.approx(120.0)
+    # repair + position re-estimation
+    assert path[2].time_s - path[1].time_s == pytest.approx(310.0)
     orders = out.recorder.orders
     assert all(o.delivered_s is not None for o in orders)  # the first order was reassigned
     assert orders[0].reassigned == 1 and orders[0].agv == 1
@@ -306,12 +307,12 @@ def test_long_run_with_every_incident_loses_no_order(warehouse_layout: object) -
     # every AGV's time in states adds up to the run
     per_agv: dict[int, float] = defaultdict(float)
     last: dict[int, tuple[float, str]] = {}
-    for t, agv, _, before, after, *_ in out.recorder.events:
-        if before == after:
+    for e in out.recorder.events:
+        if e.from_state == e.to_state:
             continue
-        if agv in last:
-            per_agv[agv] += t - last[agv][0]
-        last[agv] = (t, after)
+        if e.agv in last:
+            per_agv[e.agv] += e.time_s - last[e.agv][0]
+        last[e.agv] = (e.time_s, e.to_state)
     for agv, (t, _) in last.items():
         per_agv[agv] += scenario.duration_s - t
     assert all(total == pytest.approx(8 * 3600.0) for total in per_agv.values())
@@ -330,5 +331,5 @@ def test_scheduled_charging_calls_every_agv(tmp_path: Path) -> None:
               fleet={"size": 2, "vehicle": {"battery": {"initial_soc_pct": 90.0}}},
               charging={"schedule_h": [6.5]})
     went = events(out, "Event_Go_Charge")
-    assert sorted(e[1] for e in went) == [0, 1]
-    assert min(e[0] for e in went) == pytest.approx(1800.0)
+    assert sorted(e.agv for e in went) == [0, 1]
+    assert min(e.time_s for e in went) == pytest.approx(1800.0)

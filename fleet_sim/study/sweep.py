@@ -71,6 +71,7 @@ import yaml
 
 from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, layout_for, load_trace_for
 from fleet_sim.errors import FleetSimError, InputError
+from fleet_sim.model.records import OccupancySpell
 
 RunFn = Callable[[RunSpec, str], "RunResult"]
 """A function that executes one run into `runs_dir` (module level, so workers can import it)."""
@@ -166,10 +167,10 @@ def derived_kpis(figures: dict[str, Any], orders: pd.DataFrame, start_s: float,
             "orders_open_at_end": open_orders}
 
 
-def node_waits(occupancy: Sequence[tuple[str, str, int, float, float]], events: pd.DataFrame,
+def node_waits(occupancy: Sequence[OccupancySpell], events: pd.DataFrame,
                start_s: float, end_s: float) -> pd.DataFrame:
     """Per node: AGV passes, and seconds AGVs with work to do stood there waiting for the way."""
-    segs = pd.DataFrame([o for o in occupancy if o[0] == "segment"],
+    segs = pd.DataFrame([o for o in occupancy if o.kind == "segment"],
                         columns=["kind", "key", "agv", "start", "end"])
     if segs.empty:
         return pd.DataFrame({"node": pd.Series(dtype="string"),
