@@ -88,7 +88,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from fleet_sim.analysis.results import summary, write_run
+    from fleet_sim.analysis.kpis import run_kpis, summary_text
+    from fleet_sim.analysis.tables import write_run
     from fleet_sim.config.scenario import load_layout_for, load_scenario
     from fleet_sim.config.trace import load_trace
     from fleet_sim.errors import InputError
@@ -115,8 +116,9 @@ def _run(args: argparse.Namespace) -> int:
     run = simulate(scenario, layout, trace, progress=progress)
     if progress is not None:
         progress.done()
-    figures = write_run(run, out)
-    print(summary(figures))
+    figures = run_kpis(run)
+    write_run(run, out, figures)
+    print(summary_text(figures))
     print(f"  run directory               {out}  ({run.wall_s:.1f} s wall, "
           f"{run.sim_events:,} events)")
     return 0

@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 import yaml
 
-from fleet_sim.analysis.results import events_table, kpis, orders_table
+from fleet_sim.analysis.kpis import run_kpis
 from fleet_sim.config.layout import load_layout
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.model.battery import charge_time_s
@@ -149,7 +149,7 @@ def test_dead_spot_loses_the_link(tmp_path: Path) -> None:
     assert events(out, "dead_spot_in")
     assert events(out, "Event_Heartbeat_Lost")
     assert error_events(out, "E_301")  # stuck where there is no signal: an operator must come
-    assert kpis(out, events_table(out), orders_table(out))["comm_losses"] >= 1
+    assert run_kpis(out)["comm_losses"] >= 1
 
 
 # ---- battery: 20 %, 95 %, 15 %, 10 % -------------------------------------------------------------
@@ -198,7 +198,7 @@ def test_charger_serves_one_agv_at_a_time_and_queues(tmp_path: Path) -> None:
     spans.sort()
     for (_, end), (start, _) in itertools.pairwise(spans):
         assert start >= end
-    figures = kpis(out, events_table(out), orders_table(out))
+    figures = run_kpis(out)
     assert figures["charges"] == 3 and figures["charging_queue_wait_mean_s"] > 100
 
 
@@ -292,7 +292,7 @@ def test_long_run_with_every_incident_loses_no_order(warehouse_layout: object) -
                              fleet={"size": 12}, demand={"rate_per_hour": 80},
                              incidents=incidents)
     out = simulate(scenario, warehouse_layout)  # type: ignore[arg-type]
-    figures = kpis(out, events_table(out), orders_table(out))
+    figures = run_kpis(out)
     assert figures["obstacle_pauses"] > 10 and figures["comm_losses"] > 2
     assert set(figures["errors_by_code"]) == {"E_101", "E_102", "E_202", "E_301", "E_999"}
     assert figures["warnings_by_code"]["E_001"] > 0 and figures["availability_pct"] < 100

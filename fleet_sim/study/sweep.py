@@ -39,9 +39,8 @@ Decisions, where the issue is silent:
   idling before it, nor a park-in manoeuvre) is waiting for the way ahead. Summed over the
   measured window (after warm-up), per node, it equals the engine's blocked time. Needs the
   engine's occupancy trace, which the sweep turns on; it does not change the run.
-* Derived KPIs: ``demand_per_hour`` (orders created in the measured window, per hour),
-  ``throughput_pct_of_demand`` (throughput over that demand, so "at least 98 % of demand" is a
-  plain target), ``orders_open_at_end`` and ``wall_s`` (the run's wall time).
+* KPIs: every run's are computed in memory (fleet_sim.analysis.kpis, as for `fleet-sim run`);
+  the sweep adds ``wall_s``, the run's wall time including writing its files.
 * DuckDB views read the Parquet files by absolute path: the database works from any folder;
   after moving a results folder, run the sweep again (nothing is recomputed) to rebuild it.
 """
@@ -96,7 +95,8 @@ class SweepError(FleetSimError):
 
 def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
     """Run `spec` into ``runs_dir/<run id>``; never raises for a failing run."""
-    from fleet_sim.analysis.results import write_run
+    from fleet_sim.analysis.kpis import run_kpis
+    from fleet_sim.analysis.tables import write_run
     from fleet_sim.config.scenario import load_scenario
     from fleet_sim.sim.engine import simulate
 
@@ -116,13 +116,9 @@ def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
         scenario = load_scenario(spec.scenario_file, spec.override_dict())
         layout = layout_for(scenario, spec.scenario_file)
         run = simulate(scenario, layout, load_trace_for(scenario, layout), record_occupancy=True)
-        figures = write_run(run, partial)
-        orders = pd.read_parquet(partial / "orders.parquet",
-                                 columns=["created_s", "delivered_s"])
-        events = pd.read_parquet(partial / "events.parquet",
-                                 columns=["time_s", "agv", "event", "from_state", "to_state"])
-        figures.update(derived_kpis(figures, orders, scenario.warmup_s, scenario.duration_s))
-        waits = node_waits(run.recorder.occupancy, events, scenario.warmup_s,
+        figures = run_kpis(run)
+        tables = write_run(run, partial, figures)
+        waits = node_waits(run.recorder.occupancy, tables.events, scenario.warmup_s,
                            scenario.duration_s)
         waits.to_parquet(partial / "node_waits.parquet", index=False)
         wall = time.perf_counter() - start
@@ -150,21 +146,6 @@ def _write_json_atomic(path: Path, data: Any) -> None:
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     tmp.write_text(json.dumps(data, indent=2, default=str) + "\n", encoding="utf-8")
     os.replace(tmp, path)
-
-
-def derived_kpis(figures: dict[str, Any], orders: pd.DataFrame, start_s: float,
-                 end_s: float) -> dict[str, Any]:
-    """KPIs the planner's targets need beyond the engine's (see the module docstring)."""
-    window_h = (end_s - start_s) / 3600.0
-    created = orders["created_s"].to_numpy(dtype=float)
-    demand = float(np.count_nonzero((created >= start_s) & (created <= end_s))) / window_h
-    throughput = figures.get("throughput_per_hour")
-    pct = None
-    if demand > 0 and isinstance(throughput, (int, float)):
-        pct = round(100.0 * float(throughput) / demand, 6)
-    open_orders = int(orders["delivered_s"].isna().sum())
-    return {"demand_per_hour": round(demand, 6), "throughput_pct_of_demand": pct,
-            "orders_open_at_end": open_orders}
 
 
 def node_waits(occupancy: Sequence[OccupancySpell], events: pd.DataFrame,
@@ -296,7 +277,7 @@ def _mp_context() -> Any:
     if "forkserver" in multiprocessing.get_all_start_methods():
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(["fleet_sim.study.sweep", "fleet_sim.sim.engine",
-                                        "fleet_sim.analysis.results"])
+                                        "fleet_sim.analysis.kpis", "fleet_sim.analysis.tables"])
         return context
     return multiprocessing.get_context("spawn")
 
@@ -663,7 +644,3 @@ def write_duckdb(out_dir: Path) -> Path:
 def _sql(path: Path) -> str:
     return str(path).replace("'", "''")
 
-
-def finite(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) \
-        and math.isfinite(float(value))
