@@ -182,9 +182,11 @@ def _sweep(args: argparse.Namespace) -> int:
     from fleet_sim.analysis.stats import check_targets
     from fleet_sim.config.experiment import load_experiment
     from fleet_sim.study.sweep import default_out, sweep
+    from fleet_sim.study.targets import check_targets_known
 
     _check_workers(args)
-    experiment = load_experiment(args.experiment)
+    experiment = load_experiment(args.experiment, check_kpis=False)
+    check_targets_known(experiment)
     out = args.out or default_out(experiment)
     runs = experiment.runs()
     where = f"Dask cluster {args.scheduler}" if args.scheduler else \
@@ -218,9 +220,11 @@ def _size(args: argparse.Namespace) -> int:
     from fleet_sim.config.experiment import load_experiment
     from fleet_sim.study.sizing import size_fleet
     from fleet_sim.study.sweep import default_out
+    from fleet_sim.study.targets import check_targets_known
 
     _check_workers(args)
-    experiment = load_experiment(args.experiment)
+    experiment = load_experiment(args.experiment, check_kpis=False)
+    check_targets_known(experiment)
     out = args.out or default_out(experiment)
     print(f"size {experiment.name}: targets "
           + ", ".join(t.describe() for t in experiment.spec.targets))

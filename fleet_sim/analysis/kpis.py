@@ -66,6 +66,9 @@ def _code_kpis() -> tuple[Kpi, ...]:
     return tuple(out)
 
 
+COUNTS_BY_CODE = frozenset(k.name for k in _code_kpis())
+"""The per-code KPIs (errors_by_code.E_101, ...): a code a run never raised counts zero."""
+
 CATALOGUE: tuple[Kpi, ...] = (
     Kpi("orders_created", "orders", "orders created over the whole run"),
     Kpi("orders_completed", "orders", "orders delivered over the whole run"),

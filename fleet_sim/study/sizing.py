@@ -36,6 +36,7 @@ from typing import IO, Any
 import numpy as np
 import simpy
 
+from fleet_sim.analysis.kpis import kpi_value
 from fleet_sim.analysis.stats import TargetCheck, target_check
 from fleet_sim.config.experiment import FLEET, Experiment, Target, layout_for, load_trace_for
 from fleet_sim.config.layout import Layout
@@ -295,7 +296,7 @@ class Sizer:
                 continue
             figures = json.loads(kpi_file.read_text(encoding="utf-8"))
             for kpi in values:
-                value = figures.get(kpi)
+                value = kpi_value(figures, kpi)
                 values[kpi].append(math.nan if value is None else float(value))
         return {k: np.array(v, dtype=float) for k, v in values.items()}, failed
 
