@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -94,6 +93,7 @@ def _run(args: argparse.Namespace) -> int:
     from fleet_sim.config.trace import load_trace
     from fleet_sim.errors import InputError
     from fleet_sim.sim.engine import simulate
+    from fleet_sim.study.progress import Progress
 
     overrides: dict[str, object] = {}
     if args.agvs is not None:
@@ -112,10 +112,12 @@ def _run(args: argparse.Namespace) -> int:
         assert scenario.demand.trace_csv is not None
         trace = load_trace(scenario.path(scenario.demand.trace_csv), layout)
     out = args.out or _fresh_dir(Path("results") / scenario.name)
-    progress = None if args.quiet else _Progress()
-    run = simulate(scenario, layout, trace, progress=progress)
-    if progress is not None:
-        progress.done()
+    with Progress(scenario.duration_s, quiet=args.quiet, plain_lines=4) as progress:
+        def simulated(now_s: float, end_s: float) -> None:
+            progress.update(now_s, f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h "
+                                   f"({now_s / end_s:.0%})")
+
+        run = simulate(scenario, layout, trace, progress=simulated)
     figures = run_kpis(run)
     write_run(run, out, figures)
     print(summary_text(figures))
@@ -132,32 +134,6 @@ def _fresh_dir(base: Path) -> Path:
     while Path(f"{base}-{n}").exists():
         n += 1
     return Path(f"{base}-{n}")
-
-
-class _Progress:
-    """Progress of a run on stderr: a live line on a terminal, a line per quarter otherwise."""
-
-    def __init__(self) -> None:
-        self.start = time.perf_counter()
-        self.tty = sys.stderr.isatty()
-        self.last_quarter = 0
-
-    def __call__(self, now_s: float, end_s: float) -> None:
-        share = now_s / end_s
-        wall = time.perf_counter() - self.start
-        left = wall * (1 - share) / share if share > 0 else 0.0
-        text = (f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h ({share:.0%}), "
-                f"{wall:.1f} s elapsed, ~{left:.0f} s left")
-        if self.tty:
-            sys.stderr.write("\r  " + text.ljust(70))
-            sys.stderr.flush()
-        elif int(share * 4) > self.last_quarter:
-            self.last_quarter = int(share * 4)
-            sys.stderr.write("  " + text + "\n")
-
-    def done(self) -> None:
-        if self.tty:
-            sys.stderr.write("\n")
 
 
 def _runner_options(parser: argparse.ArgumentParser) -> None:

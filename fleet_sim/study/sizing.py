@@ -35,6 +35,7 @@ from fleet_sim.analysis.kpis import kpi_value
 from fleet_sim.analysis.stats import TargetCheck, target_check
 from fleet_sim.config.experiment import FLEET, Experiment, Target, layout_for, load_trace_for
 from fleet_sim.errors import InputError
+from fleet_sim.study.progress import Progress
 from fleet_sim.study.sweep import DaskPool, LocalPool, execute, prepare, write_tables
 
 DEFAULT_MAX_AGVS = 50
@@ -128,16 +129,12 @@ class Sizer:
     """Runs the search for one group of fixed factor values."""
 
     def __init__(self, experiment: Experiment, out_dir: Path, fixed: dict[str, Any],
-                 workers: int = 0, scheduler: str | None = None, quiet: bool = False,
-                 stream: IO[str] | None = None, pool: LocalPool | DaskPool | None = None) -> None:
-        self.pool = pool
+                 pool: LocalPool | DaskPool, progress: Progress) -> None:
         self.experiment = experiment
         self.out_dir = out_dir
         self.fixed = fixed
-        self.workers = workers
-        self.scheduler = scheduler
-        self.quiet = quiet
-        self.stream = stream
+        self.pool = pool
+        self.progress = progress
         self.targets: Sequence[Target] = experiment.spec.targets
 
     def evaluate(self, agvs: int, result: GroupResult) -> Evaluation:
@@ -147,8 +144,7 @@ class Sizer:
         while True:
             factors = {**self.fixed, FLEET: agvs}
             runs = [self.experiment.run(factors, r) for r in range(reps)]
-            execute(runs, self.out_dir, self.workers, self.scheduler, quiet=True,
-                    stream=self.stream, pool=self.pool)
+            execute(runs, self.out_dir, quiet=True, pool=self.pool)
             values, failed = self._values(runs)
             checks = [target_check(factors, t, values[t.kpi]) for t in self.targets]
             ev = Evaluation(agvs, reps, checks, failed)
@@ -158,12 +154,10 @@ class Sizer:
             grow = max(wanted) if wanted else reps + 1
             reps = min(cap, max(reps + 1, min(grow, 2 * reps)))
         result.evaluations[agvs] = ev
-        if not self.quiet:
-            note = " (undecided at the replication limit: counted as not meeting)" \
-                if ev.verdict == "undecided" else ""
-            where = ", ".join(f"{k}={v}" for k, v in self.fixed.items())
-            self._say(f"{where + ': ' if where else ''}{agvs} AGVs, {ev.replications} "
-                      f"replications: {ev.verdict}{note}")
+        note = " (undecided at the replication limit: counted as not meeting)" \
+            if ev.verdict == "undecided" else ""
+        self.progress.note(f"{_where(self.fixed)}{agvs} AGVs, {ev.replications} "
+                           f"replications: {ev.verdict}{note}")
         return ev
 
     def _values(self, runs: Sequence[Any]) -> tuple[dict[str, np.ndarray], int]:
@@ -179,13 +173,6 @@ class Sizer:
                 value = kpi_value(figures, kpi)
                 values[kpi].append(math.nan if value is None else float(value))
         return {k: np.array(v, dtype=float) for k, v in values.items()}, failed
-
-    def _say(self, text: str) -> None:
-        import sys
-
-        stream = self.stream if self.stream is not None else sys.stderr
-        stream.write(f"  {text}\n")
-        stream.flush()
 
     def search(self, estimate: Estimate, lo_limit: int, hi_limit: int) -> GroupResult:
         result = GroupResult(self.fixed, estimate, min_agvs=lo_limit, max_agvs=hi_limit)
@@ -262,10 +249,10 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
     n_workers = workers or os.cpu_count() or 1
     pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers) if scheduler \
         else LocalPool(n_workers)
-    with pool:
+    with pool, Progress(stream=stream, quiet=quiet) as progress:
         for fixed in groups(experiment):
-            results.append(_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, workers,
-                                       scheduler, quiet, stream, pool))
+            results.append(_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool,
+                                       progress))
     document = {"experiment": experiment.name, "confidence": 0.95,
                 "targets": [t.describe() for t in spec.targets],
                 "groups": [r.as_dict() for r in results]}
@@ -276,18 +263,19 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
 
 
 def _size_group(experiment: Experiment, out_dir: Path, fixed: dict[str, Any], lo_limit: int,
-                hi_limit: int, workers: int, scheduler: str | None, quiet: bool,
-                stream: IO[str] | None, pool: LocalPool | DaskPool) -> GroupResult:
+                hi_limit: int, pool: LocalPool | DaskPool, progress: Progress) -> GroupResult:
     spec = experiment.spec
     scenario = experiment.scenario(fixed)
     layout = layout_for(scenario, str(experiment.scenario_file))
     trace = load_trace_for(scenario, layout)
     estimate = analytic_estimate(scenario, layout, spec.sizing.agv_availability, trace)
-    sizer = Sizer(experiment, out_dir, fixed, workers, scheduler, quiet, stream, pool)
-    if not quiet:
-        where = ", ".join(f"{k}={v}" for k, v in fixed.items())
-        sizer._say(f"{where + ': ' if where else ''}analytic estimate {estimate.agvs:.2f} AGVs "
-                   f"busy at the mean demand ({estimate.demand_per_hour:.1f} orders/h x "
-                   f"{estimate.cycle_s:.1f} s per order); searching {lo_limit} to {hi_limit} "
-                   f"AGVs from {min(max(estimate.minimum, lo_limit), hi_limit)}")
-    return sizer.search(estimate, lo_limit, hi_limit)
+    progress.note(f"{_where(fixed)}analytic estimate {estimate.agvs:.2f} AGVs busy at the mean "
+                  f"demand ({estimate.demand_per_hour:.1f} orders/h x {estimate.cycle_s:.1f} s "
+                  f"per order); searching {lo_limit} to {hi_limit} AGVs from "
+                  f"{min(max(estimate.minimum, lo_limit), hi_limit)}")
+    return Sizer(experiment, out_dir, fixed, pool, progress).search(estimate, lo_limit, hi_limit)
+
+
+def _where(fixed: dict[str, Any]) -> str:
+    """The fixed factor values as a message prefix ("demand.rate_per_hour=90: "), or ""."""
+    return ", ".join(f"{k}={v}" for k, v in fixed.items()) + ": " if fixed else ""

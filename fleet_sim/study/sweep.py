@@ -55,7 +55,6 @@ import multiprocessing
 import os
 import shutil
 import socket
-import sys
 import time
 import traceback
 from collections import deque
@@ -71,6 +70,7 @@ import yaml
 from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, layout_for, load_trace_for
 from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.model.records import OccupancySpell
+from fleet_sim.study.progress import Progress
 
 RunFn = Callable[[RunSpec, str], "RunResult"]
 """A function that executes one run into `runs_dir` (module level, so workers can import it)."""
@@ -223,51 +223,22 @@ def _work_spells(events: pd.DataFrame) -> dict[int, tuple[np.ndarray, np.ndarray
 # ---- progress ------------------------------------------------------------------------------
 
 
-class Progress:
-    """Runs done, failed and time left, on stderr: a live line on a terminal, else a line per
-    tenth of the work (and at the end)."""
+@dataclass
+class RunTally:
+    """Counts runs as they finish and shows them through `progress`."""
 
-    def __init__(self, total: int, already: int, stream: IO[str] | None = None,
-                 quiet: bool = False) -> None:
-        self.total = total
-        self.done = already
-        self.failed = 0
-        self.todo = total - already
-        self.new = 0
-        self.start = time.perf_counter()
-        self.stream = stream if stream is not None else sys.stderr
-        self.tty = self.stream.isatty()
-        self.quiet = quiet
-        self.last_tenth = -1
-        if not quiet and already:
-            self.stream.write(f"  {already} of {total} runs already finished: skipped\n")
+    progress: Progress
+    total: int
+    done: int
+    failed: int = 0
 
     def __call__(self, result: RunResult) -> None:
         self.done += 1
-        self.new += 1
         if result.status != OK:
             self.failed += 1
-            if not self.quiet:
-                self._write(f"run {result.run_id} {result.status}: {result.error}", final=True)
-        if self.quiet:
-            return
-        elapsed = time.perf_counter() - self.start
-        left = elapsed / self.new * (self.todo - self.new)
-        text = (f"runs {self.done}/{self.total} done, {self.failed} failed, "
-                f"{elapsed:.0f} s elapsed, ~{left:.0f} s left")
-        tenth = int(10 * self.new / max(self.todo, 1))
-        if self.tty:
-            self._write(text, final=self.new == self.todo)
-        elif tenth > self.last_tenth:
-            self.last_tenth = tenth
-            self._write(text, final=True)
-
-    def _write(self, text: str, final: bool) -> None:
-        if self.tty:
-            self.stream.write("\r  " + text.ljust(78) + ("\n" if final else ""))
-        else:
-            self.stream.write("  " + text + "\n")
-        self.stream.flush()
+            self.progress.note(f"run {result.run_id} {result.status}: {result.error}")
+        self.progress.update(self.done, f"runs {self.done}/{self.total} done, "
+                                        f"{self.failed} failed")
 
 
 # ---- runners -------------------------------------------------------------------------------
@@ -523,16 +494,20 @@ def execute(specs: Iterable[RunSpec], out_dir: Path, workers: int = 0,
     todo = [s for s in specs if not finished(s, runs_dir)]
     todo.sort(key=lambda s: -_cost(s))
     workers = workers or os.cpu_count() or 1
-    progress = Progress(len(specs), len(specs) - len(todo), stream=stream, quiet=quiet)
-    if not todo:
-        results: list[RunResult] = []
-    elif pool is not None:
-        results = pool.run(todo, runs_dir, progress)
-    elif scheduler:
-        with DaskPool(scheduler, workers, run_fn) as dask_pool:
-            results = dask_pool.run(todo, runs_dir, progress)
-    else:
-        results = run_local(todo, runs_dir, min(workers, len(todo)), progress, run_fn)
+    already = len(specs) - len(todo)
+    with Progress(len(specs), already, stream=stream, quiet=quiet) as progress:
+        if already:
+            progress.note(f"{already} of {len(specs)} runs already finished: skipped")
+        tally = RunTally(progress, len(specs), already)
+        if not todo:
+            results: list[RunResult] = []
+        elif pool is not None:
+            results = pool.run(todo, runs_dir, tally)
+        elif scheduler:
+            with DaskPool(scheduler, workers, run_fn) as dask_pool:
+                results = dask_pool.run(todo, runs_dir, tally)
+        else:
+            results = run_local(todo, runs_dir, min(workers, len(todo)), tally, run_fn)
     return SweepOutcome(out_dir, len(specs), len(specs) - len(todo), results)
 
 
