@@ -16,7 +16,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from fleet_sim.analysis.results import events_table, kpis, orders_table  # noqa: E402
+from fleet_sim.analysis.kpis import run_kpis  # noqa: E402
 from fleet_sim.config.scenario import load_layout_for, load_scenario  # noqa: E402
 from fleet_sim.sim.engine import simulate  # noqa: E402
 
@@ -41,7 +41,7 @@ def measure(changes: dict[str, Any], seed: int) -> dict[str, Any]:
     scenario = load_scenario(path, {**BASE, **changes, "seed": seed})
     layout = load_layout_for(scenario, str(path))
     run = simulate(scenario, layout)
-    return kpis(run, events_table(run), orders_table(run))
+    return run_kpis(run)
 
 
 def main() -> None:

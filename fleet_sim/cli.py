@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -97,10 +96,12 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from fleet_sim.analysis.results import summary, write_run
+    from fleet_sim.analysis.kpis import run_kpis, summary_text
+    from fleet_sim.analysis.tables import write_run
     from fleet_sim.config.scenario import load_layout_for, load_scenario
     from fleet_sim.config.trace import load_trace
     from fleet_sim.sim.engine import simulate
+    from fleet_sim.study.progress import Progress
 
     overrides: dict[str, object] = {}
     if args.agvs is not None:
@@ -119,12 +120,15 @@ def _run(args: argparse.Namespace) -> int:
         assert scenario.demand.trace_csv is not None
         trace = load_trace(scenario.path(scenario.demand.trace_csv), layout)
     out = args.out or _fresh_dir(Path("results") / scenario.name)
-    progress = None if args.quiet else _Progress()
-    run = simulate(scenario, layout, trace, progress=progress)
-    if progress is not None:
-        progress.done()
-    figures = write_run(run, out)
-    print(summary(figures))
+    with Progress(scenario.duration_s, quiet=args.quiet, plain_lines=4) as progress:
+        def simulated(now_s: float, end_s: float) -> None:
+            progress.update(now_s, f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h "
+                                   f"({now_s / end_s:.0%})")
+
+        run = simulate(scenario, layout, trace, progress=simulated)
+    figures = run_kpis(run)
+    write_run(run, out, figures)
+    print(summary_text(figures))
     print(f"  run directory               {out}  ({run.wall_s:.1f} s wall, "
           f"{run.sim_events:,} events)")
     return 0
@@ -159,32 +163,6 @@ def _fresh_dir(base: Path) -> Path:
     return Path(f"{base}-{n}")
 
 
-class _Progress:
-    """Progress of a run on stderr: a live line on a terminal, a line per quarter otherwise."""
-
-    def __init__(self) -> None:
-        self.start = time.perf_counter()
-        self.tty = sys.stderr.isatty()
-        self.last_quarter = 0
-
-    def __call__(self, now_s: float, end_s: float) -> None:
-        share = now_s / end_s
-        wall = time.perf_counter() - self.start
-        left = wall * (1 - share) / share if share > 0 else 0.0
-        text = (f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h ({share:.0%}), "
-                f"{wall:.1f} s elapsed, ~{left:.0f} s left")
-        if self.tty:
-            sys.stderr.write("\r  " + text.ljust(70))
-            sys.stderr.flush()
-        elif int(share * 4) > self.last_quarter:
-            self.last_quarter = int(share * 4)
-            sys.stderr.write("  " + text + "\n")
-
-    def done(self) -> None:
-        if self.tty:
-            sys.stderr.write("\n")
-
-
 def _runner_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=0,
                         help="worker processes (default: one per core)")
@@ -205,9 +183,11 @@ def _sweep(args: argparse.Namespace) -> int:
     from fleet_sim.analysis.stats import check_targets
     from fleet_sim.config.experiment import load_experiment
     from fleet_sim.study.sweep import default_out, sweep
+    from fleet_sim.study.targets import check_targets_known
 
     _check_workers(args)
     experiment = load_experiment(args.experiment)
+    check_targets_known(experiment)
     out = args.out or default_out(experiment)
     runs = experiment.runs()
     where = f"Dask cluster {args.scheduler}" if args.scheduler else \
@@ -241,9 +221,11 @@ def _size(args: argparse.Namespace) -> int:
     from fleet_sim.config.experiment import load_experiment
     from fleet_sim.study.sizing import size_fleet
     from fleet_sim.study.sweep import default_out
+    from fleet_sim.study.targets import check_targets_known
 
     _check_workers(args)
     experiment = load_experiment(args.experiment)
+    check_targets_known(experiment)
     out = args.out or default_out(experiment)
     print(f"size {experiment.name}: targets "
           + ", ".join(t.describe() for t in experiment.spec.targets))

@@ -7,7 +7,7 @@ import itertools
 import pytest
 
 from agv_model.fleet_commands import CommandTiming
-from fleet_sim.analysis.results import events_table, kpis, orders_table
+from fleet_sim.analysis.kpis import run_kpis
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.errors import InputError
@@ -54,7 +54,7 @@ def test_status_polling_delays_what_the_fleet_manager_knows(tiny_layout: Layout)
     for gap in gaps:
         assert least - 1e-9 <= gap <= least + poll_s + 1e-9
     assert sum(gaps) / len(gaps) > least + 1.0  # waiting for polls costs time on average
-    figures = kpis(run, events_table(run), orders_table(run))
+    figures = run_kpis(run)
     assert figures["commands_sent"] == len(run.recorder.orders)  # one assign each, no retries
     assert figures["command_retries"] == 0
 
@@ -65,7 +65,7 @@ def test_polling_period_shows_in_lead_times(tiny_layout: Layout) -> None:
             "size": 2, "command_profile": "rss-agv-001", "status_poll_s": poll_s},
             demand={"rate_per_hour": 45})
         run = simulate(scenario, tiny_layout)
-        value = kpis(run, events_table(run), orders_table(run))["lead_time_mean_s"]
+        value = run_kpis(run)["lead_time_mean_s"]
         assert isinstance(value, float)
         return value
 

@@ -108,7 +108,7 @@ def test_gap_to_the_agv_ahead_is_kept(tmp_path: Path) -> None:
         if kind == "segment":
             u, v = key.split(">")
             hops[agv].append((t0, t1, u, v))
-    parked = {(e[1], e[0]) for e in run.recorder.events if e[2] == "Event_Arrived_Parking"}
+    parked = {(e.agv, e.time_s) for e in run.recorder.events if e.event == "Event_Arrived_Parking"}
     checked = 0
     for kind, node, agv, t0, t1 in run.recorder.occupancy:
         if kind != "node" or (agv, t1) in parked:
@@ -136,7 +136,7 @@ def test_deadlock_built_on_purpose_is_detected_and_resolved() -> None:
         drives.append(vehicle.process)
     model.env.run(until=600)
     assert model.recorder.deadlocks >= 1
-    names = [e[2] for e in model.recorder.events]
+    names = [e.event for e in model.recorder.events]
     assert "deadlock_detected" in names and "deadlock_resolved" in names
     assert all(not p.is_alive for p in drives), "an AGV is still stuck"
     assert {v.id: v.node for v in model.vehicles} == goals
@@ -167,7 +167,7 @@ def test_giving_way_keeps_the_main_loop_flowing(warehouse_layout: Layout) -> Non
         run = simulate(scenario, warehouse_layout)
         late = sum(1 for o in run.recorder.orders
                    if o.delivered_s is not None and o.delivered_s > 3600)
-        return late, sum(1 for e in run.recorder.events if e[2] == "circulate")
+        return late, sum(1 for e in run.recorder.events if e.event == "circulate")
 
     assert deliveries_after_first_hour(1e9) == (0, 0)
     late, circulated = deliveries_after_first_hour(10.0)

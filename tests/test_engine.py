@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from fleet_sim.analysis.results import events_table, kpis, orders_table, write_run
+from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.tables import orders_table, write_run
 from fleet_sim.config.layout import Layout
 from fleet_sim.sim.engine import build_model, simulate
 
@@ -49,8 +50,8 @@ def test_throughput_equals_completed_orders_over_time(warehouse_layout: Layout) 
     scenario = make_scenario("warehouse.yaml", duration_h=3, warmup_h=0.5, seed=3,
                              fleet={"size": 8}, demand={"rate_per_hour": 60})
     run = simulate(scenario, warehouse_layout)
-    events, orders = events_table(run), orders_table(run)
-    figures = kpis(run, events, orders)
+    orders = orders_table(run.recorder)
+    figures = run_kpis(run)
     done = orders["delivered_s"].between(1800.0, 3 * 3600.0)
     assert done.sum() > 50
     assert figures["throughput_per_hour"] == pytest.approx(done.sum() / 2.5, rel=1e-9)
@@ -68,7 +69,8 @@ def test_same_seed_same_bytes_other_seed_other_results(tmp_path: Path,
         scenario = make_scenario("warehouse.yaml", duration_h=1.5, warmup_h=0.25, seed=seed,
                                  fleet={"size": 10}, demand={"rate_per_hour": 100})
         out = tmp_path / folder
-        write_run(simulate(scenario, warehouse_layout), out)
+        run = simulate(scenario, warehouse_layout)
+        write_run(run, out, run_kpis(run))
         return out
 
     a, b, c = run_to("a", 21), run_to("b", 21), run_to("c", 22)

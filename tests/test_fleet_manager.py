@@ -12,7 +12,8 @@ import pytest
 import simpy
 import yaml
 
-from fleet_sim.analysis.results import events_table, kpis, orders_table
+from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.tables import orders_table
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.scenario import DispatchConfig
 from fleet_sim.model.kinematics import Motion
@@ -183,8 +184,8 @@ def test_idle_agvs_go_to_parking(warehouse_layout: Layout) -> None:
                              fleet={"size": 3, "start_nodes": ["M010", "M030", "A05_12"]},
                              demand={"rate_per_hour": 0})
     run = simulate(scenario, warehouse_layout)
-    parked = [e for e in run.recorder.events if e[2] == "Event_Arrived_Parking"]
-    assert sorted(e[1] for e in parked) == [0, 1, 2]
+    parked = [e for e in run.recorder.events if e.event == "Event_Arrived_Parking"]
+    assert sorted(e.agv for e in parked) == [0, 1, 2]
     assert all(v.parked_in is not None for v in run.vehicles)
     assert all(not v.held for v in run.vehicles)
 
@@ -207,8 +208,8 @@ def test_littles_law_on_the_order_queue(tiny_layout: Layout) -> None:
     scenario = make_scenario(duration_h=40, warmup_h=1, seed=11, fleet={"size": 2},
                              demand={"rate_per_hour": 45})
     run = simulate(scenario, tiny_layout)
-    orders = orders_table(run)
-    figures = kpis(run, events_table(run), orders)
+    orders = orders_table(run.recorder)
+    figures = run_kpis(run)
     start, end = 3600.0, 40 * 3600.0
     arrived = orders[orders["created_s"].between(start, end)]
     rate = len(arrived) / (end - start)

@@ -13,14 +13,13 @@ from typing import Any
 import pytest
 import yaml
 
-from fleet_sim.analysis.results import events_table, kpis, orders_table
+from fleet_sim.analysis.kpis import run_kpis
 from fleet_sim.config.layout import load_layout
 from fleet_sim.config.trace import TraceOrder
+from fleet_sim.model.records import EventRecord
 from fleet_sim.sim.engine import RunOutput, simulate
 
 from .conftest import LAYOUTS, make_scenario, write_yaml
-
-Event = tuple[float, int, str, str, str, str, str]
 
 
 def tiny(tmp_path: Path, **changes: Any) -> Path:
@@ -45,12 +44,12 @@ def run(layout_file: Path, trace: list[TraceOrder] | None = None, **fields: Any)
     return simulate(scenario, load_layout(layout_file), trace or [])
 
 
-def events(out: RunOutput, name: str) -> list[Event]:
-    return [e for e in out.recorder.events if e[2] == name]
+def events(out: RunOutput, name: str) -> list[EventRecord]:
+    return [e for e in out.recorder.events if e.event == name]
 
 
-def error_events(out: RunOutput, code: str) -> list[Event]:
-    return [e for e in events(out, "Event_Critical_Error") if e[6].startswith(code)]
+def error_events(out: RunOutput, code: str) -> list[EventRecord]:
+    return [e for e in events(out, "Event_Critical_Error") if e.detail.startswith(code)]
 
 
 ONE_ORDER = [TraceOrder(20.0, "PICK", "DROP")]
@@ -93,7 +92,7 @@ def block_run(tmp_path: Path, until_s: float) -> RunOutput:
 def test_e101_after_five_minutes_paused_and_not_before(tmp_path: Path) -> None:
     long = block_run(tmp_path, 3000.0)
     paused_at = events(long, "Event_Obstacle_Detected")[0][0]
-    assert error_events(long, "E_101")[0][0] == pytest.approx(paused_at + 300.0, abs=1e-9)
+    assert error_events(long, "E_101")[0].time_s == pytest.approx(paused_at + 300.0, abs=1e-9)
     appeared = paused_at - 0.3
     # the AGV drives on 2 s after the block is lifted; the pause lasts until then
     for pause_s, errs in ((299.9, False), (300.1, True)):
@@ -127,7 +126,7 @@ def test_req_err_011_waits_at_the_next_tag_and_errs_after_10_minutes(tmp_path: P
     assert len(lost) == 1 and (lost[0][3], lost[0][4]) == ("Moving", "Idle")
     assert lost[0][5] in {"S1", "P", "SW"}  # stopped at a tag, not between tags
     waiting_from = lost[0][0]
-    assert error_events(long, "E_301")[0][0] == pytest.approx(waiting_from + 600.0, abs=1e-9)
+    assert error_events(long, "E_301")[0].time_s == pytest.approx(waiting_from + 600.0, abs=1e-9)
     assert long.recorder.orders[0].delivered_s is None
     for wait_s, errs in ((599.9, False), (600.1, True)):
         out = link_run(tmp_path, waiting_from + wait_s - 27.0)
@@ -149,7 +148,7 @@ def test_dead_spot_loses_the_link(tmp_path: Path) -> None:
     assert events(out, "dead_spot_in")
     assert events(out, "Event_Heartbeat_Lost")
     assert error_events(out, "E_301")  # stuck where there is no signal: an operator must come
-    assert kpis(out, events_table(out), orders_table(out))["comm_losses"] >= 1
+    assert run_kpis(out)["comm_losses"] >= 1
 
 
 # ---- battery: 20 %, 95 %, 15 %, 10 % -------------------------------------------------------------
@@ -193,7 +192,8 @@ def test_charger_serves_one_agv_at_a_time_and_queues(tmp_path: Path) -> None:
     out = run(tiny(tmp_path), duration_h=3.0, fleet=fleet)
     spans = []
     starts: dict[int, float] = {}
-    for t, agv, name, *_ in out.recorder.events:
+    for e in out.recorder.events:
+        t, agv, name = e.time_s, e.agv, e.event
         if name == "Event_Arrived_Charger":
             starts[agv] = t
         elif name == "Event_Charge_Complete":
@@ -202,7 +202,7 @@ def test_charger_serves_one_agv_at_a_time_and_queues(tmp_path: Path) -> None:
     spans.sort()
     for (_, end), (start, _) in itertools.pairwise(spans):
         assert start >= end
-    figures = kpis(out, events_table(out), orders_table(out))
+    figures = run_kpis(out)
     assert figures["charges"] == 3 and figures["charging_queue_wait_mean_s"] > 100
 
 
@@ -228,7 +228,7 @@ def test_safe_mode_when_no_link_low_battery_and_no_charger(tmp_path: Path) -> No
                   charging={"enabled": False}, dispatch={"park_idle": False},
                   incidents={"faults": [{"agv": 0, "at_s": 30.0, "code": "E_999"}]},
                   rules={"bat_low_pct": 12.0, "bat_critical_pct": 5.0})
-        after_error = [e for e in out.recorder.events if e[3] == "Error" != e[4]]
+        after_error = [e for e in out.recorder.events if e.from_state == "Error" != e.to_state]
         assert after_error and after_error[0][4] == expected, soc
 
 
@@ -239,8 +239,8 @@ def test_fault_operator_maintenance_and_back(tmp_path: Path) -> None:
               incidents={"faults": [{"agv": 0, "at_s": 25.0, "code": "E_999"}],
                          "operator_response": {"dist": "fixed", "mean_s": 120},
                          "repair": {"dist": "fixed", "mean_s": 300}, "relocalise_s": 10})
-    path = [(e[0], e[2]) for e in out.recorder.events
-            if e[1] == 0 and e[2].startswith("Event_") and e[0] >= 25.0][:4]
+    path = [(e.time_s, e.event) for e in out.recorder.events
+            if e.agv == 0 and e.event.startswith("Event_") and e.time_s >= 25.0][:4]
     assert [p[1] for p in path] == ["Event_Critical_Error", "Event_Switch_Manual",
                                     "Event_Switch_Auto", path[3][1]]
     assert path[1][0] - path[0][0] == pytest.approx(120.0)
@@ -257,7 +257,7 @@ def test_a_failed_transfer_at_the_pickup_puts_the_order_back(tmp_path: Path) -> 
     out = run(tiny(tmp_path), ONE_ORDER, duration_h=0.5,
               incidents={"transfer_failure_prob": 1.0})
     first = error_events(out, "E_102")[0]
-    assert first[0] == pytest.approx(20.0 + 17.3133 + 22.5, abs=1e-4) and first[5] == "P"
+    assert first.time_s == pytest.approx(20.0 + 17.3133 + 22.5, abs=1e-4) and first.node == "P"
     order = out.recorder.orders[0]
     assert order.delivered_s is None and order.picked_s is None and order.failed_s is None
     assert order.reassigned >= 1
@@ -310,7 +310,7 @@ def test_long_run_with_every_incident_loses_no_order(warehouse_layout: object) -
                              fleet={"size": 12}, demand={"rate_per_hour": 80},
                              incidents=incidents)
     out = simulate(scenario, warehouse_layout)  # type: ignore[arg-type]
-    figures = kpis(out, events_table(out), orders_table(out))
+    figures = run_kpis(out)
     assert figures["obstacle_pauses"] > 10 and figures["comm_losses"] > 2
     assert set(figures["errors_by_code"]) == {"E_101", "E_102", "E_202", "E_301", "E_999"}
     assert figures["warnings_by_code"]["E_001"] > 0 and figures["availability_pct"] < 100
@@ -325,9 +325,9 @@ def test_long_run_with_every_incident_loses_no_order(warehouse_layout: object) -
     # every AGV's record of states is one unbroken chain from power-on: each change leaves the
     # state the one before entered, in time order, so time in states is accounted for
     chain: dict[int, list[tuple[float, str, str]]] = defaultdict(list)
-    for t, agv, _, before, after, *_ in out.recorder.events:
-        if before != after:
-            chain[agv].append((t, before, after))
+    for e in out.recorder.events:
+        if e.from_state != e.to_state:
+            chain[e.agv].append((e.time_s, e.from_state, e.to_state))
     assert sorted(chain) == list(range(12))
     for agv, changes in chain.items():
         assert changes[0] == (0.0, "", "Booting"), agv
@@ -348,5 +348,5 @@ def test_scheduled_charging_calls_every_agv(tmp_path: Path) -> None:
               fleet={"size": 2, "vehicle": {"battery": {"initial_soc_pct": 90.0}}},
               charging={"schedule_h": [6.5]})
     went = events(out, "Event_Go_Charge")
-    assert sorted(e[1] for e in went) == [0, 1]
-    assert min(e[0] for e in went) == pytest.approx(1800.0)
+    assert sorted(e.agv for e in went) == [0, 1]
+    assert min(e.time_s for e in went) == pytest.approx(1800.0)

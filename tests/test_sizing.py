@@ -10,28 +10,11 @@ from pathlib import Path
 import pytest
 
 from fleet_sim.config.experiment import load_experiment
-from fleet_sim.config.scenario import load_scenario
-from fleet_sim.study.sizing import analytic_estimate, size_fleet
+from fleet_sim.study.sizing import size_fleet
 
 from .conftest import ROOT
-from .test_engine import HALF_LOOP_S
 
 EXPERIMENT = ROOT / "experiments" / "tiny_loop_sizing.yaml"
-
-
-def test_analytic_estimate_is_the_hand_computed_cycle(tiny_layout: object) -> None:
-    scenario = load_scenario(ROOT / "experiments" / "tiny_loop.yaml",
-                             {"demand.rate_per_hour": 45, "warmup_h": 0.5, "duration_h": 4})
-    estimate = analytic_estimate(scenario, tiny_layout)  # type: ignore[arg-type]
-    assert estimate.loaded_travel_s == pytest.approx(HALF_LOOP_S, abs=1e-9)
-    assert estimate.empty_travel_s == pytest.approx(HALF_LOOP_S, abs=1e-9)
-    assert estimate.handling_s == 50.0
-    assert estimate.cycle_s == pytest.approx(115.2533, abs=1e-4)
-    assert estimate.capacity_per_agv_per_hour == pytest.approx(3600 / 115.2533, rel=1e-6)
-    assert estimate.agvs == pytest.approx(45 * 115.2533 / 3600, rel=1e-6)  # 1.44
-    assert estimate.minimum == 2
-    half = analytic_estimate(scenario, tiny_layout, availability=0.5)  # type: ignore[arg-type]
-    assert half.agvs == pytest.approx(2 * estimate.agvs)
 
 
 def test_size_search_finds_the_known_answer(tmp_path: Path) -> None:

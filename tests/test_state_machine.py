@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import pytest
 
 from fleet_sim.config.layout import Layout
+from fleet_sim.model.records import EventRecord
 from fleet_sim.model.state_machine import TABLE, TRANSITIONS, InvalidTransition
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.agents.vehicle import Vehicle
@@ -59,7 +60,7 @@ class Harness:
     model: Model
     agv: Vehicle
 
-    def events(self) -> list[tuple[float, int, str, str, str, str, str]]:
+    def events(self) -> list[EventRecord]:
         return self.model.recorder.events
 
 
@@ -146,13 +147,13 @@ def test_each_transition(harness: Harness, transition: object, monkeypatch: pyte
         before = len(harness.events())
         assert agv.fire(transition.event) is False
         assert agv.state is source
-        assert harness.events()[before][2] == "guard_failed"
+        assert harness.events()[before].event == "guard_failed"
     satisfy(agv, transition.event)
     assert agv.fire(transition.event, "in a test")
     assert agv.state is transition.target
-    time_s, agv_id, event, from_state, to_state, node, detail = harness.events()[-1]
-    assert (time_s, agv_id, event, from_state, to_state, node, detail) == (
-        0.0, 0, transition.event, source.value, transition.target.value, "S1", "in a test")
+    assert harness.events()[-1] == EventRecord(
+        time_s=0.0, agv=0, event=transition.event, from_state=source.value,
+        to_state=transition.target.value, node="S1", detail="in a test")
 
 
 def test_an_event_with_no_transition_names_agv_state_and_event(harness: Harness) -> None:

@@ -165,7 +165,7 @@ def test_dask_cluster_gives_the_same_results_and_duckdb_queries_them(tmp_path: P
 
 
 def test_node_waits_add_up_to_the_engine_blocked_time(tmp_path: Path) -> None:
-    from fleet_sim.analysis.results import events_table
+    from fleet_sim.analysis.tables import events_table
     from fleet_sim.config.experiment import layout_for
     from fleet_sim.config.scenario import load_scenario
     from fleet_sim.sim.engine import simulate
@@ -173,7 +173,7 @@ def test_node_waits_add_up_to_the_engine_blocked_time(tmp_path: Path) -> None:
     scenario = load_scenario(TINY, {"fleet.size": 3, "duration_h": 3, "warmup_h": 0.5,
                                     "demand.rate_per_hour": 45, "seed": 5})
     run = simulate(scenario, layout_for(scenario, TINY), record_occupancy=True)
-    waits = node_waits(run.recorder.occupancy, events_table(run), scenario.warmup_s,
+    waits = node_waits(run.recorder.occupancy, events_table(run.recorder), scenario.warmup_s,
                        scenario.duration_s)
     assert run.recorder.blocked_s > 100  # a run with traffic worth checking
     assert waits["wait_s"].sum() == pytest.approx(run.recorder.blocked_s, rel=1e-3)

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fleet_sim.analysis.results import events_table
+from fleet_sim.analysis.tables import events_table
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.sim.engine import simulate
@@ -65,7 +65,7 @@ def test_an_order_walks_the_states_and_sub_states_in_order(tiny_layout: Layout) 
                              dispatch={"park_idle": False},
                              demand={"kind": "trace", "trace_csv": "unused.csv"})
     run = simulate(scenario, tiny_layout, [TraceOrder(100.0, "PICK", "DROP")])
-    table = events_table(run)
+    table = events_table(run.recorder)
     rows = table[(table["time_s"] >= 100.0) & (table["agv"] == 0)]
     seen = list(zip(rows["event"], rows["from_state"], rows["to_state"], strict=True))
     assert seen == [
@@ -110,7 +110,7 @@ def test_the_trip_to_the_charger_is_moving_with_its_purpose(tmp_path: Path) -> N
                                     "vehicle": {"battery": {"initial_soc_pct": 25.0}}},
                              demand={"rate_per_hour": 0}, dispatch={"park_idle": False})
     run = simulate(scenario, load_layout(layout_file))
-    table = events_table(run)
+    table = events_table(run.recorder)
     rows = table[table["from_state"] != table["to_state"]]
     seen = list(zip(rows["event"], rows["from_state"], rows["to_state"], rows["node"],
                     strict=True))

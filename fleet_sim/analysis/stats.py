@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 from scipy.special import stdtrit
 
+from fleet_sim.analysis.kpis import COUNTS_BY_CODE
 from fleet_sim.config.experiment import Target
 
 CONFIDENCE = 0.95
@@ -202,8 +203,12 @@ def check_targets(summary: pd.DataFrame, factor_names: Sequence[str],
     for key, group in groups:
         point = dict(zip(factor_names, key if isinstance(key, tuple) else (key,), strict=True))
         for target in targets:
-            values = group[target.kpi].to_numpy(dtype=float, na_value=np.nan) \
-                if target.kpi in group else np.array([np.nan])
+            if target.kpi in group:
+                values = group[target.kpi].to_numpy(dtype=float, na_value=np.nan)
+            elif target.kpi in COUNTS_BY_CODE:  # no run raised that code: zero times
+                values = np.zeros(len(group))
+            else:
+                values = np.array([np.nan])
             checks.append(target_check(point, target, values))
     return checks
 

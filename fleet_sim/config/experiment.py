@@ -62,9 +62,6 @@ from fleet_sim.errors import InputError
 FLEET = "fleet.size"
 """The factor the sizing search varies."""
 
-DERIVED_KPIS = ("demand_per_hour", "throughput_pct_of_demand", "orders_open_at_end", "wall_s")
-"""KPIs the experiment layer adds to the engine's (see fleet_sim.study.sweep)."""
-
 LHS_STREAM = 2**32
 
 

@@ -1,12 +1,45 @@
 """What a run records: events, orders, traffic figures. Plain Python records, collected in one
-place and turned into tables only after the run (by fleet_sim.analysis.results)."""
+place and turned into tables and KPIs only after the run (fleet_sim.analysis.tables, .kpis).
+
+Decision: events and occupancy spells are typed NamedTuples rather than dataclasses. They are
+immutable and read by field name like a frozen dataclass with slots, cost no more to create than
+the plain tuples they replace (a run records some 100,000 events), and pandas builds a table
+from a list of them directly, in field order (the columns of events.parquet).
+"""
 
 from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
-EVENT_COLUMNS = ("time_s", "agv", "event", "from_state", "to_state", "node", "detail")
+
+class EventRecord(NamedTuple):
+    """One state transition or incident of one AGV: a row of events.parquet."""
+
+    time_s: float
+    agv: int
+    event: str
+    """The RSS-AGV-001 event (Event_...) or the incident/note (order_assigned, deadlock...)."""
+    from_state: str
+    to_state: str
+    """Equal to from_state for an event that changes no state."""
+    node: str
+    detail: str = ""
+
+
+EVENT_COLUMNS = EventRecord._fields
+
+
+class OccupancySpell(NamedTuple):
+    """An AGV holding a node or traversing a segment (key "u>v") from start_s to end_s."""
+
+    kind: str
+    """"node" or "segment"."""
+    key: str
+    agv: int
+    start_s: float
+    end_s: float
 
 
 @dataclass(slots=True)
@@ -42,15 +75,15 @@ class Recorder:
     warmup_s: float
     end_s: float
     record_occupancy: bool = False
-    events: list[tuple[float, int, str, str, str, str, str]] = field(default_factory=list)
+    events: list[EventRecord] = field(default_factory=list)
     orders: list[Order] = field(default_factory=list)
     queue_lengths: list[tuple[float, int]] = field(default_factory=list)
     blocked_s: float = 0.0
     distance_m: float = 0.0
     distance_total_m: float = 0.0
     deadlocks: int = 0
-    occupancy: list[tuple[str, str, int, float, float]] = field(default_factory=list)
-    """(kind, key, agv, start_s, end_s): node holds and segment traversals, when traced."""
+    occupancy: list[OccupancySpell] = field(default_factory=list)
+    """Node holds and segment traversals, when traced (record_occupancy)."""
     charge_waits: list[tuple[float, float]] = field(default_factory=list)
     """(asked_s, charger_assigned_s) per charging."""
     obstacle_pauses: int = 0
@@ -68,7 +101,7 @@ class Recorder:
 
     def event(self, time_s: float, agv: int, event: str, from_state: str, to_state: str,
               node: str, detail: str = "") -> None:
-        self.events.append((time_s, agv, event, from_state, to_state, node, detail))
+        self.events.append(EventRecord(time_s, agv, event, from_state, to_state, node, detail))
 
     def window(self, start_s: float, end_s: float) -> float:
         """The part of [start_s, end_s] inside the measured window (after warm-up)."""
@@ -87,4 +120,4 @@ class Recorder:
 
     def occupied(self, kind: str, key: str, agv: int, start_s: float, end_s: float) -> None:
         if self.record_occupancy:
-            self.occupancy.append((kind, key, agv, start_s, end_s))
+            self.occupancy.append(OccupancySpell(kind, key, agv, start_s, end_s))

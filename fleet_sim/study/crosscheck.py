@@ -27,7 +27,7 @@ COLUMNS = (("throughput_per_hour", "throughput /h", "{:.1f}"),
 
 def run_here(scenario_file: str, overrides: dict[str, Any]) -> dict[str, Any]:
     """Run one scenario in this process; its KPIs plus wall time and SimPy event count."""
-    from fleet_sim.analysis.results import events_table, kpis, orders_table
+    from fleet_sim.analysis.kpis import run_kpis
     from fleet_sim.config.scenario import load_layout_for, load_scenario
     from fleet_sim.config.trace import load_trace
     from fleet_sim.sim.engine import simulate
@@ -39,7 +39,7 @@ def run_here(scenario_file: str, overrides: dict[str, Any]) -> dict[str, Any]:
         assert scenario.demand.trace_csv is not None
         trace = load_trace(scenario.path(scenario.demand.trace_csv), layout)
     run = simulate(scenario, layout, trace)
-    figures = kpis(run, events_table(run), orders_table(run))
+    figures = run_kpis(run)
     figures["wall_s"] = run.wall_s
     figures["sim_events"] = run.sim_events
     figures["motion"] = scenario.motion

@@ -2,12 +2,8 @@
 
 Two answers side by side:
 
-* The analytic estimate: the time one order takes an AGV (empty travel to the pickup, loaded
-  travel to the drop-off, handling at both ends), times the demand, over the AGV time available.
-  Travel times are free-flow times of the shortest routes under the vehicle's speed profile
-  (fleet_sim.model.kinematics: start, turns at turn speed, stop), weighted by the order flows; the
-  empty leg runs from the drop-off of one order to the pickup of an independent next order. No
-  waiting, no traffic: it is a lower bound on the fleet, and the search starts there.
+* The analytic estimate (fleet_sim.analysis.estimate): travel and handling per order x demand /
+  AGV time; no waiting, no traffic: a lower bound on the fleet, and the search starts there.
 * The search: evaluate a fleet size with the experiment's replications; where the 95 % interval
   of a target KPI straddles the bound, add replications (up to ``sizing.max_replications``,
   growing towards the number fleet_sim.analysis.stats estimates would decide it); step away
@@ -24,138 +20,25 @@ Other factors of the experiment (say, two demand levels) each get their own sear
 
 from __future__ import annotations
 
-import itertools
 import json
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 
+from fleet_sim.analysis.estimate import Estimate, analytic_estimate
+from fleet_sim.analysis.kpis import kpi_value
 from fleet_sim.analysis.stats import TargetCheck, target_check
 from fleet_sim.config.experiment import FLEET, Experiment, Target, layout_for, load_trace_for
-from fleet_sim.config.layout import Layout
-from fleet_sim.config.scenario import Scenario
 from fleet_sim.errors import InputError
-from fleet_sim.model.kinematics import Motion, Piece, traverse
-from fleet_sim.sim.demand import resolved_flows
-from fleet_sim.sim.traffic.routing import Routes
+from fleet_sim.study.progress import Progress
 from fleet_sim.study.sweep import DaskPool, LocalPool, execute, prepare, write_tables
 
 DEFAULT_MAX_AGVS = 50
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """Analytic fleet estimate from travel and handling times."""
-
-    empty_travel_s: float
-    loaded_travel_s: float
-    handling_s: float
-    demand_per_hour: float
-    """Mean demand over the measured window (after warm-up)."""
-    peak_demand_per_hour: float
-    agv_availability: float
-
-    @property
-    def cycle_s(self) -> float:
-        return self.empty_travel_s + self.loaded_travel_s + self.handling_s
-
-    @property
-    def capacity_per_agv_per_hour(self) -> float:
-        return 3600.0 * self.agv_availability / self.cycle_s
-
-    @property
-    def agvs(self) -> float:
-        """AGVs kept busy by the mean demand (fractional)."""
-        return self.demand_per_hour / self.capacity_per_agv_per_hour
-
-    @property
-    def agvs_at_peak(self) -> float:
-        return self.peak_demand_per_hour / self.capacity_per_agv_per_hour
-
-    @property
-    def minimum(self) -> int:
-        """The least whole fleet that can carry the mean demand at all."""
-        return max(1, math.ceil(self.agvs - 1e-9))
-
-    def as_dict(self) -> dict[str, float]:
-        return {**asdict(self), "cycle_s": self.cycle_s,
-                "capacity_per_agv_per_hour": self.capacity_per_agv_per_hour,
-                "agvs": self.agvs, "agvs_at_peak": self.agvs_at_peak, "minimum": self.minimum}
-
-
-def route_time_s(traffic: Routes, motion: Motion, src: str, dest: str) -> float:
-    """Free-flow time from standstill at `src` to standstill at `dest` by the shortest route."""
-    if src == dest:
-        return 0.0
-    path = traffic.route(src, dest)
-    pieces: list[Piece] = []
-    prev: str | None = None
-    for u, v in itertools.pairwise(path):
-        pieces.extend(traffic.pieces(prev, u, v))
-        prev = u
-    time_s, _ = traverse(pieces, 0.0, 0.0, motion.accel_mps2, motion.decel_mps2)
-    return time_s
-
-
-def analytic_estimate(scenario: Scenario, layout: Layout, availability: float = 1.0,
-                      trace: Sequence[Any] = ()) -> Estimate:
-    profile = scenario.fleet.vehicle
-    motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
-                    profile.turn_speed_mps)
-    traffic = Routes(layout, motion)
-
-    def place_time(a: str, b: str) -> float:
-        """Mean over the nodes of two places."""
-        times = [route_time_s(traffic, motion, u, v)
-                 for u in layout.places[a].nodes for v in layout.places[b].nodes]
-        return float(np.mean(times))
-
-    if trace:
-        pairs: dict[tuple[str, str], float] = {}
-        for item in trace:
-            pairs[(item.pickup, item.dropoff)] = pairs.get((item.pickup, item.dropoff), 0) + 1
-        flows = [(p, d, w) for (p, d), w in pairs.items()]
-    else:
-        flows = resolved_flows(scenario.demand, layout)
-    total = sum(w for _, _, w in flows)
-    p_pick: dict[str, float] = {}
-    p_drop: dict[str, float] = {}
-    for p, d, w in flows:
-        p_pick[p] = p_pick.get(p, 0.0) + w / total
-        p_drop[d] = p_drop.get(d, 0.0) + w / total
-    loaded = sum(w / total * place_time(p, d) for p, d, w in flows)
-    empty = sum(pd * pp * place_time(d, p) for d, pd in p_drop.items()
-                for p, pp in p_pick.items())
-
-    def handling(place: str) -> float:
-        spec = layout.places[place].handling
-        return spec.expected_s if spec is not None else 0.0
-
-    handle = sum(w / total * (handling(p) + handling(d)) for p, d, w in flows)
-    mean_rate, peak_rate = demand_rates(scenario, trace)
-    return Estimate(empty, loaded, handle, mean_rate, peak_rate, availability)
-
-
-def demand_rates(scenario: Scenario, trace: Sequence[Any] = ()) -> tuple[float, float]:
-    """(mean, peak hourly) demand over the measured window."""
-    start, end = scenario.warmup_s, scenario.duration_s
-    if scenario.demand.kind == "trace":
-        times = np.array([t.time_s for t in trace], dtype=float)
-        inside = times[(times >= start) & (times <= end)]
-        window_h = max((end - start) / 3600.0, 1e-9)
-        bins = max(1, math.ceil(window_h))
-        counts = np.histogram(inside, bins=bins, range=(start, end))[0]
-        return len(inside) / window_h, float(counts.max()) / (window_h / bins)
-    steps = np.arange(start, end, 60.0) + 30.0  # minute midpoints
-    clock_h = (scenario.start_h + steps / 3600.0) % 24.0
-    mult = np.array([scenario.demand.multiplier_at(float(h)) for h in clock_h])
-    rate = scenario.demand.rate_per_hour
-    return rate * float(mult.mean()), rate * float(mult.max())
 
 
 # ---- the search ----------------------------------------------------------------------------
@@ -246,16 +129,12 @@ class Sizer:
     """Runs the search for one group of fixed factor values."""
 
     def __init__(self, experiment: Experiment, out_dir: Path, fixed: dict[str, Any],
-                 workers: int = 0, scheduler: str | None = None, quiet: bool = False,
-                 stream: IO[str] | None = None, pool: LocalPool | DaskPool | None = None) -> None:
-        self.pool = pool
+                 pool: LocalPool | DaskPool, progress: Progress) -> None:
         self.experiment = experiment
         self.out_dir = out_dir
         self.fixed = fixed
-        self.workers = workers
-        self.scheduler = scheduler
-        self.quiet = quiet
-        self.stream = stream
+        self.pool = pool
+        self.progress = progress
         self.targets: Sequence[Target] = experiment.spec.targets
 
     def evaluate(self, agvs: int, result: GroupResult) -> Evaluation:
@@ -265,8 +144,7 @@ class Sizer:
         while True:
             factors = {**self.fixed, FLEET: agvs}
             runs = [self.experiment.run(factors, r) for r in range(reps)]
-            execute(runs, self.out_dir, self.workers, self.scheduler, quiet=True,
-                    stream=self.stream, pool=self.pool)
+            execute(runs, self.out_dir, quiet=True, pool=self.pool)
             values, failed = self._values(runs)
             checks = [target_check(factors, t, values[t.kpi]) for t in self.targets]
             ev = Evaluation(agvs, reps, checks, failed)
@@ -276,12 +154,10 @@ class Sizer:
             grow = max(wanted) if wanted else reps + 1
             reps = min(cap, max(reps + 1, min(grow, 2 * reps)))
         result.evaluations[agvs] = ev
-        if not self.quiet:
-            note = " (undecided at the replication limit: counted as not meeting)" \
-                if ev.verdict == "undecided" else ""
-            where = ", ".join(f"{k}={v}" for k, v in self.fixed.items())
-            self._say(f"{where + ': ' if where else ''}{agvs} AGVs, {ev.replications} "
-                      f"replications: {ev.verdict}{note}")
+        note = " (undecided at the replication limit: counted as not meeting)" \
+            if ev.verdict == "undecided" else ""
+        self.progress.note(f"{_where(self.fixed)}{agvs} AGVs, {ev.replications} "
+                           f"replications: {ev.verdict}{note}")
         return ev
 
     def _values(self, runs: Sequence[Any]) -> tuple[dict[str, np.ndarray], int]:
@@ -294,16 +170,9 @@ class Sizer:
                 continue
             figures = json.loads(kpi_file.read_text(encoding="utf-8"))
             for kpi in values:
-                value = figures.get(kpi)
+                value = kpi_value(figures, kpi)
                 values[kpi].append(math.nan if value is None else float(value))
         return {k: np.array(v, dtype=float) for k, v in values.items()}, failed
-
-    def _say(self, text: str) -> None:
-        import sys
-
-        stream = self.stream if self.stream is not None else sys.stderr
-        stream.write(f"  {text}\n")
-        stream.flush()
 
     def search(self, estimate: Estimate, lo_limit: int, hi_limit: int) -> GroupResult:
         result = GroupResult(self.fixed, estimate, min_agvs=lo_limit, max_agvs=hi_limit)
@@ -380,10 +249,10 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
     n_workers = workers or os.cpu_count() or 1
     pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers) if scheduler \
         else LocalPool(n_workers)
-    with pool:
+    with pool, Progress(stream=stream, quiet=quiet) as progress:
         for fixed in groups(experiment):
-            results.append(_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, workers,
-                                       scheduler, quiet, stream, pool))
+            results.append(_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool,
+                                       progress))
     document = {"experiment": experiment.name, "confidence": 0.95,
                 "targets": [t.describe() for t in spec.targets],
                 "groups": [r.as_dict() for r in results]}
@@ -394,18 +263,19 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
 
 
 def _size_group(experiment: Experiment, out_dir: Path, fixed: dict[str, Any], lo_limit: int,
-                hi_limit: int, workers: int, scheduler: str | None, quiet: bool,
-                stream: IO[str] | None, pool: LocalPool | DaskPool) -> GroupResult:
+                hi_limit: int, pool: LocalPool | DaskPool, progress: Progress) -> GroupResult:
     spec = experiment.spec
     scenario = experiment.scenario(fixed)
     layout = layout_for(scenario, str(experiment.scenario_file))
     trace = load_trace_for(scenario, layout)
     estimate = analytic_estimate(scenario, layout, spec.sizing.agv_availability, trace)
-    sizer = Sizer(experiment, out_dir, fixed, workers, scheduler, quiet, stream, pool)
-    if not quiet:
-        where = ", ".join(f"{k}={v}" for k, v in fixed.items())
-        sizer._say(f"{where + ': ' if where else ''}analytic estimate {estimate.agvs:.2f} AGVs "
-                   f"busy at the mean demand ({estimate.demand_per_hour:.1f} orders/h x "
-                   f"{estimate.cycle_s:.1f} s per order); searching {lo_limit} to {hi_limit} "
-                   f"AGVs from {min(max(estimate.minimum, lo_limit), hi_limit)}")
-    return sizer.search(estimate, lo_limit, hi_limit)
+    progress.note(f"{_where(fixed)}analytic estimate {estimate.agvs:.2f} AGVs busy at the mean "
+                  f"demand ({estimate.demand_per_hour:.1f} orders/h x {estimate.cycle_s:.1f} s "
+                  f"per order); searching {lo_limit} to {hi_limit} AGVs from "
+                  f"{min(max(estimate.minimum, lo_limit), hi_limit)}")
+    return Sizer(experiment, out_dir, fixed, pool, progress).search(estimate, lo_limit, hi_limit)
+
+
+def _where(fixed: dict[str, Any]) -> str:
+    """The fixed factor values as a message prefix ("demand.rate_per_hour=90: "), or ""."""
+    return ", ".join(f"{k}={v}" for k, v in fixed.items()) + ": " if fixed else ""

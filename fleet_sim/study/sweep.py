@@ -39,9 +39,8 @@ Decisions, where the issue is silent:
   idling before it, nor a park-in manoeuvre) is waiting for the way ahead. Summed over the
   measured window (after warm-up), per node, it equals the engine's blocked time. Needs the
   engine's occupancy trace, which the sweep turns on; it does not change the run.
-* Derived KPIs: ``demand_per_hour`` (orders created in the measured window, per hour),
-  ``throughput_pct_of_demand`` (throughput over that demand, so "at least 98 % of demand" is a
-  plain target), ``orders_open_at_end`` and ``wall_s`` (the run's wall time).
+* KPIs: every run's are computed in memory (fleet_sim.analysis.kpis, as for `fleet-sim run`);
+  the sweep adds ``wall_s``, the run's wall time including writing its files.
 * DuckDB views read the Parquet files by absolute path: the database works from any folder;
   after moving a results folder, run the sweep again (nothing is recomputed) to rebuild it.
 """
@@ -56,7 +55,6 @@ import multiprocessing
 import os
 import shutil
 import socket
-import sys
 import time
 import traceback
 from collections import deque
@@ -71,6 +69,8 @@ import yaml
 
 from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, layout_for, load_trace_for
 from fleet_sim.errors import FleetSimError, InputError
+from fleet_sim.model.records import OccupancySpell
+from fleet_sim.study.progress import Progress
 
 RunFn = Callable[[RunSpec, str], "RunResult"]
 """A function that executes one run into `runs_dir` (module level, so workers can import it)."""
@@ -95,7 +95,8 @@ class SweepError(FleetSimError):
 
 def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
     """Run `spec` into ``runs_dir/<run id>``; never raises for a failing run."""
-    from fleet_sim.analysis.results import write_run
+    from fleet_sim.analysis.kpis import run_kpis
+    from fleet_sim.analysis.tables import write_run
     from fleet_sim.config.scenario import load_scenario
     from fleet_sim.sim.engine import simulate
 
@@ -115,13 +116,9 @@ def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
         scenario = load_scenario(spec.scenario_file, spec.override_dict())
         layout = layout_for(scenario, spec.scenario_file)
         run = simulate(scenario, layout, load_trace_for(scenario, layout), record_occupancy=True)
-        figures = write_run(run, partial)
-        orders = pd.read_parquet(partial / "orders.parquet",
-                                 columns=["created_s", "delivered_s"])
-        events = pd.read_parquet(partial / "events.parquet",
-                                 columns=["time_s", "agv", "event", "from_state", "to_state"])
-        figures.update(derived_kpis(figures, orders, scenario.warmup_s, scenario.duration_s))
-        waits = node_waits(run.recorder.occupancy, events, scenario.warmup_s,
+        figures = run_kpis(run)
+        tables = write_run(run, partial, figures)
+        waits = node_waits(run.recorder.occupancy, tables.events, scenario.warmup_s,
                            scenario.duration_s)
         waits.to_parquet(partial / "node_waits.parquet", index=False)
         wall = time.perf_counter() - start
@@ -152,25 +149,10 @@ def _write_json_atomic(path: Path, data: Any) -> None:
     os.replace(tmp, path)
 
 
-def derived_kpis(figures: dict[str, Any], orders: pd.DataFrame, start_s: float,
-                 end_s: float) -> dict[str, Any]:
-    """KPIs the planner's targets need beyond the engine's (see the module docstring)."""
-    window_h = (end_s - start_s) / 3600.0
-    created = orders["created_s"].to_numpy(dtype=float)
-    demand = float(np.count_nonzero((created >= start_s) & (created <= end_s))) / window_h
-    throughput = figures.get("throughput_per_hour")
-    pct = None
-    if demand > 0 and isinstance(throughput, (int, float)):
-        pct = round(100.0 * float(throughput) / demand, 6)
-    open_orders = int(orders["delivered_s"].isna().sum())
-    return {"demand_per_hour": round(demand, 6), "throughput_pct_of_demand": pct,
-            "orders_open_at_end": open_orders}
-
-
-def node_waits(occupancy: Sequence[tuple[str, str, int, float, float]], events: pd.DataFrame,
+def node_waits(occupancy: Sequence[OccupancySpell], events: pd.DataFrame,
                start_s: float, end_s: float) -> pd.DataFrame:
     """Per node: AGV passes, and seconds AGVs with work to do stood there waiting for the way."""
-    segs = pd.DataFrame([o for o in occupancy if o[0] == "segment"],
+    segs = pd.DataFrame([o for o in occupancy if o.kind == "segment"],
                         columns=["kind", "key", "agv", "start", "end"])
     if segs.empty:
         return pd.DataFrame({"node": pd.Series(dtype="string"),
@@ -242,51 +224,22 @@ def _work_spells(events: pd.DataFrame) -> dict[int, tuple[np.ndarray, np.ndarray
 # ---- progress ------------------------------------------------------------------------------
 
 
-class Progress:
-    """Runs done, failed and time left, on stderr: a live line on a terminal, else a line per
-    tenth of the work (and at the end)."""
+@dataclass
+class RunTally:
+    """Counts runs as they finish and shows them through `progress`."""
 
-    def __init__(self, total: int, already: int, stream: IO[str] | None = None,
-                 quiet: bool = False) -> None:
-        self.total = total
-        self.done = already
-        self.failed = 0
-        self.todo = total - already
-        self.new = 0
-        self.start = time.perf_counter()
-        self.stream = stream if stream is not None else sys.stderr
-        self.tty = self.stream.isatty()
-        self.quiet = quiet
-        self.last_tenth = -1
-        if not quiet and already:
-            self.stream.write(f"  {already} of {total} runs already finished: skipped\n")
+    progress: Progress
+    total: int
+    done: int
+    failed: int = 0
 
     def __call__(self, result: RunResult) -> None:
         self.done += 1
-        self.new += 1
         if result.status != OK:
             self.failed += 1
-            if not self.quiet:
-                self._write(f"run {result.run_id} {result.status}: {result.error}", final=True)
-        if self.quiet:
-            return
-        elapsed = time.perf_counter() - self.start
-        left = elapsed / self.new * (self.todo - self.new)
-        text = (f"runs {self.done}/{self.total} done, {self.failed} failed, "
-                f"{elapsed:.0f} s elapsed, ~{left:.0f} s left")
-        tenth = int(10 * self.new / max(self.todo, 1))
-        if self.tty:
-            self._write(text, final=self.new == self.todo)
-        elif tenth > self.last_tenth:
-            self.last_tenth = tenth
-            self._write(text, final=True)
-
-    def _write(self, text: str, final: bool) -> None:
-        if self.tty:
-            self.stream.write("\r  " + text.ljust(78) + ("\n" if final else ""))
-        else:
-            self.stream.write("  " + text + "\n")
-        self.stream.flush()
+            self.progress.note(f"run {result.run_id} {result.status}: {result.error}")
+        self.progress.update(self.done, f"runs {self.done}/{self.total} done, "
+                                        f"{self.failed} failed")
 
 
 # ---- runners -------------------------------------------------------------------------------
@@ -296,7 +249,7 @@ def _mp_context() -> Any:
     if "forkserver" in multiprocessing.get_all_start_methods():
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(["fleet_sim.study.sweep", "fleet_sim.sim.engine",
-                                        "fleet_sim.analysis.results"])
+                                        "fleet_sim.analysis.kpis", "fleet_sim.analysis.tables"])
         return context
     return multiprocessing.get_context("spawn")
 
@@ -542,16 +495,20 @@ def execute(specs: Iterable[RunSpec], out_dir: Path, workers: int = 0,
     todo = [s for s in specs if not finished(s, runs_dir)]
     todo.sort(key=lambda s: -_cost(s))
     workers = workers or os.cpu_count() or 1
-    progress = Progress(len(specs), len(specs) - len(todo), stream=stream, quiet=quiet)
-    if not todo:
-        results: list[RunResult] = []
-    elif pool is not None:
-        results = pool.run(todo, runs_dir, progress)
-    elif scheduler:
-        with DaskPool(scheduler, workers, run_fn) as dask_pool:
-            results = dask_pool.run(todo, runs_dir, progress)
-    else:
-        results = run_local(todo, runs_dir, min(workers, len(todo)), progress, run_fn)
+    already = len(specs) - len(todo)
+    with Progress(len(specs), already, stream=stream, quiet=quiet) as progress:
+        if already:
+            progress.note(f"{already} of {len(specs)} runs already finished: skipped")
+        tally = RunTally(progress, len(specs), already)
+        if not todo:
+            results: list[RunResult] = []
+        elif pool is not None:
+            results = pool.run(todo, runs_dir, tally)
+        elif scheduler:
+            with DaskPool(scheduler, workers, run_fn) as dask_pool:
+                results = dask_pool.run(todo, runs_dir, tally)
+        else:
+            results = run_local(todo, runs_dir, min(workers, len(todo)), tally, run_fn)
     return SweepOutcome(out_dir, len(specs), len(specs) - len(todo), results)
 
 
@@ -663,7 +620,3 @@ def write_duckdb(out_dir: Path) -> Path:
 def _sql(path: Path) -> str:
     return str(path).replace("'", "''")
 
-
-def finite(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) \
-        and math.isfinite(float(value))

@@ -1,0 +1,176 @@
+"""KPIs of a tiny hand-made run, worked out by hand in the comments; the catalogue; and the same
+KPI values from `fleet-sim run` and from a sweep."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+from fleet_sim.analysis.kpis import (
+    CATALOGUE,
+    RUN_FIELDS,
+    compute_kpis,
+    kpi_names,
+    kpi_value,
+)
+from fleet_sim.config.experiment import load_experiment
+from fleet_sim.model.records import Order, Recorder
+from fleet_sim.study.sweep import OK, execute_run
+
+from .conftest import LAYOUTS, ROOT, make_scenario, write_yaml
+
+# The run: 2 AGVs, 1 h, warm-up 0.25 h, so the window is [900 s, 3600 s] = 0.75 h and
+# 2 x 2700 = 5400 AGV-seconds.
+START_S, END_S = 900.0, 3600.0
+
+
+def hand_made_recorder() -> Recorder:
+    rec = Recorder(START_S, END_S)
+    rec.orders = [
+        Order(1, 100.0, "PICK", "DROP", agv=0, assigned_s=200.0, delivered_s=1000.0),
+        Order(2, 1000.0, "PICK", "DROP", agv=0, assigned_s=1200.0, delivered_s=2000.0),
+        Order(3, 1500.0, "PICK", "DROP", agv=1, assigned_s=1600.0, delivered_s=3000.0),
+        Order(4, 3000.0, "PICK", "DROP", agv=1, assigned_s=3300.0, failed_s=3400.0,
+              failure="E_102"),
+        Order(5, 3500.0, "PICK", "DROP"),  # never assigned
+        Order(6, 500.0, "PICK", "DROP", agv=1, assigned_s=600.0, delivered_s=800.0,
+              reassigned=1),  # all in the warm-up
+    ]
+    for event in [(0.0, 0, "boot", "Booting", "Idle"), (0.0, 1, "boot", "Booting", "Idle"),
+                  (1200.0, 0, "go", "Idle", "Moving"),
+                  (1500.0, 0, "order_assigned", "Idle", "Idle"),  # no change of state
+                  (1800.0, 1, "fault", "Idle", "Error"),
+                  (2000.0, 0, "arrived", "Moving", "Idle"),
+                  (2400.0, 1, "manual", "Error", "Maintenance"),
+                  (3000.0, 1, "auto", "Maintenance", "Idle")]:
+        rec.event(*event, node="P")
+    rec.queue_lengths = [(0.0, 0), (500.0, 3), (900.0, 2), (1800.0, 1), (2700.0, 0)]
+    rec.blocked_s = 270.0
+    rec.distance_m = 12_345.0
+    rec.deadlocks = 2
+    rec.charge_waits = [(100.0, 160.0), (2000.0, 2020.0)]
+    rec.errors = [(1800.0, 1, "E_999", "Fatal"), (2500.0, 0, "E_101", "Error"),
+                  (2600.0, 0, "E_101", "Error")]
+    rec.warnings = Counter({"E_002": 3})
+    rec.obstacle_pauses, rec.comm_losses = 4, 1
+    rec.commands_sent, rec.command_retries = 7, 1
+    return rec
+
+
+def hand_made_figures(**changes: Any) -> dict[str, Any]:
+    scenario = make_scenario(name="hand", seed=3, duration_h=1.0, warmup_h=0.25,
+                             fleet={"size": 2}, **changes)
+    return compute_kpis(hand_made_recorder(), scenario, "tiny_loop")
+
+
+def test_every_kpi_of_a_hand_made_run() -> None:
+    figures = hand_made_figures()
+    assert figures == {
+        "scenario": "hand", "layout": "tiny_loop", "agvs": 2, "seed": 3, "duration_h": 1.0,
+        "warmup_h": 0.25,
+        "orders_created": 6,
+        "orders_completed": 4,  # orders 1, 2, 3 and 6 (delivered in the warm-up)
+        "throughput_per_hour": 4.0,  # orders 1, 2, 3 in 0.75 h
+        "lead_time_mean_s": 1133.333333,  # (900 + 1000 + 1500) / 3
+        "lead_time_p95_s": 1450.0,  # 1000 + 0.9 x (1500 - 1000)
+        # busy in the window: 100 + 800 + 1400 + 100 (order 4 until it failed) = 2400 of 5400
+        "agv_utilisation_pct": 44.444444,
+        "blocked_time_pct": 5.0,  # 270 of 5400
+        "deadlocks_detected": 2,
+        "distance_km": 12.345,
+        "order_wait_mean_s": 160.0,  # (100 + 200 + 100 + 300 + 100) / 5; order 5 waits on
+        "order_queue_mean": 1.0,  # (2 x 900 + 1 x 900 + 0 x 900) / 2700
+        # AGV 0: Idle 300 + 1600, Moving 800; AGV 1: Idle 900 + 600, Error 600, Maint. 600
+        "state_booting_pct": 0.0, "state_idle_pct": 62.962963, "state_moving_pct": 14.814815,
+        "state_loading_pct": 0.0, "state_unloading_pct": 0.0, "state_charging_pct": 0.0,
+        "state_paused_pct": 0.0, "state_error_pct": 11.111111,
+        "state_maintenance_pct": 11.111111, "state_safe_mode_pct": 0.0,
+        "availability_pct": 77.777778,  # 1 - 1200 / 5400
+        "orders_failed": 1, "orders_reassigned": 1,
+        "charges": 2, "charging_queue_wait_mean_s": 40.0,  # (60 + 20) / 2
+        "commands_sent": 7, "command_retries": 1, "obstacle_pauses": 4, "comm_losses": 1,
+        "errors_by_code": {"E_101": 2, "E_999": 1}, "warnings_by_code": {"E_002": 3},
+        "demand_per_hour": 5.333333,  # orders 2, 3, 4, 5 created in 0.75 h
+        "throughput_pct_of_demand": 75.0,  # 4 of 5.33 per hour
+        "orders_open_at_end": 2,  # orders 4 (failed) and 5
+    }
+
+
+def test_throughput_pct_of_demand_uses_the_rounded_throughput() -> None:
+    rec = Recorder(0.0, 3600.0)
+    # 3 orders created in 1 h, 2 delivered: 2/3 of demand
+    rec.orders = [Order(i, 10.0 * i, "PICK", "DROP", assigned_s=10.0 * i,
+                        delivered_s=20.0 * i if i < 2 else None) for i in range(3)]
+    scenario = make_scenario(duration_h=1.0, warmup_h=0.0, fleet={"size": 1})
+    figures = compute_kpis(rec, scenario, "tiny_loop")
+    assert figures["demand_per_hour"] == 3.0
+    assert figures["throughput_pct_of_demand"] == 66.666667
+    # 9 orders created in 3 h, 7 delivered: 2.333333 /h of 3 /h, 77.777767 % (not 77.777778)
+    rec = Recorder(0.0, 3 * 3600.0)
+    rec.orders = [Order(i, 1.0, "PICK", "DROP", delivered_s=2.0) for i in range(7)] + \
+        [Order(i, 3.0, "PICK", "DROP") for i in (7, 8)]
+    scenario = make_scenario(duration_h=3.0, warmup_h=0.0, fleet={"size": 1})
+    figures = compute_kpis(rec, scenario, "tiny_loop")
+    assert figures["throughput_per_hour"] == 2.333333 and figures["demand_per_hour"] == 3.0
+    assert figures["throughput_pct_of_demand"] == 77.777767
+
+
+def test_no_orders_no_demand_no_ratio() -> None:
+    scenario = make_scenario(duration_h=1.0, warmup_h=0.0, fleet={"size": 1})
+    figures = compute_kpis(Recorder(0.0, 3600.0), scenario, "tiny_loop")
+    assert figures["demand_per_hour"] == 0.0 and figures["throughput_pct_of_demand"] is None
+    assert figures["lead_time_mean_s"] is None and figures["order_wait_mean_s"] is None
+    assert figures["charging_queue_wait_mean_s"] is None
+    assert figures["state_booting_pct"] == 0.0 and figures["availability_pct"] == 100.0
+
+
+def test_catalogue_names_every_kpi_a_run_reports_once() -> None:
+    figures = hand_made_figures()
+    reported = {k for k in figures if k not in RUN_FIELDS and not isinstance(figures[k], dict)}
+    names = [k.name for k in CATALOGUE]
+    assert len(names) == len(set(names))
+    assert reported <= kpi_names()
+    assert kpi_names() - reported == {
+        "wall_s", "errors_by_code.E_101", "errors_by_code.E_102", "errors_by_code.E_201",
+        "errors_by_code.E_202", "errors_by_code.E_301", "errors_by_code.E_999",
+        "warnings_by_code.E_001", "warnings_by_code.E_002"}
+    assert not set(RUN_FIELDS) & kpi_names()
+    assert all(k.unit and k.meaning for k in CATALOGUE)
+
+
+def test_kpi_value_reads_per_code_counts() -> None:
+    figures = hand_made_figures()
+    assert kpi_value(figures, "errors_by_code.E_101") == 2
+    assert kpi_value(figures, "errors_by_code.E_202") == 0  # never raised: zero times
+    assert kpi_value(figures, "warnings_by_code.E_002") == 3
+    assert kpi_value(figures, "throughput_pct_of_demand") == 75.0
+    assert kpi_value(figures, "lead_time_p95_s") == 1450.0
+    assert kpi_value({}, "lead_time_p95_s") is None
+
+
+def test_run_and_sweep_report_the_same_kpis(tmp_path: Path) -> None:
+    scenario = write_yaml(tmp_path / "s.yaml", {
+        "name": "same", "layout": str(LAYOUTS / "tiny_loop.yaml"), "duration_h": 1.5,
+        "warmup_h": 0.25, "fleet": {"size": 2}, "demand": {"rate_per_hour": 45}})
+    experiment = load_experiment(write_yaml(tmp_path / "e.yaml", {
+        "name": "same", "scenario": str(scenario), "factors": {"fleet.size": [2]},
+        "replications": 1, "master_seed": 5}))
+    (spec,) = experiment.runs()
+    assert execute_run(spec, str(tmp_path / "runs")).status == OK
+    swept = json.loads((tmp_path / "runs" / spec.run_id / "kpis.json").read_text())
+    assert swept.pop("wall_s") >= 0
+    result = subprocess.run(
+        [sys.executable, "-m", "fleet_sim.cli", "run", str(scenario), "--seed", str(spec.seed),
+         "--out", str(tmp_path / "run"), "--quiet"],
+        cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    ran = json.loads((tmp_path / "run" / "kpis.json").read_text())
+    assert ran["orders_completed"] > 50 and ran["throughput_pct_of_demand"] is not None
+    assert ran == swept
+    assert f"throughput / demand         {ran['throughput_pct_of_demand']:,.1f} %" \
+        in result.stdout
+
