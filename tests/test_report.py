@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from fleet_sim.config.experiment import load_experiment
-from fleet_sim.report.html import write_report
+from fleet_sim.report.render import write_report
 from fleet_sim.study.sizing import size_fleet
 from fleet_sim.study.sweep import sweep
 
@@ -59,7 +59,7 @@ def test_report_files(results: Path) -> None:
     assert set(re.findall(r'data-figure="([^"]+)"', html)) >= FIGURES
     assert "Recommendation" in html and "with 95 % confidence" in html
     assert "<img src=x" not in html and "<script>" not in html  # nothing from the files runs
-    assert "&lt;script&gt;alert(&quot;x&quot;)&lt;/script&gt;" in html
+    assert "&lt;script&gt;alert(&#34;x&#34;)&lt;/script&gt;" in html
     pdf = (results / "report.pdf").read_bytes()
     assert pdf.startswith(b"%PDF")
     assert len(re.findall(rb"/Type\s*/Page\b(?!s)", pdf)) >= 1 + len(FIGURES)
