@@ -242,7 +242,7 @@ def _size(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from fleet_sim.report.html import write_report
+    from fleet_sim.report.render import write_report
 
     html, pdf = write_report(args.results, pdf=not args.no_pdf)
     print(f"report: {html.resolve()}")

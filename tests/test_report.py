@@ -1,4 +1,6 @@
-"""The report in a real headless browser: every figure there and loaded; names escaped."""
+"""The report: every figure there and loaded in a real headless browser; names from user files
+escaped by the templates (HTML text and browser DOM); a missing template value is an error; the
+PDF is written."""
 
 from __future__ import annotations
 
@@ -8,16 +10,22 @@ import re
 import shutil
 import subprocess
 import sys
+import tomllib
+from html.parser import HTMLParser
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
+import yaml
+from jinja2 import UndefinedError
 
 from fleet_sim.config.experiment import load_experiment
-from fleet_sim.report.html import write_report
+from fleet_sim.report.render import environment, render_html, write_report
+from fleet_sim.report.report import Figure, Report, RunsSection, ScenarioSection, Table
 from fleet_sim.study.sizing import size_fleet
 from fleet_sim.study.sweep import sweep
 
-from .conftest import LAYOUTS, write_yaml
+from .conftest import LAYOUTS, ROOT, write_yaml
 
 EVIL = '<script>alert("x")</script><img src=x onerror=alert(1)> & "quotes"'
 FIGURES = {"layout", "kpis", "states-0", "blocked", "heatmap", "incidents"}
@@ -27,22 +35,70 @@ window.addEventListener('load', () => {
   const imgs = Array.from(document.images);
   const pre = document.createElement('pre');
   pre.id = 'img-check';
-  pre.textContent = JSON.stringify(imgs.map(i => ({key: i.dataset.figure || i.src.slice(0, 20),
-    ok: i.complete && i.naturalWidth > 0, w: i.naturalWidth})));
+  pre.textContent = JSON.stringify({
+    images: imgs.map(i => ({key: i.dataset.figure || i.src.slice(0, 20),
+                            ok: i.complete && i.naturalWidth > 0, w: i.naturalWidth})),
+    scripts: document.scripts.length,
+    handlers: Array.from(document.querySelectorAll('*')).filter(
+      e => Array.from(e.attributes).some(a => a.name.startsWith('on'))).length,
+    settings: Object.fromEntries(Array.from(document.querySelectorAll('table.settings tr'))
+      .filter(r => r.cells.length === 2)
+      .map(r => [r.cells[0].textContent, r.cells[1].textContent])),
+    title: document.title});
   document.body.appendChild(pre);
 });
 </script></body>"""
 
 
+class _Page(HTMLParser):
+    """The tags, the text and the tables of an HTML page, as a browser's parser sees them."""
+
+    def __init__(self, html: str) -> None:
+        super().__init__(convert_charrefs=True)
+        self.tags: list[tuple[str, dict[str, str | None]]] = []
+        self.text: list[str] = []
+        self.tables: dict[str, list[list[str]]] = {}
+        """Rows of cells by the tables' class (tables of one class in one list)."""
+        self._rows: list[list[str]] | None = None
+        self._cell: list[str] | None = None
+        self.feed(html)
+        self.close()
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        self.tags.append((tag, dict(attrs)))
+        if tag == "table":
+            self._rows = self.tables.setdefault(dict(attrs).get("class") or "", [])
+        elif tag == "tr" and self._rows is not None:
+            self._rows.append([])
+        elif tag in ("td", "th") and self._rows is not None:
+            self._cell = []
+
+    def handle_endtag(self, tag: str) -> None:
+        if tag in ("td", "th") and self._rows is not None and self._cell is not None:
+            self._rows[-1].append("".join(self._cell))
+            self._cell = None
+        elif tag == "table":
+            self._rows = None
+
+    def handle_data(self, data: str) -> None:
+        self.text.append(data)
+        if self._cell is not None:
+            self._cell.append(data)
+
+
 @pytest.fixture(scope="module")
 def results(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A sweep and a sizing search with a hostile scenario name and description, experiment
+    description and factor level; the experiment's name is made hostile in the results folder
+    (the experiment loader accepts only a folder-safe name, the report reads what is there)."""
     tmp = tmp_path_factory.mktemp("report")
     scenario = write_yaml(tmp / "evil_scenario.yaml", {
         "name": EVIL, "description": EVIL, "layout": str(LAYOUTS / "tiny_loop.yaml"),
         "duration_h": 2, "warmup_h": 0.25, "demand": {"rate_per_hour": 45}})
     path = write_yaml(tmp / "evil.yaml", {
         "name": "evil", "description": EVIL, "scenario": str(scenario),
-        "factors": {"fleet.size": [1, 2, 3]}, "replications": 2, "master_seed": 5,
+        "factors": {"fleet.size": [1, 2, 3], "description": [EVIL, "plain & simple"]},
+        "replications": 2, "master_seed": 5,
         "targets": [{"kpi": "throughput_pct_of_demand", "at_least": 95},
                     {"kpi": "lead_time_p95_s", "at_most": 1200}],
         "sizing": {"max_replications": 4}})
@@ -50,6 +106,9 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp / "out"
     sweep(experiment, out, workers=2, quiet=True)
     size_fleet(experiment, out, workers=2, quiet=True)
+    resolved = out / "experiment.resolved.yaml"
+    data = yaml.safe_load(resolved.read_text(encoding="utf-8"))
+    resolved.write_text(yaml.safe_dump({**data, "name": EVIL}), encoding="utf-8")
     write_report(out)
     return out
 
@@ -59,13 +118,36 @@ def test_report_files(results: Path) -> None:
     assert set(re.findall(r'data-figure="([^"]+)"', html)) >= FIGURES
     assert "Recommendation" in html and "with 95 % confidence" in html
     assert "<img src=x" not in html and "<script>" not in html  # nothing from the files runs
-    assert "&lt;script&gt;alert(&quot;x&quot;)&lt;/script&gt;" in html
+    assert "&lt;script&gt;alert(&#34;x&#34;)&lt;/script&gt;" in html
     pdf = (results / "report.pdf").read_bytes()
     assert pdf.startswith(b"%PDF")
     assert len(re.findall(rb"/Type\s*/Page\b(?!s)", pdf)) >= 1 + len(FIGURES)
     sizing = json.loads((results / "sizing.json").read_text())
     recommended = sizing["groups"][0]["recommended"]
     assert recommended is not None and f"{recommended} AGVs meet every target" in html
+
+
+def test_names_from_user_files_are_text_in_the_page(results: Path) -> None:
+    """Experiment name and description, scenario name and a factor level: shown as written,
+    never parsed as markup."""
+    page = _Page((results / "report.html").read_text(encoding="utf-8"))
+    assert [tag for tag, _ in page.tags].count("script") == 0
+    assert not [attrs for _, attrs in page.tags if any(a.startswith("on") for a in attrs)]
+    imgs = [attrs for tag, attrs in page.tags if tag == "img"]
+    assert all(str(a["src"]).startswith("data:image/png;base64,") for a in imgs)
+    text = "".join(page.text)
+    assert f"Fleet sizing report: {EVIL}" in text  # the experiment's name, in <title> and <h1>
+    assert text.count(f"Fleet sizing report: {EVIL}") == 2
+    settings = dict(row for row in page.tables["settings"] if len(row) == 2 and row[0])
+    assert settings["experiment"] == EVIL
+    assert settings["description"] == EVIL  # the experiment's
+    assert settings["scenario"] == f"{EVIL}: {EVIL}"  # the scenario's name and description
+    assert settings["factor description"] == str([EVIL, "plain & simple"])
+    assert page.tables["stats"][1][:2] == [EVIL, "1"]  # the factor level in the statistics
+    assert f"Utilisation by state (description={EVIL})" in text  # the factor level
+    assert f"description = {EVIL}: " in text  # the sizing statement of that series
+    captions = [a["alt"] for tag, a in page.tags if tag == "img"]
+    assert f"Utilisation by state (description={EVIL})" in captions
 
 
 def chromium() -> str | None:
@@ -93,12 +175,19 @@ def test_report_in_a_headless_browser(results: Path, tmp_path: Path) -> None:
     assert found, dom[-2000:]
     import html as html_lib
 
-    images = json.loads(html_lib.unescape(found.group(1)))
+    check = json.loads(html_lib.unescape(found.group(1)))
+    images = check["images"]
     assert {i["key"] for i in images} >= FIGURES
     assert len(images) == html.count("<img ")  # no image smuggled in by a name
     assert all(i["ok"] and i["w"] > 100 for i in images), images
-    # the malicious name is text in the page, not markup
-    assert dom.count("<script>") == 1  # ours
+    # the malicious names are text in the page, not markup
+    assert check["scripts"] == 1  # ours
+    assert check["handlers"] == 0  # no element with an on... attribute
+    assert check["title"] == f"Fleet sizing report: {EVIL}"
+    assert check["settings"]["experiment"] == EVIL
+    assert check["settings"]["description"] == EVIL
+    assert check["settings"]["factor description"] == str([EVIL, "plain & simple"])
+    assert dom.count("<script>") == 1
     assert "&lt;script&gt;alert" in dom
 
 
@@ -107,3 +196,57 @@ def test_report_cli_prints_where_it_is(results: Path) -> None:
                              "--no-pdf"], capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     assert str((results / "report.html").resolve()) in result.stdout
+
+
+# ---- the templates, without a sweep --------------------------------------------------------
+
+
+def _hostile_report() -> Report:
+    png = b"\x89PNG\r\n\x1a\n"
+    runs = RunsSection(runs=2, finished=1, failed=1, wall_s="3", database=EVIL,
+                       failed_runs=Table(["run", "status", "error"], [[EVIL, "failed", EVIL]]))
+    return Report(
+        title=f"Fleet sizing report: {EVIL}", lead=EVIL, statements=[EVIL], estimates=[EVIL],
+        sections=[ScenarioSection(settings=Table([EVIL, ""], [[EVIL, EVIL]], "settings"),
+                                  problem=EVIL, figures=[Figure(EVIL, EVIL, png)]), runs])
+
+
+def test_every_value_the_templates_print_is_escaped() -> None:
+    page = _Page(render_html(_hostile_report()))
+    tags = [tag for tag, _ in page.tags]
+    assert "script" not in tags
+    assert tags.count("img") == 1  # the figure, none from the text
+    assert not [attrs for _, attrs in page.tags if "onerror" in attrs]
+    img = next(attrs for tag, attrs in page.tags if tag == "img")
+    assert img["alt"] == EVIL and img["data-figure"] == EVIL  # attributes keep their quotes
+    assert img["src"] == "data:image/png;base64,iVBORw0KGgo="
+    text = "".join(page.text)
+    # title (twice), lead, statement, estimate, header, cell x2, problem, caption,
+    # failed run x2, database
+    assert text.count(EVIL) == 13
+
+
+def test_a_value_the_code_did_not_give_is_an_error() -> None:
+    """StrictUndefined: a template printing a missing value fails instead of leaving a blank."""
+    section = SimpleNamespace(title="Runs", template="runs.html.j2", figures=[], runs=2,
+                              finished=2, failed=0, failed_runs=None, database="db")
+    report = SimpleNamespace(title="t", lead="l", statements=[], estimates=[],
+                             sections=[section])
+    with pytest.raises(UndefinedError, match="wall_s"):
+        environment().get_template("report.html.j2").render(report=report)
+    section.wall_s = "5"
+    assert "2 runs: 2 finished, 0 failed" in " ".join(
+        environment().get_template("report.html.j2").render(report=report).split())
+
+
+def test_an_installed_package_has_every_template() -> None:
+    """Every template file is matched by the package data of pyproject.toml."""
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    patterns = pyproject["tool"]["setuptools"]["package-data"]["fleet_sim.report"]
+    package = ROOT / "fleet_sim" / "report"
+    templates = {p for p in (package / "templates").rglob("*") if p.is_file()}
+    assert len(templates) >= 3
+    assert {p.relative_to(package / "templates").as_posix() for p in templates} == set(
+        environment().list_templates())
+    packaged = {p for pattern in patterns for p in package.glob(pattern)}
+    assert templates - packaged == set()

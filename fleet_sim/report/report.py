@@ -1,5 +1,6 @@
-"""`fleet-sim report RESULTS_DIR`: a self-contained HTML report and a PDF of a sweep or sizing
-results folder, for a planner to hand on.
+"""The report's content: a sweep or sizing results folder -> a `Report` of plain data (text,
+formatted numbers, tables of strings, figures), which fleet_sim.report.render turns into HTML
+(Jinja2 templates) and a PDF.
 
 Sections: the recommendation with its confidence (from sizing.json when `fleet-sim size` ran,
 else from the sweep's grid with the same rule: the smallest fleet whose 95 % intervals meet every
@@ -11,10 +12,11 @@ wide-interval warnings and paired differences; failed runs.
 
 Decisions, where the issue is silent:
 
+* Nothing here writes markup: every string is plain text (names from user files as they are),
+  and the templates escape it. The prose of each section lives in its template
+  (``templates/sections/``); the PDF's plain-text lines (`Section.text`) are written here.
 * Figures are PNG, base64-embedded: the HTML is one file that opens anywhere, offline. The PDF
   has the same figures (vector) after a text page with the recommendation and the tables.
-* Every name that comes from a user file (experiment, scenario, layout, stations, factors,
-  error messages) is HTML-escaped; the report has no scripts.
 * The x axis is fleet.size when it is a factor, else the first factor; each combination of the
   other factors is one line (series).
 * The heat map shows the mean seconds per hour that AGVs with work to do stood waiting at each
@@ -28,12 +30,12 @@ Decisions, where the issue is silent:
 from __future__ import annotations
 
 import base64
-import html
 import json
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
@@ -52,10 +54,6 @@ TABLE_KPIS = ("throughput_per_hour", "throughput_pct_of_demand", "lead_time_mean
               "lead_time_p95_s", "agv_utilisation_pct", "blocked_time_pct", "deadlocks_detected")
 
 
-def esc(value: object) -> str:
-    return html.escape(str(value), quote=True)
-
-
 def fmt(value: Any, digits: int = 4) -> str:
     """Numbers for tables: no exponents for the sizes a planner reads."""
     if value is None:
@@ -69,22 +67,134 @@ def fmt(value: Any, digits: int = 4) -> str:
     return str(value)
 
 
-@dataclass
+# ---- what the templates are given ----------------------------------------------------------
+
+
+@dataclass(frozen=True)
 class Figure:
+    """One figure: PNG for the HTML page, and the matplotlib figure for the PDF."""
+
     key: str
     caption: str
     png: bytes
     pdf_figure: Any = None
 
+    @property
+    def data_uri(self) -> str:
+        """The PNG as a data: URI (base64 has no character HTML needs to escape)."""
+        return "data:image/png;base64," + base64.b64encode(self.png).decode("ascii")
 
-@dataclass
+
+@dataclass(frozen=True)
+class Table:
+    """A table of plain-text cells (the template escapes them)."""
+
+    header: list[str]
+    rows: list[list[str]]
+    css_class: str = ""
+
+
+@dataclass(kw_only=True)
 class Section:
-    title: str
-    body: list[str] = field(default_factory=list)
-    """HTML fragments (already escaped)."""
+    """A section of the report; each subclass has its template in templates/sections/."""
+
+    title: ClassVar[str]
+    template: ClassVar[str]
     figures: list[Figure] = field(default_factory=list)
     text: list[str] = field(default_factory=list)
-    """Plain text for the PDF's text pages."""
+    """Plain text for the PDF's text page."""
+
+
+@dataclass(kw_only=True)
+class ScenarioSection(Section):
+    title: ClassVar[str] = "Scenario and layout"
+    template: ClassVar[str] = "scenario.html.j2"
+    settings: Table
+    problem: str = ""
+
+
+@dataclass(kw_only=True)
+class KpiSection(Section):
+    title: ClassVar[str] = "Throughput and lead time"
+    template: ClassVar[str] = "kpis.html.j2"
+
+
+@dataclass(kw_only=True)
+class StatesSection(Section):
+    title: ClassVar[str] = "Utilisation by state"
+    template: ClassVar[str] = "states.html.j2"
+    has_states: bool
+
+
+@dataclass(kw_only=True)
+class ChargingSection(Section):
+    title: ClassVar[str] = "Charging and battery"
+    template: ClassVar[str] = "charging.html.j2"
+    charging: bool
+
+
+@dataclass(kw_only=True)
+class CongestionSection(Section):
+    title: ClassVar[str] = "Congestion"
+    template: ClassVar[str] = "congestion.html.j2"
+    has_waits: bool
+    level: str = ""
+    """The design point of the heat map, as ``fleet.size = 8``."""
+    top_nodes: Table | None = None
+
+
+@dataclass(kw_only=True)
+class IncidentsSection(Section):
+    title: ClassVar[str] = "Incidents"
+    template: ClassVar[str] = "incidents.html.j2"
+    deadlocks: int
+    runs: int
+    deadlock_events: Table | None = None
+
+
+@dataclass(kw_only=True)
+class StatisticsSection(Section):
+    title: ClassVar[str] = "Statistics"
+    template: ClassVar[str] = "statistics.html.j2"
+    points: Table
+    warnings: list[str]
+    differences: Table | None = None
+
+
+@dataclass(kw_only=True)
+class RunsSection(Section):
+    title: ClassVar[str] = "Runs"
+    template: ClassVar[str] = "runs.html.j2"
+    runs: int
+    finished: int
+    failed: int
+    wall_s: str
+    failed_runs: Table | None
+    database: str
+
+
+@dataclass(frozen=True)
+class Report:
+    """Everything the report shows, as plain data."""
+
+    title: str
+    lead: str
+    statements: list[str]
+    """The recommendation, one statement per series (bold in the page)."""
+    estimates: list[str]
+    sections: list[Section]
+
+    def figures(self) -> Iterator[Figure]:
+        for sec in self.sections:
+            yield from sec.figures
+
+    def close(self) -> None:
+        """Free the matplotlib figures kept for the PDF."""
+        for fig in self.figures():
+            figs.close(fig.pdf_figure)
+
+
+# ---- the results folder --------------------------------------------------------------------
 
 
 @dataclass
@@ -199,16 +309,8 @@ def recommendations(data: ReportData) -> tuple[dict[str, int | None], list[str],
 # ---- sections ------------------------------------------------------------------------------
 
 
-def _table(header: list[str], rows: list[list[str]], cls: str = "") -> str:
-    """An HTML table; cells must already be escaped."""
-    head = "".join(f"<th>{h}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in rows)
-    return f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
-
-
 def _figure(key: str, caption: str, fig: Any) -> Figure:
-    png = figs.png_bytes(fig)
-    return Figure(key, caption, png, fig)
+    return Figure(key, caption, figs.png_bytes(fig), fig)
 
 
 def _series(data: ReportData, stats: pd.DataFrame) -> dict[str, pd.DataFrame]:
@@ -221,69 +323,55 @@ def _series(data: ReportData, stats: pd.DataFrame) -> dict[str, pd.DataFrame]:
     return out
 
 
-def section_scenario(data: ReportData) -> Section:
-    sec = Section("Scenario and layout")
+def section_scenario(data: ReportData) -> ScenarioSection:
     exp = data.experiment
-    rows: list[list[str]] = [["experiment", esc(exp.get("name", ""))],
-                             ["description", esc(exp.get("description", ""))]]
+    rows: list[list[str]] = [["experiment", str(exp.get("name", ""))],
+                             ["description", str(exp.get("description", ""))]]
     if data.scenario is not None:
         sc = data.scenario
         demand = (f"{sc.demand.kind}, {sc.demand.rate_per_hour:g} orders/h" +
                   (", profile " + ", ".join(f"from {p.from_h:g} h x{p.multiplier:g}"
                                             for p in sc.demand.profile)
                    if sc.demand.profile else ""))
-        rows += [["scenario", esc(f"{sc.name}: {sc.description}" if sc.description
-                                  else sc.name)],
-                 ["layout", esc(data.layout.name if data.layout else sc.layout)],
-                 ["run length", esc(f"{sc.duration_h:g} h, warm-up {sc.warmup_h:g} h, "
-                                    f"start at {sc.start_h:g} h")],
-                 ["demand", esc(demand)],
-                 ["dispatch", esc(f"{sc.dispatch.policy}, park idle: {sc.dispatch.park_idle}")]]
+        rows += [["scenario", f"{sc.name}: {sc.description}" if sc.description else sc.name],
+                 ["layout", data.layout.name if data.layout else sc.layout],
+                 ["run length", f"{sc.duration_h:g} h, warm-up {sc.warmup_h:g} h, "
+                                f"start at {sc.start_h:g} h"],
+                 ["demand", demand],
+                 ["dispatch", f"{sc.dispatch.policy}, park idle: {sc.dispatch.park_idle}"]]
     overrides = exp.get("overrides") or {}
     if overrides:
-        rows.append(["set in every run", esc(", ".join(f"{k} = {v}"
-                                                      for k, v in overrides.items()))])
+        rows.append(["set in every run", ", ".join(f"{k} = {v}" for k, v in overrides.items())])
     for name, levels in (exp.get("factors") or {}).items():
-        rows.append([f"factor {esc(name)}", esc(levels)])
-    rows += [["design", esc(f"{exp.get('design')}, {exp.get('replications')} replications, "
-                            f"master seed {exp.get('master_seed')}")],
-             ["targets", esc("; ".join(t.describe() for t in data.targets) or "none")]]
-    sec.body.append(_table(["", ""], rows, "settings"))
-    sec.text += [f"{_strip(r[0])}: {_strip(r[1])}" for r in rows]
-    if data.problem:
-        sec.body.append(f'<p class="warn">{esc(data.problem)}</p>')
+        rows.append([f"factor {name}", str(levels)])
+    rows += [["design", f"{exp.get('design')}, {exp.get('replications')} replications, "
+                        f"master seed {exp.get('master_seed')}"],
+             ["targets", "; ".join(t.describe() for t in data.targets) or "none"]]
+    sec = ScenarioSection(settings=Table(["", ""], rows, "settings"), problem=data.problem)
+    sec.text += [f"{name}: {value}" for name, value in rows]
     if data.layout is not None:
         png = figs.layout_png(data.layout)
-        sec.figures.append(Figure("layout", f"Layout {data.layout.name}", png,
-                                  figs.image_page(png, f"Layout {data.layout.name}")))
+        caption = f"Layout {data.layout.name}"
+        sec.figures.append(Figure("layout", caption, png, figs.image_page(png, caption)))
     return sec
 
 
-def _strip(text: str) -> str:
-    return html.unescape(text)
-
-
 def section_kpis(data: ReportData, series: dict[str, pd.DataFrame],
-                 recommended: dict[str, int | None]) -> Section:
-    sec = Section("Throughput and lead time")
+                 recommended: dict[str, int | None]) -> KpiSection:
+    sec = KpiSection()
     kpis = [k for k in MAIN_KPIS if k in set(next(iter(series.values()))["kpi"])]
     kpis += [t.kpi for t in data.targets if t.kpi not in kpis]
-    sec.body.append("<p>Mean over the replications of each design point, with its 95 % "
-                    "confidence interval (band); dashed lines are the targets.</p>")
     sec.figures.append(_figure("kpis", "KPIs against " + data.x,
                                figs.kpi_panels(series, data.x, kpis, data.targets,
                                                recommended)))
     return sec
 
 
-def section_states(data: ReportData) -> Section:
-    sec = Section("Utilisation by state")
+def section_states(data: ReportData) -> StatesSection:
     states = [c for c in data.ok.columns if c.startswith("state_") and c.endswith("_pct")]
+    sec = StatesSection(has_states=bool(states))
     if not states:
-        sec.body.append("<p>The runs report no time in state.</p>")
         return sec
-    sec.body.append("<p>Mean share of AGV time in each state of RSS-AGV-001 over the measured "
-                    "window.</p>")
     groups = data.ok.groupby(data.others, sort=True) if data.others else [((), data.ok)]
     for key, group in groups:
         values = key if isinstance(key, tuple) else (key,)
@@ -296,17 +384,14 @@ def section_states(data: ReportData) -> Section:
 
 
 def section_charging(data: ReportData, series: dict[str, pd.DataFrame],
-                     recommended: dict[str, int | None]) -> Section:
-    sec = Section("Charging and battery")
+                     recommended: dict[str, int | None]) -> ChargingSection:
     ok = data.ok
     kpis = [c for c in kpi_columns(ok, data.factors)
             if c in ("state_charging_pct", "charges", "charging_queue_wait_mean_s")
             or c.startswith(("charger_", "soc_", "battery_"))]
     active = [k for k in kpis if float(ok[k].fillna(0).abs().max()) > 0]
+    sec = ChargingSection(charging=bool(active))
     if not active:
-        sec.body.append("<p>No run spent time charging or reported a battery figure: these "
-                        "runs do not model battery drain, so charging does not limit the "
-                        "fleet.</p>")
         sec.text.append("No charging in these runs.")
     else:
         sec.figures.append(_figure("charging", "Charging against " + data.x,
@@ -350,14 +435,12 @@ def _sample_runs(data: ReportData, recommended: dict[str, int | None]) -> list[s
 
 
 def section_congestion(data: ReportData, series: dict[str, pd.DataFrame],
-                       recommended: dict[str, int | None]) -> Section:
-    sec = Section("Congestion")
-    sec.body.append("<p>Share of AGV time spent waiting for a node or corridor held by another "
-                    "AGV, and where on the layout the waiting happened.</p>")
+                       recommended: dict[str, int | None]) -> CongestionSection:
+    figures: list[Figure] = []
     if "blocked_time_pct" in set(next(iter(series.values()))["kpi"]):
-        sec.figures.append(_figure("blocked", "Blocked time against " + data.x,
-                                   figs.kpi_panels(series, data.x, ["blocked_time_pct"], [],
-                                                   recommended)))
+        figures.append(_figure("blocked", "Blocked time against " + data.x,
+                               figs.kpi_panels(series, data.x, ["blocked_time_pct"], [],
+                                               recommended)))
     sample = _sample_runs(data, recommended)
     frames = []
     for run_id in sample:
@@ -365,8 +448,7 @@ def section_congestion(data: ReportData, series: dict[str, pd.DataFrame],
         if path.exists():
             frames.append(pd.read_parquet(path).assign(run_id=run_id))
     if data.layout is None or not frames:
-        sec.body.append("<p>No node waiting data (node_waits.parquet) for a heat map.</p>")
-        return sec
+        return CongestionSection(has_waits=False, figures=figures)
     waits = pd.concat(frames)
     window_h = float(data.ok["duration_h"].iloc[0] - data.ok["warmup_h"].iloc[0]) \
         if "duration_h" in data.ok else 1.0
@@ -375,24 +457,26 @@ def section_congestion(data: ReportData, series: dict[str, pd.DataFrame],
     level = data.ok[data.ok["run_id"].isin(sample)][data.x].iloc[0]
     title = (f"Where AGVs waited: {data.x} = {level}, mean of {len(frames)} replications "
              "(seconds of waiting per hour at each node)")
-    sec.figures.append(_figure("heatmap", title, figs.heat_map(data.layout, per_node, title)))
+    figures.append(_figure("heatmap", title, figs.heat_map(data.layout, per_node, title)))
     top = per_node.sort_values("wait_s_per_h", ascending=False).head(8)
     top = top[top["wait_s_per_h"] > 0]
-    rows = [[esc(node), fmt(float(value), 3)]
+    rows = [[str(node), fmt(float(value), 3)]
             for node, value in zip(top["node"], top["wait_s_per_h"], strict=True)]
+    sec = CongestionSection(has_waits=True, level=f"{data.x} = {level}", figures=figures,
+                            top_nodes=Table(["node", "AGV waiting [s/h]"], rows) if rows
+                            else None)
     if rows:
-        sec.body.append("<p>Nodes with the most waiting (" + esc(f"{data.x} = {level}") +
-                        "):</p>" + _table(["node", "AGV waiting [s/h]"], rows))
         sec.text.append("Most waiting at: " + ", ".join(
             f"{node} ({float(value):.0f} s/h)"
             for node, value in zip(top["node"], top["wait_s_per_h"], strict=True)))
     return sec
 
 
-def section_incidents(data: ReportData, recommended: dict[str, int | None]) -> Section:
-    sec = Section("Incidents")
+def section_incidents(data: ReportData, recommended: dict[str, int | None]) -> IncidentsSection:
     ok = data.ok
     counts = _incident_counts(data)
+    total = int(ok["deadlocks_detected"].fillna(0).sum()) if "deadlocks_detected" in ok else 0
+    sec = IncidentsSection(deadlocks=total, runs=len(ok))
     if data.x:
         merged = ok[["run_id", data.x, *data.others]]
         if "deadlocks_detected" in ok:
@@ -408,9 +492,6 @@ def section_incidents(data: ReportData, recommended: dict[str, int | None]) -> S
             mean = first.groupby(data.x)[kinds].mean().reset_index()
             sec.figures.append(_figure("incidents", "Incidents against " + data.x,
                                        figs.incidents(mean, data.x)))
-    total = int(ok["deadlocks_detected"].fillna(0).sum()) if "deadlocks_detected" in ok else 0
-    sec.body.append(f"<p>{total} deadlocks were detected (and resolved by the traffic control) "
-                    f"in {len(ok)} runs.</p>")
     sec.text.append(f"{total} deadlocks detected in {len(ok)} runs.")
     rows: list[list[str]] = []
     for run_id in _sample_runs(data, recommended)[:3]:
@@ -420,11 +501,10 @@ def section_incidents(data: ReportData, recommended: dict[str, int | None]) -> S
         events = pd.read_parquet(path, columns=["time_s", "agv", "event", "node", "detail"])
         dead = events[events["event"].astype(str) == "deadlock_detected"]
         for _, r in dead.head(4).iterrows():
-            rows.append([esc(run_id), fmt(float(r["time_s"]) / 3600.0, 3), esc(r["agv"]),
-                         esc(r["event"]), esc(r["node"]), esc(r["detail"])])
+            rows.append([run_id, fmt(float(r["time_s"]) / 3600.0, 3), str(r["agv"]),
+                         str(r["event"]), str(r["node"]), str(r["detail"])])
     if rows:
-        sec.body.append("<p>Deadlocks in runs of the recommended fleet:</p>" +
-                        _table(["run", "time [h]", "AGV", "event", "node", "detail"], rows))
+        sec.deadlock_events = Table(["run", "time [h]", "AGV", "event", "node", "detail"], rows)
     return sec
 
 
@@ -450,11 +530,10 @@ def _incident_counts(data: ReportData) -> pd.DataFrame | None:
                              aggfunc="sum").reset_index()
 
 
-def section_statistics(data: ReportData, stats: pd.DataFrame) -> Section:
-    sec = Section("Statistics")
+def section_statistics(data: ReportData, stats: pd.DataFrame) -> StatisticsSection:
     kpis = [k for k in TABLE_KPIS if k in set(stats["kpi"])]
     keys = [*data.others, data.x] if data.x else []
-    header = [esc(k) for k in keys] + ["n"] + [esc(k) for k in kpis]
+    header = [*keys, "n", *kpis]
     rows: list[list[str]] = []
     wide = stats.pivot_table(index=keys, columns="kpi", values=["mean", "half_width", "n"],
                              aggfunc="first") if keys else None
@@ -462,141 +541,68 @@ def section_statistics(data: ReportData, stats: pd.DataFrame) -> Section:
         for index, row in wide.iterrows():
             idx = index if isinstance(index, tuple) else (index,)
             n = int(max(row[("n", k)] for k in kpis)) if kpis else 0
-            cells = [esc(v) for v in idx] + [str(n)]
+            cells = [str(v) for v in idx] + [str(n)]
             for k in kpis:
                 mean, half = row[("mean", k)], row[("half_width", k)]
-                cells.append(f"{fmt(mean)} &plusmn; {fmt(half, 2)}")
+                cells.append(f"{fmt(mean)} \u00b1 {fmt(half, 2)}")
             rows.append(cells)
-    sec.body.append("<p>Mean &plusmn; half-width of the 95 % confidence interval (Student t) "
-                    "over the replications of each design point.</p>" +
-                    _table(header, rows, "stats"))
     checks = check_targets(data.summary, data.factors, data.targets)
     warnings = [w for w in (c.warning() for c in checks) if w]
-    if warnings:
-        sec.body.append("<p><b>Intervals too wide to decide:</b></p><ul>" +
-                        "".join(f"<li>{esc(w)}</li>" for w in warnings) + "</ul>")
-        sec.text += ["Too wide to decide: " + w for w in warnings]
+    sec = StatisticsSection(points=Table(header, rows, "stats"), warnings=warnings)
+    sec.text += ["Too wide to decide: " + w for w in warnings]
     if data.x:
         diff_kpis = list(dict.fromkeys([*(t.kpi for t in data.targets), "throughput_per_hour"]))
         diff_kpis = [k for k in diff_kpis if k in set(stats["kpi"])]
         diffs = paired_differences(data.summary, data.x, data.factors, diff_kpis)
         if not diffs.empty:
-            drows = [[*(esc(r[o]) for o in data.others), esc(r["kpi"]),
-                      esc(f"{r['from_level']} -> {r['to_level']}"), str(r["pairs"]),
+            drows = [[*(str(r[o]) for o in data.others), str(r["kpi"]),
+                      f"{r['from_level']} -> {r['to_level']}", str(r["pairs"]),
                       f"{fmt(r['mean_diff'])} [{fmt(r['ci_low'])}, {fmt(r['ci_high'])}]"]
                      for _, r in diffs.iterrows()]
-            sec.body.append("<p>Paired differences between adjacent levels (same replications, "
-                            "so common random numbers cancel shared noise), with 95 % CI:</p>" +
-                            _table([*(esc(o) for o in data.others), "KPI", esc(data.x), "pairs",
-                                    "mean difference [95 % CI]"], drows, "stats"))
+            sec.differences = Table([*data.others, "KPI", data.x, "pairs",
+                                     "mean difference [95 % CI]"], drows, "stats")
     return sec
 
 
-def section_runs(data: ReportData) -> Section:
-    sec = Section("Runs")
+def section_runs(data: ReportData) -> RunsSection:
     summary = data.summary
     bad = summary[summary["status"] != "ok"]
     wall = float(summary["wall_s"].fillna(0).sum()) if "wall_s" in summary else 0.0
-    sec.body.append(f"<p>{len(summary)} runs: {len(summary) - len(bad)} finished, {len(bad)} "
-                    f"failed or incomplete; {wall:.0f} s of simulation in all.</p>")
-    if not bad.empty:
-        rows = [[esc(r["run_id"]), esc(r["status"]), esc(r.get("error", ""))]
-                for _, r in bad.iterrows()]
-        sec.body.append(_table(["run", "status", "error"], rows))
-        sec.text += [f"run {r['run_id']}: {r['status']}: {r.get('error', '')}"
-                     for _, r in bad.iterrows()]
-    sec.body.append("<p>Query every run with SQL: <code>duckdb " +
-                    esc(data.out_dir / "sweep.duckdb") + "</code>, for example <code>SELECT "
-                    "s.&quot;fleet.size&quot;, avg(o.lead_time_s) FROM orders o JOIN summary s "
-                    "USING (run_id) GROUP BY 1 ORDER BY 1</code>.</p>")
+    failed = (Table(["run", "status", "error"],
+                    [[str(r["run_id"]), str(r["status"]), str(r.get("error", ""))]
+                     for _, r in bad.iterrows()])
+              if not bad.empty else None)
+    sec = RunsSection(runs=len(summary), finished=len(summary) - len(bad), failed=len(bad),
+                      wall_s=f"{wall:.0f}", failed_runs=failed,
+                      database=str(data.out_dir / "sweep.duckdb"))
+    sec.text += [f"run {r['run_id']}: {r['status']}: {r.get('error', '')}"
+                 for _, r in bad.iterrows()]
     return sec
 
 
-# ---- output --------------------------------------------------------------------------------
-
-CSS = """
-body { font-family: system-ui, -apple-system, Segoe UI, Roboto, sans-serif; margin: 2em auto;
-       max-width: 1150px; color: #202124; line-height: 1.45; padding: 0 1em; }
-h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { border-bottom: 1px solid #dadce0;
-     padding-bottom: 0.2em; margin-top: 1.8em; }
-.lead { color: #5f6368; } .rec { background: #e8f0fe; border-left: 4px solid #1a73e8;
-     padding: 0.8em 1em; margin: 1em 0; } .warn { color: #b06000; }
-table { border-collapse: collapse; font-size: 0.85em; margin: 0.6em 0; }
-td, th { border: 1px solid #dadce0; padding: 0.25em 0.6em; text-align: left; }
-th { background: #f1f3f4; } figure { margin: 1em 0; } figure img { max-width: 100%; }
-figcaption { color: #5f6368; font-size: 0.85em; } code { background: #f1f3f4; padding: 0 0.2em; }
-"""
+# ---- the report ----------------------------------------------------------------------------
 
 
-def render_html(title: str, lead: str, rec_html: str, sections: list[Section]) -> str:
-    parts = [
-        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{esc(title)}</title><style>{CSS}</style></head><body>",
-        f"<h1>{esc(title)}</h1>", f'<p class="lead">{lead}</p>', rec_html,
-    ]
-    for sec in sections:
-        parts.append(f"<section><h2>{esc(sec.title)}</h2>")
-        parts += sec.body
-        for fig in sec.figures:
-            data = base64.b64encode(fig.png).decode("ascii")
-            parts.append(f'<figure><img src="data:image/png;base64,{data}" '
-                         f'alt="{esc(fig.caption)}" data-figure="{esc(fig.key)}">'
-                         f"<figcaption>{esc(fig.caption)}</figcaption></figure>")
-        parts.append("</section>")
-    parts.append("</body></html>")
-    return "\n".join(parts)
+def build_report(out_dir: Path) -> Report:
+    """Read a results folder and prepare every section (figures drawn, numbers formatted).
 
-
-def write_report(out_dir: Path, pdf: bool = True) -> tuple[Path, Path | None]:
-    """Write report.html (and report.pdf) into `out_dir`; returns their paths."""
+    The report keeps matplotlib figures for the PDF: call `Report.close` when done."""
     data = load(out_dir)
     stats = point_stats(data.summary, data.factors)
     if stats.empty:
         raise InputError(str(out_dir), "runs", 0, "at least one finished run")
     series = _series(data, stats)
     recommended, statements, estimates = recommendations(data)
-    sections = [section_scenario(data), section_kpis(data, series, recommended),
-                section_states(data), section_charging(data, series, recommended),
-                section_congestion(data, series, recommended),
-                section_incidents(data, recommended), section_statistics(data, stats),
-                section_runs(data)]
+    sections: list[Section] = [
+        section_scenario(data), section_kpis(data, series, recommended), section_states(data),
+        section_charging(data, series, recommended),
+        section_congestion(data, series, recommended), section_incidents(data, recommended),
+        section_statistics(data, stats), section_runs(data)]
     name = data.experiment.get("name", "experiment")
-    title = f"Fleet sizing report: {name}"
     n_ok = int((data.summary["status"] == "ok").sum())
     scenario_name = data.scenario.name if data.scenario else "?"
     layout_name = data.layout.name if data.layout else "?"
-    lead = esc(f"Scenario {scenario_name} on layout {layout_name}; {n_ok} of "
-               f"{len(data.summary)} runs finished; generated "
-               f"{time.strftime('%Y-%m-%d %H:%M')} by fleet-sim.")
-    rec_html = ('<div class="rec"><h2 style="margin-top:0">Recommendation</h2>' +
-                "".join(f"<p><b>{esc(s)}</b></p>" for s in statements) +
-                "".join(f"<p>{esc(e)}</p>" for e in estimates) + "</div>")
-    html_path = out_dir / "report.html"
-    html_path.write_text(render_html(title, lead, rec_html, sections), encoding="utf-8")
-    pdf_path: Path | None = None
-    if pdf:
-        pdf_path = out_dir / "report.pdf"
-        _write_pdf(pdf_path, title, statements, estimates, sections)
-    for sec in sections:
-        for fig in sec.figures:
-            figs.close(fig.pdf_figure)
-    return html_path, pdf_path
-
-
-def _write_pdf(path: Path, title: str, statements: list[str], estimates: list[str],
-               sections: list[Section]) -> None:
-    from matplotlib.backends.backend_pdf import PdfPages
-
-    lines = ["RECOMMENDATION", *statements, "", *estimates, ""]
-    for sec in sections:
-        if sec.text:
-            lines += [sec.title.upper(), *sec.text, ""]
-    with PdfPages(path) as pdf:
-        page = figs.text_page(title, lines)
-        pdf.savefig(page)
-        figs.close(page)
-        for sec in sections:
-            for fig in sec.figures:
-                if fig.pdf_figure is not None:
-                    pdf.savefig(fig.pdf_figure)
+    lead = (f"Scenario {scenario_name} on layout {layout_name}; {n_ok} of "
+            f"{len(data.summary)} runs finished; generated "
+            f"{time.strftime('%Y-%m-%d %H:%M')} by fleet-sim.")
+    return Report(f"Fleet sizing report: {name}", lead, statements, estimates, sections)

@@ -1,0 +1,70 @@
+"""`fleet-sim report RESULTS_DIR`: the `Report` of fleet_sim.report.report as a self-contained
+HTML page (Jinja2 templates in ``templates/``) and a PDF, for a planner to hand on.
+
+Decisions:
+
+* Escaping by construction: the templates are rendered with ``autoescape=True`` (for every
+  template: ``select_autoescape`` matches on the name's last suffix, and ours end in ``.j2``), so
+  every value a template prints is HTML-escaped, names from user files included. Nothing is
+  marked safe: the one value that is not plain text, a figure's data: URI, is base64, which has
+  no character to escape. The report has no scripts.
+* ``StrictUndefined``: a template that prints a value the code did not give fails loudly
+  instead of leaving a blank in the page.
+* The PDF is written with matplotlib (a text page with the recommendation and each section's
+  plain text, then every figure); it needs no HTML engine.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from pathlib import Path
+
+from jinja2 import Environment, PackageLoader, StrictUndefined
+
+from fleet_sim.report import figures as figs
+from fleet_sim.report.report import Report, build_report
+
+
+@cache
+def environment() -> Environment:
+    """The report's Jinja2 environment: templates from the package, autoescape on."""
+    return Environment(loader=PackageLoader("fleet_sim.report", "templates"),
+                       autoescape=True, undefined=StrictUndefined, trim_blocks=True,
+                       lstrip_blocks=True, keep_trailing_newline=True)
+
+
+def render_html(report: Report) -> str:
+    """The report as one HTML page (figures embedded)."""
+    return environment().get_template("report.html.j2").render(report=report)
+
+
+def write_pdf(report: Report, path: Path) -> None:
+    """A text page (recommendation, each section's text), then every figure, one a page."""
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    lines = ["RECOMMENDATION", *report.statements, "", *report.estimates, ""]
+    for sec in report.sections:
+        if sec.text:
+            lines += [sec.title.upper(), *sec.text, ""]
+    with PdfPages(path) as pdf:
+        page = figs.text_page(report.title, lines)
+        pdf.savefig(page)
+        figs.close(page)
+        for fig in report.figures():
+            if fig.pdf_figure is not None:
+                pdf.savefig(fig.pdf_figure)
+
+
+def write_report(out_dir: Path, pdf: bool = True) -> tuple[Path, Path | None]:
+    """Write report.html (and report.pdf) into `out_dir`; returns their paths."""
+    report = build_report(out_dir)
+    try:
+        html_path = out_dir / "report.html"
+        html_path.write_text(render_html(report), encoding="utf-8")
+        pdf_path: Path | None = None
+        if pdf:
+            pdf_path = out_dir / "report.pdf"
+            write_pdf(report, pdf_path)
+    finally:
+        report.close()
+    return html_path, pdf_path
