@@ -53,8 +53,9 @@ def hand_made_recorder() -> Recorder:
     rec.distance_m = 12_345.0
     rec.deadlocks = 2
     rec.charge_waits = [(100.0, 160.0), (2000.0, 2020.0)]
-    rec.errors = [(1800.0, 1, "E_999", "Fatal"), (2500.0, 0, "E_101", "Error"),
-                  (2600.0, 0, "E_101", "Error")]
+    rec.error(1800.0, 1, "E_999", "Fatal")
+    rec.error(2500.0, 0, "E_101", "Error")
+    rec.error(2600.0, 0, "E_101", "Error")
     rec.warnings = Counter({"E_002": 3})
     rec.obstacle_pauses, rec.comm_losses = 4, 1
     rec.commands_sent, rec.command_retries = 7, 1

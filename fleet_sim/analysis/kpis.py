@@ -166,8 +166,8 @@ def compute_kpis(recorder: Recorder, scenario: Scenario, layout_name: str) -> di
     down = sum(states[s.value] for s in DOWN_STATES)
     charge_waits = [got - asked for asked, got in recorder.charge_waits]
     errors: dict[str, int] = {}
-    for _, _, code, _ in recorder.errors:
-        errors[code] = errors.get(code, 0) + 1
+    for error in recorder.errors:
+        errors[error.code] = errors.get(error.code, 0) + 1
     created = sum(1 for o in orders if start <= o.created_s <= end)
     demand = created / window_h
     out.update({
@@ -218,11 +218,11 @@ def busy_seconds(orders: Sequence[Order], start_s: float, end_s: float) -> float
     return float(np.nansum(busy))
 
 
-def queue_mean(trace: Sequence[tuple[float, int]], start_s: float, end_s: float) -> float:
+def queue_mean(lengths: Sequence[tuple[float, int]], start_s: float, end_s: float) -> float:
     """Time-average of a step function given as (time, value) changes, over [start_s, end_s];
     zero before its first change."""
     total = 0.0
-    for (t0, value), (t1, _) in zip(trace, [*trace[1:], (end_s, 0)], strict=False):
+    for (t0, value), (t1, _) in zip(lengths, [*lengths[1:], (end_s, 0)], strict=False):
         total += value * max(0.0, min(t1, end_s) - max(t0, start_s))
     return total / (end_s - start_s)
 

@@ -42,6 +42,15 @@ class OccupancySpell(NamedTuple):
     end_s: float
 
 
+class ErrorRecord(NamedTuple):
+    """An AGV entering Error (RSS-AGV-001 6.1): when, which AGV, the code and its level."""
+
+    time_s: float
+    agv: int
+    code: str
+    level: str
+
+
 @dataclass(slots=True)
 class Order:
     """One transport order and its timestamps (None until reached)."""
@@ -90,8 +99,8 @@ class Recorder:
     comm_losses: int = 0
     commands_sent: int = 0
     command_retries: int = 0
-    errors: list[tuple[float, int, str, str]] = field(default_factory=list)
-    """(time_s, agv, code, level) of every Error."""
+    errors: list[ErrorRecord] = field(default_factory=list)
+    """Every Error, in time order."""
     warnings: Counter[str] = field(default_factory=Counter)
     soc_samples: list[tuple[float, int, float]] = field(default_factory=list)
     """(time_s, agv, soc_pct) at every state change, for battery plots."""
@@ -102,6 +111,9 @@ class Recorder:
     def event(self, time_s: float, agv: int, event: str, from_state: str, to_state: str,
               node: str, detail: str = "") -> None:
         self.events.append(EventRecord(time_s, agv, event, from_state, to_state, node, detail))
+
+    def error(self, time_s: float, agv: int, code: str, level: str) -> None:
+        self.errors.append(ErrorRecord(time_s, agv, code, level))
 
     def window(self, start_s: float, end_s: float) -> float:
         """The part of [start_s, end_s] inside the measured window (after warm-up)."""

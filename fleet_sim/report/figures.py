@@ -162,10 +162,10 @@ def incidents(counts: pd.DataFrame, x: str) -> Figure:
     return fig
 
 
-def soc_curves(traces: pd.DataFrame, title: str) -> Figure:
+def soc_curves(curves: pd.DataFrame, title: str) -> Figure:
     """State of charge over time of a few AGVs (columns time_s, agv, soc_pct)."""
     fig, ax = plt.subplots(figsize=(9, 3.4))
-    for i, (agv, group) in enumerate(traces.groupby("agv")):
+    for i, (agv, group) in enumerate(curves.groupby("agv")):
         ax.plot(group["time_s"] / 3600.0, group["soc_pct"], lw=1,
                 color=SERIES_COLOURS[i % len(SERIES_COLOURS)], label=f"AGV {agv}")
     ax.set_xlabel("time [h]")

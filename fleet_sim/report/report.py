@@ -23,7 +23,7 @@ Decisions, where the issue is silent:
   node (fleet_sim.study.sweep.node_waits), over the replications of the recommended fleet (else the
   largest fleet run).
 * Charging: the runs' charging KPIs (``state_charging_pct``, ``charges``, the charger queue wait
-  and any ``charger_*``/``soc_*`` KPI) against fleet size, and SOC traces of a few AGVs from the
+  and any ``charger_*``/``soc_*`` KPI) against fleet size, and SOC curves of a few AGVs from the
   run's ``soc.parquet``. A run without charging says so instead of drawing empty axes.
 """
 
@@ -408,10 +408,10 @@ def section_charging(data: ReportData, series: dict[str, pd.DataFrame],
         frame = pd.read_parquet(table)
         if "soc_pct" in frame.columns:
             agvs = sorted(frame["agv"].unique())[:4]
-            traces = frame[frame["agv"].isin(agvs)][["time_s", "agv", "soc_pct"]].dropna()
-            if not traces.empty:
+            curves = frame[frame["agv"].isin(agvs)][["time_s", "agv", "soc_pct"]].dropna()
+            if not curves.empty:
                 sec.figures.append(_figure("soc", f"SOC of {len(agvs)} AGVs, run {run_id}",
-                                           figs.soc_curves(traces, f"State of charge, run "
+                                           figs.soc_curves(curves, f"State of charge, run "
                                                            f"{run_id}")))
     return sec
 

@@ -566,7 +566,7 @@ class Vehicle(Driver):
         self._halt()
         self.error_code = failure.code
         level, text = describe(failure.code)
-        self.recorder.errors.append((env.now, self.id, failure.code, level))
+        self.recorder.error(env.now, self.id, failure.code, level)
         self.fire("Event_Critical_Error", f"{failure.code} {level}: {text} {failure.detail}")
         order = self.order
         if order is not None:
