@@ -2,12 +2,26 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
 from typing import Any
 
+import numpy as np
 import pytest
 
+from agv_model.emulate import Emulator
+from agv_model.link import device_settings
+from agv_model.profile import load_profile
 from agv_model.protocols import Command, ProtocolError, Reply, get_codec, get_device
-from agv_model.protocols.agv3 import REPLY_TIMEOUT_S, Agv3Codec, Agv3Device, find
+from agv_model.protocols.agv3 import (
+    ERROR_LINE_MAX_BYTES,
+    LINE_LIMIT_BYTES,
+    QUOTE_LIMIT_CHARS,
+    REPLY_TIMEOUT_S,
+    Agv3Codec,
+    Agv3Device,
+    find,
+)
 
 from .conftest import GOLDEN, golden_bytes
 
@@ -225,3 +239,107 @@ def test_exchange_over_a_pseudo_terminal(pty_link: Any) -> None:
     link = pty_link(Agv3Device(reply_delay_s=0.02))
     answer = link.exchange(b"*IDN?;:nav:sta;STAT?\r\n", lambda got: got.count(b"\r\n") >= 3)
     assert answer == b"AGV-3\r\nStarting...\r\nSTARTED\r\n"
+
+
+# -- line noise: bounded input, bounded errors ------------------------------------------------
+
+NOISE_BYTES = 100_000
+NOISE_SEED = 3
+
+
+def noise(n_bytes: int = NOISE_BYTES, seed: int = NOISE_SEED) -> bytes:
+    """Seeded random bytes, as a wrong baud rate or a loose connector would give."""
+    return np.random.default_rng(seed).bytes(n_bytes)
+
+
+def sent_lines(device: Agv3Device, until_s: float) -> list[bytes]:
+    sent = b"".join(data for _, data in device.poll(until_s))
+    assert sent.endswith(b"\r\n")
+    return sent.split(b"\r\n")[:-1]
+
+
+def test_idn_is_answered_within_the_limit_after_100_kb_of_noise() -> None:
+    """On the AGV-3 profile's wire (9600 8N1, both directions timed as `fleet-sim emulate` does,
+    stepped in simulated time), the whole answer to `*IDN?` is in at the host within 0.25 s of
+    the command's last character arriving, whatever error the noise before it got."""
+    profile = load_profile("agv-3")
+    link = profile.link
+    device = get_device("agv3", **device_settings("agv3", link))
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(read_fd, False)
+    os.set_blocking(write_fd, False)
+    try:
+        emu = Emulator(profile, device, write_fd, np.random.default_rng(0))
+        data = noise() + b"\r\n" + b"*IDN?\r\n"
+        emu.heard(data, 0.0)
+        arrived_s = len(data) * link.char_s  # the command's LF is in
+        emu.step(arrived_s + REPLY_TIMEOUT_S)
+        received = b""
+        with contextlib.suppress(BlockingIOError):
+            while chunk := os.read(read_fd, 1 << 16):
+                received += chunk
+        assert received.endswith(b"\r\nAGV-3\r\n")
+        assert emu.dropped_bytes == 0
+    finally:
+        os.close(read_fd)
+        os.close(write_fd)
+
+
+def test_error_output_for_noise_is_bounded() -> None:
+    """One error line for each line of noise, none longer than ERROR_LINE_MAX_BYTES: here the
+    noise holds a few CR LF by chance, so at most (that count + 1) x 128 bytes; fed in 1000
+    pieces of 100 bytes, as a serial port hands them over."""
+    junk = noise()
+    device = Agv3Device()
+    for i in range(0, len(junk), 100):
+        device.receive(junk[i:i + 100], i / 1000)
+    device.receive(b"\r\n", 100.0)
+    lines = sent_lines(device, 101.0)
+    assert len(lines) == junk.count(b"\r\n") + 1
+    assert all(line.startswith(b"ERROR: ") for line in lines)
+    assert max(len(line) + 2 for line in lines) <= ERROR_LINE_MAX_BYTES
+    assert sum(len(line) + 2 for line in lines) <= (junk.count(b"\r\n") + 1) * 128
+
+
+def test_an_over_long_line_is_dropped_with_exactly_one_error() -> None:
+    """A line of LINE_LIMIT_BYTES is still read; one byte more and the whole line is dropped
+    and answered with one error, however it is cut into pieces (here one byte at a time, the
+    terminator split too); the next line is read as usual."""
+    device = Agv3Device()
+    at_limit = b"*IDN?;" + b" " * (LINE_LIMIT_BYTES - 6)
+    assert ask(device, at_limit.decode()) == ["AGV-3"]
+    every = Agv3Codec().encode_chain([  # each command once, long form, longest arguments
+        Command("NAVigation:STArt"), Command("NAVigation:STOp"),
+        Command("NAVigation:PICKUp", ("3", "10"), "set"),
+        Command("NAVigation:DROPOff", ("3", "10"), "set"),
+        Command("NAVigation:ROLe", ("FOLLOW",), "set"),
+        Command("NAVigation:PASSengers", ("10",), "set"), Command("NAVigation:STATus", (), "get"),
+        Command("SYStem:EStop", (), "get"), Command("SYStem:BATtery", (), "get"),
+        Command("*IDN", (), "get")])
+    assert len(every) - 2 <= LINE_LIMIT_BYTES
+    assert len(ask(device, every[:-2].decode(), 0.5)) == 10
+    over = b"*IDN?;" * (LINE_LIMIT_BYTES // 6 + 1) + b"\r\n*IDN?\r\n"
+    for i in range(len(over)):
+        device.receive(over[i:i + 1], 1.0 + i / 1000)
+    lines = sent_lines(device, 3.0)
+    assert len(lines) == 2
+    assert lines[0].startswith(b"ERROR: line longer than 256 bytes b'*IDN?;*IDN?;")
+    assert lines[0].endswith(b"...'") and len(lines[0]) + 2 <= ERROR_LINE_MAX_BYTES
+    assert lines[1] == b"AGV-3"
+
+
+@pytest.mark.parametrize(("line", "start"), [
+    ("X" * 200, "ERROR: unknown command 'XXXX"),
+    ("NAV:" + "Y" * 200 + "?", "ERROR: unknown command 'NAV:YYYY"),
+    ("NAV:PICKU " + "9" * 200, "ERROR: NAVigation:PICKUp: station '9999"),
+    ("NAV:DROPO 1 x" + "9" * 200, "ERROR: NAVigation:DROPOff: count 'x999"),
+    ("NAV:ROL " + "F" * 200, "ERROR: NAVigation:ROLe: role 'FFFF"),
+    ("NAV:PASS " + "z" * 200, "ERROR: NAVigation:PASSengers: max 'zzzz"),
+])
+def test_quoted_junk_is_cut_to_the_quote_limit(line: str, start: str) -> None:
+    """Junk quoted in an error is cut to QUOTE_LIMIT_CHARS characters ending '...'."""
+    (reply,) = ask(Agv3Device(), line)
+    assert reply.startswith(start)
+    quoted = reply[reply.index("'"):reply.rindex("'") + 1]
+    assert len(quoted) == QUOTE_LIMIT_CHARS and quoted.endswith("...'")
+    assert len(reply) + 2 <= ERROR_LINE_MAX_BYTES

@@ -34,6 +34,20 @@ Decisions where the document is silent or contradicts itself:
    "1.092556V"; that figure is also the default reading.
 9. The 0.25 s reply limit ("Om inget returneras inom 0.25s") is ``REPLY_TIMEOUT_S`` for hosts;
    the device's assumed ``reply_delay_s`` (0.01 s) stays well inside it.
+10. Line and reply length: the document states neither; its only bound is that 0.25 s. A
+   device that quoted whatever it got would, after line noise, spend minutes sending error
+   text at the wire's pace before it could answer again. So the device reads lines of at most
+   ``LINE_LIMIT_BYTES`` (256) bytes: every command of the tree once, in long form with its
+   longest arguments and each from the root as `Agv3Codec.encode_chain` writes it, is a line of
+   190 bytes; the fleet's own ``assign`` line is 27. Past the limit the rest of the line is
+   dropped up to its terminator, and the line gets one error, ``line longer than 256 bytes
+   b'<start>...'``, when the terminator comes, however the bytes were cut into pieces.
+   Received text quoted in an error is cut to ``QUOTE_LIMIT_CHARS`` (32) characters ending
+   ``...'``, and an error line is at most ``ERROR_LINE_MAX_BYTES`` (128) bytes: 0.13 s at the
+   AGV-3 profile's assumed 9600 8N1, so that the answer to the next short command still comes
+   within the 0.25 s. Each ';' segment still gets its own line (decision 3): a line of junk
+   answers at most one error line per segment, and noise with no ';' in a line (random bytes
+   are seldom ASCII) one error line per line.
 """
 
 from __future__ import annotations
@@ -62,6 +76,19 @@ COUNT_MAX = 10  # PICKUp <antal, 0-10 = 0>
 PASSENGERS_DEFAULT = 10  # PASSengers <max antal=10>
 ROLES = ("LEAD", "FOLLOW")  # ROLe <roll, LEAD|FOLLOW=LEAD>
 STATES = ("STOPPED", "STARTED", "FOLLOWING", "LEADING", "STATION", "FAULT")  # STATus table
+# Decision 10. The document sets no line or reply length; its only bound is time: "Om inget
+# returneras inom 0.25s så får det antas som ett fel" (Syntax).
+LINE_LIMIT_BYTES = 256  # longest line read, terminator not counted; longer ones are dropped
+QUOTE_LIMIT_CHARS = 32  # longest quotation of received text in an error, quotes and '...' included
+ERROR_LINE_MAX_BYTES = 128  # longest error line, terminator included
+
+
+def _quote(received: bytes | str) -> str:
+    """`received` quoted as ASCII (``ascii()``), cut to QUOTE_LIMIT_CHARS ending ``...'``."""
+    text = ascii(received)
+    if len(text) <= QUOTE_LIMIT_CHARS:
+        return text
+    return text[: QUOTE_LIMIT_CHARS - 4] + "...'"
 
 
 @dataclass(frozen=True)
@@ -105,6 +132,13 @@ ROOT = Node("", children=(
 
 class UnknownCommandError(ProtocolError):
     """An identifier that names no command of the tree."""
+
+
+class LineTooLongError(ProtocolError):
+    """A line longer than LINE_LIMIT_BYTES; `data` holds its first bytes only (decision 10)."""
+
+    def __init__(self, start: bytes) -> None:
+        super().__init__(PROTOCOL, start, f"a line of at most {LINE_LIMIT_BYTES} bytes")
 
 
 def find(name: str) -> Node:
@@ -221,6 +255,45 @@ class Agv3Codec(Codec):
 # -- virtual device ----------------------------------------------------------------------------
 
 
+class LineReader:
+    """The device's line buffer: cuts lines at `terminator` and never holds more than `limit`
+    bytes of one line (plus a partial terminator). A longer line is dropped up to its terminator
+    and comes out once, as a `LineTooLongError` holding its first bytes (decision 10)."""
+
+    def __init__(self, terminator: bytes = TERMINATOR, limit: int = LINE_LIMIT_BYTES) -> None:
+        self.terminator = terminator
+        self.limit = limit
+        self._buffer = bytearray()
+        self._dropping: bytes | None = None  # the start of the over-long line being dropped
+
+    def feed(self, data: bytes) -> list[bytes | LineTooLongError]:
+        """Every line `data` completes, in order, terminators removed."""
+        self._buffer += data
+        lines: list[bytes | LineTooLongError] = []
+        while (end := self._buffer.find(self.terminator)) >= 0:
+            if self._dropping is not None:
+                lines.append(LineTooLongError(self._dropping))
+                self._dropping = None
+            elif end > self.limit:
+                lines.append(LineTooLongError(bytes(self._buffer[:QUOTE_LIMIT_CHARS])))
+            else:
+                lines.append(bytes(self._buffer[:end]))
+            del self._buffer[: end + len(self.terminator)]
+        partial = self._partial_terminator()
+        if len(self._buffer) - partial > self.limit or self._dropping is not None:
+            if self._dropping is None:
+                self._dropping = bytes(self._buffer[:QUOTE_LIMIT_CHARS])
+            del self._buffer[: len(self._buffer) - partial]
+        return lines
+
+    def _partial_terminator(self) -> int:
+        """How many bytes at the end of the buffer could begin the terminator."""
+        for size in range(len(self.terminator) - 1, 0, -1):
+            if self._buffer.endswith(self.terminator[:size]):
+                return size
+        return 0
+
+
 @dataclass
 class _Order:
     station: int = 0
@@ -264,21 +337,24 @@ class Agv3Device(Device):
         self._line_found_s: float | None = None
         self._clock = SimClock(PROTOCOL)
         self._outbox = Outbox()
-        self._buffer = bytearray()
+        self._lines = LineReader()
         self._busy_until_s = 0.0
 
     # -- Device interface ------------------------------------------------------------------
 
     def receive(self, data: bytes, now_s: float) -> None:
         self._clock.advance(now_s)
-        self._buffer += data
-        for line in self.codec.unframe(self._buffer):
+        for line in self._lines.feed(data):
             done_s = max(now_s, self._busy_until_s) + self.reply_delay_s
             self._advance(done_s)
-            try:
-                parsed = self.codec.parse_line(line)
-            except ProtocolError as err:
-                parsed = [err]
+            parsed: list[Command | ProtocolError]
+            if isinstance(line, LineTooLongError):
+                parsed = [line]
+            else:
+                try:
+                    parsed = self.codec.parse_line(line)
+                except ProtocolError as err:
+                    parsed = [err]
             if not parsed:
                 continue
             self._busy_until_s = done_s
@@ -331,19 +407,21 @@ class Agv3Device(Device):
             self.state, self.info = "FOLLOWING", "-1"
 
     def _run(self, parsed: Command | ProtocolError, at_s: float) -> Reply:
+        if isinstance(parsed, LineTooLongError):
+            return _error("", f"line longer than {LINE_LIMIT_BYTES} bytes {_quote(parsed.data)}")
         if isinstance(parsed, ProtocolError):
             what = "unknown command" if isinstance(parsed, UnknownCommandError) else "bad syntax"
-            return Reply("", "error", (f"{what} {parsed.data!r}",))
+            return _error("", f"{what} {_quote(parsed.data)}")
         command = parsed
         node = find(command.name)
         allowed = node.get if command.kind == "get" else node.set
         if not allowed:
-            return Reply(command.name, "error", (f"{command.name} has no {command.kind}",))
+            return _error(command.name, f"{command.name} has no {command.kind}")
         try:
             text = (self._get(command.name) if command.kind == "get"
                     else self._set(command.name, command.args, at_s))
         except ValueError as err:
-            return Reply(command.name, "error", (f"{command.name}: {err}",))
+            return _error(command.name, f"{command.name}: {err}")
         return Reply(command.name, "value" if text else "ok", (text,) if text else ())
 
     def _get(self, name: str) -> str:
@@ -381,7 +459,7 @@ class Agv3Device(Device):
         elif name == "NAVigation:ROLe":
             role = args[0] if args else "LEAD"
             if role not in ROLES:
-                raise ValueError(f"role {role!r} must be LEAD or FOLLOW (case-sensitive)")
+                raise ValueError(f"role {_quote(role)} must be LEAD or FOLLOW (case-sensitive)")
             self.role = role
             if self.state in ("LEADING", "FOLLOWING"):
                 self._on_main_road()
@@ -393,6 +471,14 @@ class Agv3Device(Device):
         return ""
 
 
+def _error(name: str, text: str) -> Reply:
+    """An error reply whose line (prefix and terminator included) fits ERROR_LINE_MAX_BYTES."""
+    room = ERROR_LINE_MAX_BYTES - len(ERROR_PREFIX) - len(TERMINATOR)
+    if len(text) > room:
+        text = text[: room - 3] + "..."
+    return Reply(name, "error", (text,))
+
+
 def _whole(args: tuple[str, ...], index: int, low: int, high: int | None, what: str,
            default: int = 0) -> int:
     """Argument `index` as a whole number in low..high, or `default` when absent."""
@@ -401,10 +487,11 @@ def _whole(args: tuple[str, ...], index: int, low: int, high: int | None, what: 
     text = args[index]
     span = f"{low}-{high}" if high is not None else f">= {low}"
     if not text.lstrip("+-").isdigit():
-        raise ValueError(f"{what} {text!r} must be a whole number {span}")
+        raise ValueError(f"{what} {_quote(text)} must be a whole number {span}")
     value = int(text)
     if value < low or (high is not None and value > high):
-        raise ValueError(f"{what} {value} must be {span}")
+        shown = str(value) if len(str(value)) < QUOTE_LIMIT_CHARS else _quote(text)
+        raise ValueError(f"{what} {shown} must be {span}")
     return value
 
 
