@@ -69,7 +69,7 @@ FIGURES: dict[str, tuple[Callable[[], Figure], tuple[float, float]]] = {
         lambda: figs.kpi_panels(
             {"a": stats_rows("fleet.size", ["k1", "k2", "k3", "k4"]),
              "b": stats_rows("fleet.size", ["k1", "k2", "k3", "k4"])},
-            "fleet.size", ["k1", "k2", "k3", "k4"], [Target("k1", at_least=40.0)],
+            "fleet.size", ["k1", "k2", "k3", "k4"], [Target(kpi="k1", at_least=40.0)],
             {"a": 4, "b": None}),
         (4.6 * 3, 3.6 * 2)),
     "state bars": (lambda: figs.state_bars(state_means(), "fleet.size", "states"), (9, 3.8)),

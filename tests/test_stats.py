@@ -108,7 +108,7 @@ def test_a_code_no_run_raised_counts_zero_times() -> None:
     frame = pd.DataFrame({"fleet.size": [3, 3, 3], "status": ["ok"] * 3,
                           "errors_by_code.E_101": [1.0, 0.0, 2.0]})
     checks = check_targets(frame, ["fleet.size"], [
-        Target("errors_by_code.E_101", at_most=0.0),  # raised 0 to 2 times: undecided
-        Target("errors_by_code.E_999", at_most=0.0),  # never raised, no column: zero, meets
-        Target("lead_time_p95_s", at_most=600.0)])  # no value at all: fails
+        Target(kpi="errors_by_code.E_101", at_most=0.0),  # raised 0 to 2 times: undecided
+        Target(kpi="errors_by_code.E_999", at_most=0.0),  # never raised, no column: zero, meets
+        Target(kpi="lead_time_p95_s", at_most=600.0)])  # no value at all: fails
     assert [c.decision for c in checks] == ["undecided", "meets", "fails"]
