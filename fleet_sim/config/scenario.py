@@ -21,7 +21,7 @@ Decisions, where the issue is silent:
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Final, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
 
@@ -44,9 +44,16 @@ from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.vehicle import VehicleProfile
 from fleet_sim.errors import InputError
 
+MAX_DURATION_H: Final = 8760.0
+"""Longest run: one year of operation; a longer run tells nothing more and runs for days."""
+MAX_RATE_PER_HOUR: Final = 100_000.0
+"""Highest order rate: ~28 orders a second is beyond any AGV warehouse and would flood memory."""
+MAX_FLEET_SIZE: Final = 2_000
+"""Largest fleet: ten times the largest AGV fleets in service; beyond it a run takes hours."""
+
 
 class FleetConfig(StrictModel):
-    size: int = Field(default=4, ge=1)
+    size: int = Field(default=4, ge=1, le=MAX_FLEET_SIZE)
     vehicle: VehicleProfile = VehicleProfile()
     start_nodes: Items[Text] = ()
     """Where AGVs start, one node each; empty: inside the parking areas, filled in file order."""
@@ -85,7 +92,7 @@ class RatePeriod(StrictModel):
 
 class DemandConfig(StrictModel):
     kind: Literal["poisson", "trace"] = "poisson"
-    rate_per_hour: NonNegative = 60.0
+    rate_per_hour: float = Field(default=60.0, ge=0, le=MAX_RATE_PER_HOUR)
     """Mean orders per hour at multiplier 1 (poisson)."""
     flows: Items[Flow] = ()
     """Order flows between stations; empty: every pickup to every dropoff, equal weights."""
@@ -284,7 +291,7 @@ class Scenario(StrictModel):
     """Layout file, relative to the scenario file."""
     name: Text = "scenario"
     description: Text = ""
-    duration_h: Positive = 8.0
+    duration_h: float = Field(default=8.0, gt=0, le=MAX_DURATION_H)
     warmup_h: NonNegative = 0.5
     """KPIs count from the end of the warm-up; orders and events are recorded from t=0."""
     seed: int = Field(default=1, ge=0)
