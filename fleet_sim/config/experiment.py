@@ -56,9 +56,11 @@ from pydantic import Field, field_validator, model_validator
 from agv_model.inputs import Items, Problem, StrictModel, Text, read_yaml, validate
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.scenario import (
+    FOLDER_NAME,
     MAX_FLEET_SIZE,
     Scenario,
     check_against_layout,
+    is_folder_name,
     load_scenario,
 )
 from fleet_sim.config.trace import TraceOrder
@@ -165,9 +167,8 @@ class ExperimentSpec(StrictModel):
     @field_validator("name")
     @classmethod
     def _folder_name(cls, name: str) -> str:
-        if not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
-            raise Problem("", name, "letters, digits, '_', '.', '-' (it names the results "
-                          "folder)")
+        if not is_folder_name(name):
+            raise Problem("", name, FOLDER_NAME)
         return name
 
     @model_validator(mode="after")

@@ -16,14 +16,23 @@ Decisions, where the issue is silent:
   layouts), not in the hash.
 * The resolved config names the layout and the order trace by absolute path, so
   ``fleet-sim run results/<run>/config.resolved.yaml`` reruns the run from any folder.
+* Charging on, but some AGVs cannot reach a charger from where they start (no charger in the
+  layout, or none reachable along one-way segments): `agvs_without_charger` names them and
+  ``fleet-sim run`` prints one warning line; the run goes on. Not refused: "how long does the
+  fleet last without chargers" is a fair question, and the answer (each such AGV runs down and
+  stops with E_201) is in the results. Sweeps do not warn (their runs share the scenario).
+* The scenario ``name`` becomes a folder under ``results/``: the experiment name's rule
+  (`is_folder_name`), so ``../x`` or an absolute path is refused.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any, Final, Literal
 
-from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
+import networkx as nx
+from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from agv_model.inputs import (
     HourOfDay,
@@ -48,8 +57,15 @@ MAX_DURATION_H: Final = 8760.0
 """Longest run: one year of operation; a longer run tells nothing more and runs for days."""
 MAX_RATE_PER_HOUR: Final = 100_000.0
 """Highest order rate: ~28 orders a second is beyond any AGV warehouse and would flood memory."""
+FOLDER_NAME: Final = "letters, digits, '_', '.', '-', not '.' or '..' (it names the results folder)"
+"""What a scenario or experiment name may be: it becomes a folder under results/, so no path."""
 MAX_FLEET_SIZE: Final = 2_000
 """Largest fleet: ten times the largest AGV fleets in service; beyond it a run takes hours."""
+
+
+def is_folder_name(name: str) -> bool:
+    """True if `name` can name a folder under results/ without leaving it."""
+    return bool(re.fullmatch(r"[A-Za-z0-9_.-]+", name)) and name not in (".", "..")
 
 
 class FleetConfig(StrictModel):
@@ -313,6 +329,13 @@ class Scenario(StrictModel):
     _base_dir: str = PrivateAttr(default=".")
     """The scenario file's folder (files it names are relative to it); not a key of the file."""
 
+    @field_validator("name")
+    @classmethod
+    def _folder_name(cls, name: str) -> str:
+        if not is_folder_name(name):
+            raise Problem("", name, FOLDER_NAME)
+        return name
+
     @model_validator(mode="after")
     def _warmup_within_run(self, info: ValidationInfo) -> Scenario:
         if self.warmup_h >= self.duration_h:
@@ -413,6 +436,32 @@ def check_against_layout(scenario: Scenario, layout: Layout, file: str) -> None:
             raise InputError(file, "fleet.size", scenario.fleet.size,
                              f"at most the parking capacity of layout {layout.name} ({room}), "
                              "or fleet.start_nodes for the rest")
+
+
+def agv_start_nodes(scenario: Scenario, layout: Layout) -> list[str]:
+    """The node each AGV starts on, in AGV order, as the engine places them: the scenario's
+    start nodes, else the parking areas' slots in file order."""
+    if scenario.fleet.start_nodes:
+        return list(scenario.fleet.start_nodes[:scenario.fleet.size])
+    slots = [p.nodes[0] for p in layout.parking for _ in range(p.capacity)]
+    return slots[:scenario.fleet.size]
+
+
+def agvs_without_charger(scenario: Scenario, layout: Layout) -> list[int]:
+    """The AGVs (numbers) that cannot drive to any charger from their start, if charging is on;
+    empty when charging is off."""
+    if not scenario.charging.enabled:
+        return []
+    chargers = {n for c in layout.chargers for n in c.nodes}
+    stranded: list[int] = []
+    reach: dict[str, bool] = {}
+    for agv, node in enumerate(agv_start_nodes(scenario, layout)):
+        if node not in reach:
+            reach[node] = node in layout.graph and bool(
+                chargers & (nx.descendants(layout.graph, node) | {node}))
+        if not reach[node]:
+            stranded.append(agv)
+    return stranded
 
 
 def resolved(scenario: Scenario) -> dict[str, Any]:
