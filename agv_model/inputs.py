@@ -230,8 +230,9 @@ def read_yaml(path: Path) -> Any:
     (and the line)."""
     file = str(path)
     text = read_text(path)
-    loader = _Loader(text)
+    loader: _Loader | None = None
     try:
+        loader = _Loader(text)  # checks the characters at once
         return loader.get_single_data()
     except _Refused as exc:
         raise InputError(file, exc.element, exc.value, exc.expected) from None
@@ -241,14 +242,15 @@ def read_yaml(path: Path) -> Any:
     except yaml.reader.ReaderError as exc:
         raise InputError(file, f"character {exc.position}", f"#x{exc.character:04x}"
                          if isinstance(exc.character, int) else exc.character,
-                         "printable text (no control characters)") from None
+                         "printable YAML text (no control characters)") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark is not None else "document"
         problem = getattr(exc, "problem", None) or "invalid YAML"
         raise InputError(file, where, problem, "valid YAML") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
 
 
 def validate(model: type[M], data: Any, file: str, element: str = "",
