@@ -163,8 +163,8 @@ def _cases() -> Iterator[Case]:
         yield Case(f"profile-{field}-{value!r}", "profile",
                    lambda _d, f=field, v=value: _yaml(_set(_profile(), f, v)))
     header = b"time_s,pickup,dropoff\n"
-    for name, raw in [("binary", bytes(range(256))), ("latin1", "time_s,pickup,dropoff\n1,P\xc9,DROP\n"
-                                                       .encode("latin-1")),
+    latin1 = "time_s,pickup,dropoff\n1,P\xc9,DROP\n".encode("latin-1")
+    for name, raw in [("binary", bytes(range(256))), ("latin1", latin1),
                       ("empty", b""), ("no_header", b"1,PICK,DROP\n"),
                       ("time_nan", header + b"nan,PICK,DROP\n"),
                       ("time_inf", header + b"inf,PICK,DROP\n"),
