@@ -297,3 +297,31 @@ def test_the_command_refuses_bad_input_in_one_line(tmp_path: Path) -> None:
         assert "Traceback" not in result.stderr
         assert lines[0].startswith("fleet-sim: error: ") and expected in lines[0], (argv, lines)
         assert not (tmp_path / "results").exists() or argv[0] == "layout", argv
+
+
+def test_agvs_that_cannot_reach_a_charger_are_named(tmp_path: Path) -> None:
+    from fleet_sim.config.scenario import agvs_without_charger, parse_scenario
+
+    layout = load_layout(LAYOUT)  # no charger at all
+    on = parse_scenario(_scenario(), "s.yaml")
+    assert agvs_without_charger(on, layout) == [0, 1]
+    off = parse_scenario(_set(_scenario(), "charging.enabled", False), "s.yaml")
+    assert agvs_without_charger(off, layout) == []
+    scenario = tmp_path / "s.yaml"
+    scenario.write_bytes(_yaml(_set(_scenario(), "duration_h", 0.2)))
+    result = subprocess.run([sys.executable, "-m", "fleet_sim.cli", "run", str(scenario),
+                             "--quiet", "--out", str(tmp_path / "out")],
+                            cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                            check=False, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert result.returncode == 0, result.stderr
+    warning = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert warning == ["fleet-sim: warning: charging is on but the layout has no charger: "
+                       "AGV 0, 1 (2 of 2) will run down and stop with E_201"]
+
+
+def test_a_layout_with_a_charger_warns_no_one() -> None:
+    from fleet_sim.config.scenario import agvs_without_charger, load_layout_for
+
+    scenario = load_scenario(ROOT / "experiments" / "warehouse_shift.yaml")
+    layout = load_layout_for(scenario, "warehouse_shift.yaml")
+    assert agvs_without_charger(scenario, layout) == []
