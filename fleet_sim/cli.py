@@ -154,7 +154,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _run(args: argparse.Namespace) -> int:
     from fleet_sim.analysis.kpis import run_kpis, summary_text
     from fleet_sim.analysis.tables import write_run
-    from fleet_sim.config.scenario import load_layout_for, load_scenario
+    from fleet_sim.config.scenario import folder_name, load_layout_for, load_scenario
     from fleet_sim.config.trace import load_trace
     from fleet_sim.sim.engine import simulate
     from fleet_sim.study.progress import Progress
@@ -167,7 +167,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.seed is not None:
         overrides["seed"] = args.seed
     scenario = _load_with_hours(load_scenario, args.scenario, overrides, args.hours)
-    out = args.out or _fresh_dir(Path("results") / scenario.name)
+    out = args.out or _fresh_dir(Path("results") / folder_name(scenario.name))
     _check_out_dir(out, "--out" if args.out else "results folder")
     layout = load_layout_for(scenario, str(args.scenario))
     _warn_unreachable_chargers(scenario, layout)

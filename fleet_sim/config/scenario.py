@@ -21,8 +21,10 @@ Decisions, where the issue is silent:
   ``fleet-sim run`` prints one warning line; the run goes on. Not refused: "how long does the
   fleet last without chargers" is a fair question, and the answer (each such AGV runs down and
   stops with E_201) is in the results. Sweeps do not warn (their runs share the scenario).
-* The scenario ``name`` becomes a folder under ``results/``: the experiment name's rule
-  (`is_folder_name`), so ``../x`` or an absolute path is refused.
+* The scenario ``name`` is free text (reports show it, escaped); the default run folder is
+  ``results/<folder_name(name)>``, every character outside the experiment name's rule
+  (`is_folder_name`) replaced by ``_``, so ``../x`` or ``/abs`` never writes outside
+  ``results/``. (Refusing such names would refuse files that load today.)
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from pathlib import Path
 from typing import Any, Final, Literal
 
 import networkx as nx
-from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
+from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
 
 from agv_model.inputs import (
     HourOfDay,
@@ -66,6 +68,12 @@ MAX_FLEET_SIZE: Final = 2_000
 def is_folder_name(name: str) -> bool:
     """True if `name` can name a folder under results/ without leaving it."""
     return bool(re.fullmatch(r"[A-Za-z0-9_.-]+", name)) and name not in (".", "..")
+
+
+def folder_name(name: str) -> str:
+    """`name` as one folder name under results/: unsafe characters become '_'."""
+    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", name)
+    return safe if is_folder_name(safe) else safe.replace(".", "_") or "scenario"
 
 
 class FleetConfig(StrictModel):
@@ -328,13 +336,6 @@ class Scenario(StrictModel):
     sumo: SumoConfig = SumoConfig()
     _base_dir: str = PrivateAttr(default=".")
     """The scenario file's folder (files it names are relative to it); not a key of the file."""
-
-    @field_validator("name")
-    @classmethod
-    def _folder_name(cls, name: str) -> str:
-        if not is_folder_name(name):
-            raise Problem("", name, FOLDER_NAME)
-        return name
 
     @model_validator(mode="after")
     def _warmup_within_run(self, info: ValidationInfo) -> Scenario:
