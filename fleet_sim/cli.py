@@ -10,31 +10,87 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
+import tempfile
+import typing
 from collections.abc import Sequence
 from pathlib import Path
 
+from fleet_sim.config.scenario import MAX_DURATION_H, MAX_FLEET_SIZE
 from fleet_sim.errors import FleetSimError, InputError
 
 MAX_WARNINGS = 4
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``fleet-sim: error: argument --hours: got 'nan'; expected
+    ...`` and exit 2, without the usage block (``--help`` still shows it)."""
+
+    def error(self, message: str) -> typing.NoReturn:
+        self.exit(2, f"fleet-sim: error: {message}\n")
+
+
+def _number(text: str, what: str, low: float, high: float, low_open: bool = True) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or not (value > low if low_open else value >= low) \
+            or value > high:
+        raise argparse.ArgumentTypeError(f"got {text!r}; expected a finite number of {what} "
+                                         f"{'>' if low_open else '>='} {low:g} and <= {high:g}")
+    return value
+
+
+def _integer(text: str, what: str, low: int, high: int | None = None) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = low - 1
+    if value < low or (high is not None and value > high):
+        upper = f" and <= {high}" if high is not None else ""
+        raise argparse.ArgumentTypeError(f"got {text!r}; expected an integer {what} >= {low}"
+                                         f"{upper}")
+    return value
+
+
+def _hours(text: str) -> float:
+    return _number(text, "hours", 0, MAX_DURATION_H)
+
+
+def _agvs(text: str) -> int:
+    return _integer(text, "number of AGVs", 1, MAX_FLEET_SIZE)
+
+
+def _seed(text: str) -> int:
+    return _integer(text, "seed", 0)
+
+
+def _speed(text: str) -> float:
+    return _number(text, "metres per second", 0, 100)
+
+
+def _workers(text: str) -> int:
+    return _integer(text, "number of workers (0: one per core)", 0, 1024)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="fleet-sim", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="fleet-sim", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser("run", help="run one scenario and write its run directory")
     run.add_argument("scenario", type=Path, help="scenario YAML file")
-    run.add_argument("--agvs", type=int, help="fleet size (overrides fleet.size)")
-    run.add_argument("--hours", type=float, help="run length in hours (overrides duration_h)")
-    run.add_argument("--seed", type=int, help="random seed (overrides seed)")
+    run.add_argument("--agvs", type=_agvs, help="fleet size (overrides fleet.size)")
+    run.add_argument("--hours", type=_hours, help="run length in hours (overrides duration_h)")
+    run.add_argument("--seed", type=_seed, help="random seed (overrides seed)")
     run.add_argument("--out", type=Path, help="run directory (default: results/<scenario name>)")
     run.add_argument("--quiet", action="store_true", help="no progress display")
 
     lay = sub.add_parser("layout", help="check a layout file and draw it to PNG")
     lay.add_argument("layout", type=Path, help="layout YAML file")
     lay.add_argument("--png", type=Path, help="where to draw it (default: results/<name>.png)")
-    lay.add_argument("--max-speed", type=float, default=None,
+    lay.add_argument("--max-speed", type=_speed, default=None,
                      help="vehicle top speed in m/s to check speed limits against")
     lay.add_argument("--sumo", type=Path, metavar="DIR",
                      help="also export it as a SUMO network (plain XML, net.xml, vType) to DIR")
@@ -42,15 +98,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     cross = sub.add_parser("crosscheck", help="run a scenario with the closed-form and the SUMO "
                            "motion backends and compare the KPIs (each run in its own process)")
     cross.add_argument("scenario", type=Path, help="scenario YAML file")
-    cross.add_argument("--agvs", type=int, nargs="+", metavar="N",
+    cross.add_argument("--agvs", type=_agvs, nargs="+", metavar="N",
                        help="fleet sizes to compare (default: the scenario's)")
-    cross.add_argument("--hours", type=float, help="run length in hours (overrides duration_h)")
-    cross.add_argument("--seed", type=int, help="random seed (overrides seed)")
+    cross.add_argument("--hours", type=_hours, help="run length in hours (overrides duration_h)")
+    cross.add_argument("--seed", type=_seed, help="random seed (overrides seed)")
 
     emu = sub.add_parser("emulate", help="serve a virtual vehicle on a pseudo-terminal")
     emu.add_argument("protocol", help="carriro, ktm02, tabo or agv3")
     emu.add_argument("--profile", help="vehicle profile (default: the one for the protocol)")
-    emu.add_argument("--seed", type=int, help="seed of the link jitter")
+    emu.add_argument("--seed", type=_seed, help="seed of the link jitter")
     swp = sub.add_parser("sweep", help="run every run of an experiment (resumable)")
     swp.add_argument("experiment", type=Path, help="experiment YAML file")
     _runner_options(swp)
@@ -98,7 +154,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _run(args: argparse.Namespace) -> int:
     from fleet_sim.analysis.kpis import run_kpis, summary_text
     from fleet_sim.analysis.tables import write_run
-    from fleet_sim.config.scenario import load_layout_for, load_scenario
+    from fleet_sim.config.scenario import folder_name, load_layout_for, load_scenario
     from fleet_sim.config.trace import load_trace
     from fleet_sim.sim.engine import simulate
     from fleet_sim.study.progress import Progress
@@ -110,16 +166,15 @@ def _run(args: argparse.Namespace) -> int:
         overrides["duration_h"] = args.hours
     if args.seed is not None:
         overrides["seed"] = args.seed
-    scenario = load_scenario(args.scenario, overrides)
-    if args.hours is not None and scenario.warmup_h >= scenario.duration_h:
-        raise InputError("--hours", "duration_h", args.hours,
-                         f"a run longer than the warm-up ({scenario.warmup_h} h)")
+    scenario = _load_with_hours(load_scenario, args.scenario, overrides, args.hours)
+    out = args.out or _fresh_dir(Path("results") / folder_name(scenario.name))
+    _check_out_dir(out, "--out" if args.out else "results folder")
     layout = load_layout_for(scenario, str(args.scenario))
+    _warn_unreachable_chargers(scenario, layout)
     trace = []
     if scenario.demand.kind == "trace":
         assert scenario.demand.trace_csv is not None
         trace = load_trace(scenario.path(scenario.demand.trace_csv), layout)
-    out = args.out or _fresh_dir(Path("results") / scenario.name)
     with Progress(scenario.duration_s, quiet=args.quiet, plain_lines=4) as progress:
         def simulated(now_s: float, end_s: float) -> None:
             progress.update(now_s, f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h "
@@ -153,6 +208,57 @@ def _schema(args: argparse.Namespace) -> int:
     return 0
 
 
+def _load_with_hours(load: typing.Callable[..., typing.Any], file: Path,
+                     overrides: dict[str, object], hours: float | None) -> typing.Any:
+    """The scenario with the overrides; a warm-up the --hours run cannot hold names --hours."""
+    try:
+        return load(file, overrides)
+    except InputError as exc:
+        if hours is not None and exc.element == "warmup_h":
+            raise InputError("--hours", "duration_h", hours,
+                             f"a run longer than the scenario's warm-up ({exc.value} h in "
+                             f"{file})") from None
+        raise
+
+
+def _check_out_dir(out: Path, argument: str, element: str = "out") -> None:
+    """Refuse, before any work, a run or results directory that cannot be written: an existing
+    file in its place, or a place where it cannot be made or written (tried: the directory is
+    made and a probe file written and removed)."""
+    if out.exists() and not out.is_dir():
+        raise InputError(argument, element, str(out), "a directory (or a new path), not a file")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        raise InputError(argument, element, str(out),
+                         f"a writable directory ({exc.strerror or exc})") from None
+
+
+def _check_out_file(out: Path, argument: str) -> None:
+    """Refuse, before any work, an output file path that is a directory or cannot be written."""
+    if out.is_dir():
+        raise InputError(argument, argument.lstrip("-"), str(out),
+                         "a file path (it is an existing directory)")
+    _check_out_dir(out.parent, argument, f"{argument.lstrip('-')} folder")
+
+
+def _warn_unreachable_chargers(scenario: typing.Any, layout: typing.Any) -> None:
+    """One warning line on stderr if charging is on and some AGVs cannot reach a charger."""
+    from fleet_sim.config.scenario import agvs_without_charger
+
+    stranded = agvs_without_charger(scenario, layout)
+    if not stranded:
+        return
+    shown = ", ".join(str(a) for a in stranded[:20]) + (", ..." if len(stranded) > 20 else "")
+    why = "the layout has no charger" if not layout.chargers else "no charger is reachable " \
+        "from their start nodes"
+    print(f"fleet-sim: warning: charging is on but {why}: AGV {shown} "
+          f"({len(stranded)} of {scenario.fleet.size}) will run down and stop with E_201",
+          file=sys.stderr)
+
+
 def _fresh_dir(base: Path) -> Path:
     """`base`, or `base-2`, `base-3`... so that a default run never overwrites an earlier one."""
     if not base.exists():
@@ -164,7 +270,7 @@ def _fresh_dir(base: Path) -> Path:
 
 
 def _runner_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--workers", type=int, default=0,
+    parser.add_argument("--workers", type=_workers, default=0,
                         help="worker processes (default: one per core)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="run on the Dask cluster at ADDRESS (tcp://host:8786), or 'local' "
@@ -255,6 +361,8 @@ def _layout(args: argparse.Namespace) -> int:
     from fleet_sim.config.layout import load_layout
     from fleet_sim.report.layout_plot import draw_layout
 
+    if args.png is not None:
+        _check_out_file(args.png, "--png")
     layout = load_layout(args.layout, max_speed_mps=args.max_speed)
     kinds: dict[str, int] = {}
     for _, data in layout.graph.nodes(data=True):
@@ -269,6 +377,7 @@ def _layout(args: argparse.Namespace) -> int:
     print(f"  parking      {len(layout.parking)} areas, "
           f"{sum(p.capacity for p in layout.parking)} AGVs")
     png = args.png or Path("results") / f"{layout.name}.png"
+    _check_out_file(png, "--png" if args.png else "results folder")
     draw_layout(layout, png)
     print(f"  drawing      {png}")
     if args.sumo is not None:
@@ -290,10 +399,8 @@ def _crosscheck(args: argparse.Namespace) -> int:
         base["duration_h"] = args.hours
     if args.seed is not None:
         base["seed"] = args.seed
-    scenario = load_scenario(args.scenario, base)  # bad input fails here, before any run
-    if args.hours is not None and scenario.warmup_h >= scenario.duration_h:
-        raise InputError("--hours", "duration_h", args.hours,
-                         f"a run longer than the warm-up ({scenario.warmup_h} h)")
+    # bad input fails here, before any run
+    scenario = _load_with_hours(load_scenario, args.scenario, base, args.hours)
     load_layout_for(scenario, str(args.scenario))
     for size in args.agvs or [scenario.fleet.size]:
         if size < 1:

@@ -77,4 +77,4 @@ def test_crosscheck_command_names_bad_input() -> None:
                              "experiments/tiny_loop.yaml", "--agvs", "0"],
                             cwd=ROOT, capture_output=True, text=True, timeout=120, check=False)
     assert result.returncode == 2
-    assert "--agvs: fleet.size: got 0; expected an integer >= 1" in result.stderr
+    assert "argument --agvs: got '0'; expected an integer number of AGVs >= 1" in result.stderr

@@ -78,7 +78,7 @@ def test_overrides_by_dotted_key() -> None:
 
 @pytest.mark.parametrize("data,element,expected", [
     ({"layout": "x.yaml", "fleet": {"sise": 3}}, "fleet.sise", "no such key"),
-    ({"layout": "x.yaml", "fleet": {"size": 0}}, "fleet.size", "an integer >= 1"),
+    ({"layout": "x.yaml", "fleet": {"size": 0}}, "fleet.size", "an integer in [1, 2000]"),
     ({"layout": "x.yaml", "fleet": {"size": "many"}}, "fleet.size", "an integer"),
     ({"layout": "x.yaml", "duration_h": 1, "warmup_h": 2}, "warmup_h", "shorter than"),
     ({"layout": "x.yaml", "dispatch": {"policy": "random"}}, "dispatch.policy",

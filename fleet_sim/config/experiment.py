@@ -48,14 +48,21 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Final, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from agv_model.inputs import Items, Problem, StrictModel, Text, read_yaml, validate
 from fleet_sim.config.layout import Layout, load_layout
-from fleet_sim.config.scenario import Scenario, check_against_layout, load_scenario
+from fleet_sim.config.scenario import (
+    FOLDER_NAME,
+    MAX_FLEET_SIZE,
+    Scenario,
+    check_against_layout,
+    is_folder_name,
+    load_scenario,
+)
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.errors import InputError
 
@@ -63,6 +70,12 @@ FLEET = "fleet.size"
 """The factor the sizing search varies."""
 
 LHS_STREAM = 2**32
+
+
+MAX_REPLICATIONS: Final = 1_000
+"""Most replications of one design point: intervals stop narrowing usefully long before."""
+MAX_RUNS: Final = 10_000
+"""Most runs of one experiment (design points x replications): a day or more of computing."""
 
 
 class Range(StrictModel):
@@ -112,11 +125,11 @@ class Target(StrictModel):
 class SizingConfig(StrictModel):
     """The fleet-size search of `fleet-sim size`."""
 
-    min_agvs: Annotated[int, Field(ge=1)] | None = None
+    min_agvs: Annotated[int, Field(ge=1, le=MAX_FLEET_SIZE)] | None = None
     """Smallest fleet to consider; default: the lowest fleet.size level, else 1."""
-    max_agvs: Annotated[int, Field(ge=1)] | None = None
+    max_agvs: Annotated[int, Field(ge=1, le=MAX_FLEET_SIZE)] | None = None
     """Largest fleet to consider; default: the highest fleet.size level, else 50."""
-    max_replications: int = Field(default=12, ge=2)
+    max_replications: int = Field(default=12, ge=2, le=MAX_REPLICATIONS)
     """Replications a close decision may grow to, from the experiment's `replications` (at
     least two: a confidence interval needs two)."""
     agv_availability: float = Field(default=1.0, gt=0, le=1)
@@ -144,9 +157,9 @@ class ExperimentSpec(StrictModel):
     factors: dict[str, Any] = Field(default_factory=dict)
     """Dotted scenario path -> list of levels, or {min, max, integer} (Latin hypercube)."""
     design: Literal["full_factorial", "latin_hypercube"] = "full_factorial"
-    samples: int = Field(default=0, ge=0)
+    samples: int = Field(default=0, ge=0, le=MAX_RUNS)
     """Design points of a Latin hypercube."""
-    replications: int = Field(default=3, ge=1)
+    replications: int = Field(default=3, ge=1, le=MAX_REPLICATIONS)
     master_seed: int = Field(default=1, ge=0)
     targets: Items[Target] = ()
     sizing: SizingConfig = SizingConfig()
@@ -154,9 +167,8 @@ class ExperimentSpec(StrictModel):
     @field_validator("name")
     @classmethod
     def _folder_name(cls, name: str) -> str:
-        if not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
-            raise Problem("", name, "letters, digits, '_', '.', '-' (it names the results "
-                          "folder)")
+        if not is_folder_name(name):
+            raise Problem("", name, FOLDER_NAME)
         return name
 
     @model_validator(mode="after")
@@ -304,6 +316,12 @@ def load_experiment(path: str | Path) -> Experiment:
         else:
             raise InputError(file, f"factors.{key}", value,
                              "a list of levels, or {min, max} for a Latin hypercube")
+    n_points = math.prod(len(v) for v in levels.values()) if spec.design == "full_factorial" \
+        else spec.samples
+    if n_points * spec.replications > MAX_RUNS:
+        element = "factors" if spec.design == "full_factorial" else "samples"
+        raise InputError(file, element, f"{n_points} design points x {spec.replications} "
+                         "replications", f"at most {MAX_RUNS} runs in one experiment")
     if spec.design == "full_factorial":
         points = full_factorial(levels)
     else:

@@ -16,13 +16,24 @@ Decisions, where the issue is silent:
   layouts), not in the hash.
 * The resolved config names the layout and the order trace by absolute path, so
   ``fleet-sim run results/<run>/config.resolved.yaml`` reruns the run from any folder.
+* Charging on, but some AGVs cannot reach a charger from where they start (no charger in the
+  layout, or none reachable along one-way segments): `agvs_without_charger` names them and
+  ``fleet-sim run`` prints one warning line; the run goes on. Not refused: "how long does the
+  fleet last without chargers" is a fair question, and the answer (each such AGV runs down and
+  stops with E_201) is in the results. Sweeps do not warn (their runs share the scenario).
+* The scenario ``name`` is free text (reports show it, escaped); the default run folder is
+  ``results/<folder_name(name)>``, every character outside the experiment name's rule
+  (`is_folder_name`) replaced by ``_``, so ``../x`` or ``/abs`` never writes outside
+  ``results/``. (Refusing such names would refuse files that load today.)
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Final, Literal
 
+import networkx as nx
 from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
 
 from agv_model.inputs import (
@@ -44,9 +55,29 @@ from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.vehicle import VehicleProfile
 from fleet_sim.errors import InputError
 
+MAX_DURATION_H: Final = 8760.0
+"""Longest run: one year of operation; a longer run tells nothing more and runs for days."""
+MAX_RATE_PER_HOUR: Final = 100_000.0
+"""Highest order rate: ~28 orders a second is beyond any AGV warehouse and would flood memory."""
+FOLDER_NAME: Final = "letters, digits, '_', '.', '-', not '.' or '..' (it names the results folder)"
+"""What a scenario or experiment name may be: it becomes a folder under results/, so no path."""
+MAX_FLEET_SIZE: Final = 2_000
+"""Largest fleet: ten times the largest AGV fleets in service; beyond it a run takes hours."""
+
+
+def is_folder_name(name: str) -> bool:
+    """True if `name` can name a folder under results/ without leaving it."""
+    return bool(re.fullmatch(r"[A-Za-z0-9_.-]+", name)) and name not in (".", "..")
+
+
+def folder_name(name: str) -> str:
+    """`name` as one folder name under results/: unsafe characters become '_'."""
+    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", name)
+    return safe if is_folder_name(safe) else safe.replace(".", "_") or "scenario"
+
 
 class FleetConfig(StrictModel):
-    size: int = Field(default=4, ge=1)
+    size: int = Field(default=4, ge=1, le=MAX_FLEET_SIZE)
     vehicle: VehicleProfile = VehicleProfile()
     start_nodes: Items[Text] = ()
     """Where AGVs start, one node each; empty: inside the parking areas, filled in file order."""
@@ -85,7 +116,7 @@ class RatePeriod(StrictModel):
 
 class DemandConfig(StrictModel):
     kind: Literal["poisson", "trace"] = "poisson"
-    rate_per_hour: NonNegative = 60.0
+    rate_per_hour: float = Field(default=60.0, ge=0, le=MAX_RATE_PER_HOUR)
     """Mean orders per hour at multiplier 1 (poisson)."""
     flows: Items[Flow] = ()
     """Order flows between stations; empty: every pickup to every dropoff, equal weights."""
@@ -284,7 +315,7 @@ class Scenario(StrictModel):
     """Layout file, relative to the scenario file."""
     name: Text = "scenario"
     description: Text = ""
-    duration_h: Positive = 8.0
+    duration_h: float = Field(default=8.0, gt=0, le=MAX_DURATION_H)
     warmup_h: NonNegative = 0.5
     """KPIs count from the end of the warm-up; orders and events are recorded from t=0."""
     seed: int = Field(default=1, ge=0)
@@ -406,6 +437,32 @@ def check_against_layout(scenario: Scenario, layout: Layout, file: str) -> None:
             raise InputError(file, "fleet.size", scenario.fleet.size,
                              f"at most the parking capacity of layout {layout.name} ({room}), "
                              "or fleet.start_nodes for the rest")
+
+
+def agv_start_nodes(scenario: Scenario, layout: Layout) -> list[str]:
+    """The node each AGV starts on, in AGV order, as the engine places them: the scenario's
+    start nodes, else the parking areas' slots in file order."""
+    if scenario.fleet.start_nodes:
+        return list(scenario.fleet.start_nodes[:scenario.fleet.size])
+    slots = [p.nodes[0] for p in layout.parking for _ in range(p.capacity)]
+    return slots[:scenario.fleet.size]
+
+
+def agvs_without_charger(scenario: Scenario, layout: Layout) -> list[int]:
+    """The AGVs (numbers) that cannot drive to any charger from their start, if charging is on;
+    empty when charging is off."""
+    if not scenario.charging.enabled:
+        return []
+    chargers = {n for c in layout.chargers for n in c.nodes}
+    stranded: list[int] = []
+    reach: dict[str, bool] = {}
+    for agv, node in enumerate(agv_start_nodes(scenario, layout)):
+        if node not in reach:
+            reach[node] = node in layout.graph and bool(
+                chargers & (nx.descendants(layout.graph, node) | {node}))
+        if not reach[node]:
+            stranded.append(agv)
+    return stranded
 
 
 def resolved(scenario: Scenario) -> dict[str, Any]:

@@ -7,13 +7,15 @@ Each row is checked by the same models and messages as the YAML files; its eleme
 from __future__ import annotations
 
 import csv
+import io
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
 from pydantic import Field, Strict
 
-from agv_model.inputs import StrictModel, Text, validate
+from agv_model.inputs import StrictModel, Text, read_text, validate
 from fleet_sim.config.layout import Layout
 from fleet_sim.errors import InputError
 
@@ -40,20 +42,20 @@ class TraceOrder:
 
 def load_trace(path: Path, layout: Layout) -> list[TraceOrder]:
     file = str(path)
-    try:
-        handle = path.open(newline="", encoding="utf-8")
-    except OSError:
-        raise InputError(file, "file", file, "an existing, readable order trace CSV") from None
-    with handle:
+    text = read_text(path)  # the same size cap and UTF-8 check as the YAML files
+    with io.StringIO(text, newline="") as handle:
         reader = csv.DictReader(handle)
-        header = reader.fieldnames or []
+        try:
+            header = reader.fieldnames or []
+        except csv.Error as exc:
+            raise InputError(file, "header", str(exc), "a well-formed CSV header") from None
         missing = [c for c in REQUIRED if c not in header]
         if missing:
             raise InputError(file, "header", ",".join(header),
                              f"columns {', '.join(REQUIRED)} (missing {', '.join(missing)})")
         orders: list[TraceOrder] = []
-        for cells in reader:
-            where = f"row {reader.line_num}"
+        for line, cells in _rows(reader, file):
+            where = f"row {line}"
             row = validate(TraceRow, {c: cells[c] for c in REQUIRED}, file, where)
             for column, kind in (("pickup", "pickup"), ("dropoff", "dropoff")):
                 station = getattr(row, column)
@@ -65,3 +67,16 @@ def load_trace(path: Path, layout: Layout) -> list[TraceOrder]:
             orders.append(TraceOrder(row.time_s, row.pickup, row.dropoff))
     orders.sort(key=lambda o: o.time_s)
     return orders
+
+
+def _rows(reader: csv.DictReader[str], file: str) -> Iterator[tuple[int, dict[str, str]]]:
+    """(line number, cells) per row; a malformed row (a NUL, a runaway quote) is an InputError."""
+    while True:
+        try:
+            cells = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            raise InputError(file, f"row {reader.line_num}", str(exc),
+                             "a well-formed CSV row") from None
+        yield reader.line_num, cells

@@ -1,0 +1,332 @@
+"""A generated corpus of bad inputs ("no garbage in").
+
+Every case is a bad layout, scenario, experiment, order trace, vehicle profile or CLI argument.
+Each must end in one InputError (or, through the CLI, exit status 2 and one line on stderr) that
+names the file or the argument, never a traceback, and within a few seconds (a hang or an alias
+bomb fails the test). Most cases go through the loaders in-process; a representative sample goes
+through the real `fleet-sim` command in a subprocess.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import pytest
+import yaml
+
+from agv_model.inputs import MAX_FILE_BYTES
+from agv_model.profile import read_profile
+from fleet_sim.config.experiment import load_experiment
+from fleet_sim.config.layout import load_layout
+from fleet_sim.config.scenario import load_layout_for, load_scenario
+from fleet_sim.config.trace import load_trace
+from fleet_sim.errors import InputError
+
+ROOT = Path(__file__).resolve().parents[1]
+LAYOUT = ROOT / "layouts" / "tiny_loop.yaml"
+PROFILE = ROOT / "agv_model" / "profiles" / "tabo.yaml"
+CASE_SECONDS = 10
+
+NAN, INF = float("nan"), float("inf")
+BAD_NUMBERS: list[Any] = [NAN, INF, -INF, 1e308, -1, "many", True, [1]]
+
+
+def _scenario() -> dict[str, Any]:
+    return {"name": "bad", "layout": str(LAYOUT), "duration_h": 1, "warmup_h": 0.1,
+            "seed": 1, "fleet": {"size": 2}, "demand": {"rate_per_hour": 40}}
+
+
+def _layout() -> dict[str, Any]:
+    data = yaml.safe_load(LAYOUT.read_text(encoding="utf-8"))
+    assert isinstance(data, dict)
+    return data
+
+
+def _experiment(scenario: Path) -> dict[str, Any]:
+    return {"name": "bad", "scenario": str(scenario), "factors": {"fleet.size": [1, 2]},
+            "replications": 2}
+
+
+def _profile() -> dict[str, Any]:
+    data = yaml.safe_load(PROFILE.read_text(encoding="utf-8"))
+    assert isinstance(data, dict)
+    return data
+
+
+def _set(data: dict[str, Any], dotted: str, value: Any) -> dict[str, Any]:
+    keys = dotted.split(".")
+    target: Any = data
+    for key in keys[:-1]:
+        target = target[int(key)] if isinstance(target, list) else target.setdefault(key, {})
+    if isinstance(target, list):
+        target[int(keys[-1])] = value
+    else:
+        target[keys[-1]] = value
+    return data
+
+
+def _alias_bomb() -> bytes:
+    lines = ["a0: &a0 [x, x, x, x, x, x, x, x, x]"]
+    lines += [f"a{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * 9) + "]" for i in range(1, 10)]
+    return ("\n".join(lines) + "\n").encode()
+
+
+# Raw files that are not YAML (or not text): the same for every kind of YAML file.
+RAW: dict[str, bytes] = {
+    "binary": bytes(range(256)) * 4,
+    "latin1": "name: caf\xe9\nnodes: []\n".encode("latin-1"),
+    "nul": b"name: x\x00y\n",
+    "control": b"name: x\x07y\n",
+    "alias_bomb": _alias_bomb(),
+    "recursive_alias": b"a: &x [1, *x]\n",
+    "deep_nesting": b"[" * 50_000 + b"]" * 50_000 + b"\n",
+    "deep_mapping": b"a: {" * 50_000 + b"}" * 50_000 + b"\n",
+    "duplicate_keys": b"name: one\nlayout: x.yaml\nname: two\n",
+    "truncated": b"name: x\nnodes: [\n  {id: A, x: 0\n",
+    "tab_indent": b"name: x\n\tnodes: []\n",
+    "empty": b"",
+    "top_level_list": b"- 1\n- 2\n",
+    "top_level_text": b"just some words\n",
+    "two_documents": b"name: x\n---\nname: y\n",
+}
+
+
+@dataclass(frozen=True)
+class Case:
+    id: str
+    kind: str  # layout, scenario, experiment, trace, profile
+    content: Callable[[Path], bytes]
+    """The file's bytes, given the folder the case is written in."""
+
+
+def _yaml(data: Any) -> bytes:
+    return yaml.safe_dump(data, sort_keys=False).encode()
+
+
+def _cases() -> Iterator[Case]:
+    for kind in ("layout", "scenario", "experiment", "profile"):
+        for name, raw in RAW.items():
+            yield Case(f"{kind}-{name}", kind, lambda _d, raw=raw: raw)
+    scenario_fields = ["duration_h", "warmup_h", "seed", "fleet.size", "demand.rate_per_hour",
+                       "start_h", "charging.threshold_pct"]
+    for field in scenario_fields:
+        for i, value in enumerate(BAD_NUMBERS):
+            yield Case(f"scenario-{field}-{i}-{value!r}", "scenario",
+                       lambda _d, f=field, v=value: _yaml(_set(_scenario(), f, v)))
+    for field, value in [("duration_h", 8761), ("demand.rate_per_hour", 100_001),
+                         ("fleet.size", 2001), ("fleet.size", 0), ("unknown_key", 1),
+                         ("fleet.vehicle.max_speed_mps", NAN), ("fleet.start_nodes", ["ZZ"]),
+                         ("layout", "missing.yaml"), ("layout", str(ROOT / "layouts"))]:
+        yield Case(f"scenario-{field}-{value!r}", "scenario",
+                   lambda _d, f=field, v=value: _yaml(_set(_scenario(), f, v)))
+    for field, value in [("nodes.0.x", NAN), ("nodes.0.x", INF), ("nodes.0.y", "north"),
+                         ("segments.0.length_m", -1), ("segments.0.to", "ZZ"),
+                         ("segments.0.speed_limit_mps", 0), ("nodes.1.id", "SW"),
+                         ("parking.0.capacity", 1e308), ("parking.0.capacity", 0),
+                         ("defaults.speed_limit_mps", NAN), ("stations.0.nodes", []),
+                         ("nodes", "none")]:
+        yield Case(f"layout-{field}-{value!r}", "layout",
+                   lambda _d, f=field, v=value: _yaml(_set(_layout(), f, v)))
+    many_levels = {"fleet.size": list(range(1, 101)),
+                   "demand.rate_per_hour": list(range(1, 51))}
+    for field, value in [("replications", 0), ("replications", 1001), ("replications", NAN),
+                         ("replications", "three"), ("name", "../x"), ("name", ".."),
+                         ("name", "/abs"), ("factors", many_levels),
+                         ("factors.fleet\\.size", None), ("design", "random"),
+                         ("master_seed", -1), ("sizing", {"max_agvs": 1e308}),
+                         ("sizing", {"max_agvs": 5000}), ("scenario", "nowhere.yaml")]:
+        def experiment(folder: Path, f: str = field, v: Any = value) -> bytes:
+            scenario = folder / "base.yaml"
+            scenario.write_bytes(_yaml(_scenario()))
+            data = _experiment(scenario)
+            if f == "factors.fleet\\.size":
+                data["factors"] = {"fleet.size": [0, 2]}
+            else:
+                _set(data, f, v)
+            return _yaml(data)
+        yield Case(f"experiment-{field}-{value!r}"[:80], "experiment", experiment)
+    yield Case("experiment-lhs-samples", "experiment", lambda d: _yaml({
+        **_experiment(_write_base(d)), "design": "latin_hypercube", "samples": 10_001,
+        "factors": {"demand.rate_per_hour": {"min": 10, "max": 50}}}))
+    for field, value in [("kinematics.max_speed_mmps", NAN), ("kinematics.accel_mmps2", -1),
+                         ("battery.capacity_wh", INF), ("battery.moving_w", "lots"),
+                         ("protocol", "smoke-signals")]:
+        yield Case(f"profile-{field}-{value!r}", "profile",
+                   lambda _d, f=field, v=value: _yaml(_set(_profile(), f, v)))
+    header = b"time_s,pickup,dropoff\n"
+    latin1 = "time_s,pickup,dropoff\n1,P\xc9,DROP\n".encode("latin-1")
+    for name, raw in [("binary", bytes(range(256))), ("latin1", latin1),
+                      ("empty", b""), ("no_header", b"1,PICK,DROP\n"),
+                      ("time_nan", header + b"nan,PICK,DROP\n"),
+                      ("time_inf", header + b"inf,PICK,DROP\n"),
+                      ("time_huge", header + b"1e309,PICK,DROP\n"),
+                      ("time_negative", header + b"-5,PICK,DROP\n"),
+                      ("time_text", header + b"soon,PICK,DROP\n"),
+                      ("unknown_station", header + b"1,NOWHERE,DROP\n"),
+                      ("short_row", header + b"1,PICK\n"),
+                      ("nul", header + b"1,PI\x00CK,DROP\n")]:
+        yield Case(f"trace-{name}", "trace", lambda _d, raw=raw: raw)
+
+
+def _write_base(folder: Path) -> Path:
+    scenario = folder / "base.yaml"
+    scenario.write_bytes(_yaml(_scenario()))
+    return scenario
+
+
+CASES = list(_cases())
+
+
+class _Timeout(Exception):
+    pass
+
+
+def _load(kind: str, path: Path) -> None:
+    if kind == "layout":
+        load_layout(path)
+    elif kind == "scenario":
+        scenario = load_scenario(path)
+        load_layout_for(scenario, str(path))
+    elif kind == "experiment":
+        load_experiment(path)
+    elif kind == "profile":
+        read_profile(path)
+    else:
+        load_trace(path, load_layout(LAYOUT))
+
+
+def test_the_corpus_is_large() -> None:
+    assert len(CASES) >= 100
+    assert len({c.id for c in CASES}) == len(CASES)
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def test_bad_input_is_one_named_error(case: Case, tmp_path: Path) -> None:
+    path = tmp_path / ("orders.csv" if case.kind == "trace" else f"{case.kind}.yaml")
+    path.write_bytes(case.content(tmp_path))
+
+    def expire(_signum: int, _frame: FrameType | None) -> None:
+        raise _Timeout(f"{case.id} took more than {CASE_SECONDS} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.alarm(CASE_SECONDS)
+    try:
+        with pytest.raises(InputError) as info:
+            _load(case.kind, path)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+    message = str(info.value)
+    assert "\n" not in message, message
+    assert message.startswith(str(tmp_path)) or message.startswith(str(ROOT)), message
+    assert "; expected " in message, message
+
+
+def test_a_file_over_the_size_cap_is_refused_unread(tmp_path: Path) -> None:
+    big = tmp_path / "layout.yaml"
+    with big.open("wb") as handle:
+        handle.truncate(MAX_FILE_BYTES + 10)
+    with pytest.raises(InputError, match=r"layout.yaml: file: .*at most 20 MB"):
+        load_layout(big)
+    csv = tmp_path / "orders.csv"
+    big.rename(csv)
+    with pytest.raises(InputError, match=r"orders.csv: file: .*at most 20 MB"):
+        load_trace(csv, load_layout(LAYOUT))
+
+
+def test_duplicate_keys_name_the_key_and_both_lines(tmp_path: Path) -> None:
+    path = tmp_path / "s.yaml"
+    path.write_text("layout: x.yaml\nfleet:\n  size: 2\n  size: 3\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"line 4: got 'size'; .*already on line 3"):
+        load_scenario(path)
+
+
+def test_merge_keys_may_override_what_they_bring(tmp_path: Path) -> None:
+    path = tmp_path / "s.yaml"
+    path.write_text(f"layout: {LAYOUT}\nfleet:\n  <<: {{size: 2}}\n  size: 3\n",
+                    encoding="utf-8")
+    assert load_scenario(path).fleet.size == 3
+
+
+# The real command, a representative sample (each start costs ~2 s; the argument checks of the
+# other values are the same functions): (arguments, what the one line must contain).
+def _cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
+    scenario = str(ROOT / "experiments" / "tiny_loop.yaml")
+    experiment = str(ROOT / "experiments" / "tiny_loop_sizing.yaml")
+    a_file = tmp / "a_file"
+    a_file.write_text("x", encoding="utf-8")
+    dup = tmp / "dup.yaml"
+    dup.write_text(f"name: dup\nlayout: {LAYOUT}\nseed: 1\nseed: 2\n", encoding="utf-8")
+    binary = tmp / "binary.yaml"
+    binary.write_bytes(RAW["binary"])
+    bomb = tmp / "bomb.yaml"
+    bomb.write_bytes(RAW["alias_bomb"])
+    return [
+        (["run", scenario, "--hours", "nan"], "argument --hours: got 'nan'; expected a finite"),
+        (["run", scenario, "--hours", "0.05"], "--hours: duration_h: got 0.05"),
+        (["run", scenario, "--agvs", "0"], "argument --agvs: got '0'"),
+        (["run", scenario, "--out", str(a_file)], "--out: out: got"),
+        (["run", str(dup)], "already on line 3"),
+        (["layout", str(LAYOUT), "--max-speed", "nan"], "argument --max-speed: got 'nan'"),
+        (["layout", str(LAYOUT), "--png", str(tmp)], "--png: png: got"),
+        (["layout", str(binary)], "not UTF-8 text"),
+        (["sweep", experiment, "--workers", "-3"], "argument --workers: got '-3'"),
+    ]
+
+
+def test_the_command_refuses_bad_input_in_one_line(tmp_path: Path) -> None:
+    for argv, expected in _cli_cases(tmp_path):
+        result = subprocess.run([sys.executable, "-m", "fleet_sim.cli", *argv], cwd=tmp_path,
+                                capture_output=True, text=True, timeout=60, check=False,
+                                env={**os.environ, "PYTHONPATH": str(ROOT)})
+        assert result.returncode == 2, (argv, result.stderr)
+        lines = result.stderr.splitlines()
+        assert len(lines) == 1, (argv, result.stderr)
+        assert "Traceback" not in result.stderr
+        assert lines[0].startswith("fleet-sim: error: ") and expected in lines[0], (argv, lines)
+        assert not (tmp_path / "results").exists() or argv[0] == "layout", argv
+
+
+def test_agvs_that_cannot_reach_a_charger_are_named(tmp_path: Path) -> None:
+    from fleet_sim.config.scenario import agvs_without_charger, parse_scenario
+
+    layout = load_layout(LAYOUT)  # no charger at all
+    on = parse_scenario(_scenario(), "s.yaml")
+    assert agvs_without_charger(on, layout) == [0, 1]
+    off = parse_scenario(_set(_scenario(), "charging.enabled", False), "s.yaml")
+    assert agvs_without_charger(off, layout) == []
+    scenario = tmp_path / "s.yaml"
+    scenario.write_bytes(_yaml(_set(_scenario(), "duration_h", 0.2)))
+    result = subprocess.run([sys.executable, "-m", "fleet_sim.cli", "run", str(scenario),
+                             "--quiet", "--out", str(tmp_path / "out")],
+                            cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                            check=False, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert result.returncode == 0, result.stderr
+    warning = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert warning == ["fleet-sim: warning: charging is on but the layout has no charger: "
+                       "AGV 0, 1 (2 of 2) will run down and stop with E_201"]
+
+
+def test_a_layout_with_a_charger_warns_no_one() -> None:
+    from fleet_sim.config.scenario import agvs_without_charger, load_layout_for
+
+    scenario = load_scenario(ROOT / "experiments" / "warehouse_shift.yaml")
+    layout = load_layout_for(scenario, "warehouse_shift.yaml")
+    assert agvs_without_charger(scenario, layout) == []
+
+
+@pytest.mark.parametrize(("name", "folder"), [
+    ("warehouse", "warehouse"), ("../x", ".._x"), ("/tmp/x", "_tmp_x"), ("..", "__"),
+    (".", "_"), ("", "scenario"), ("a b\x00", "a_b_")])
+def test_a_scenario_name_never_leaves_results(name: str, folder: str) -> None:
+    from fleet_sim.config.scenario import folder_name
+
+    assert folder_name(name) == folder
