@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import os
@@ -191,3 +192,57 @@ def test_results_folder_of_another_experiment_is_refused(tmp_path: Path) -> None
                             master_seed=12)
     with pytest.raises(SweepError, match="another seed"):
         sweep(other, out, workers=1, quiet=True)
+
+
+def _group_members(pgid: int) -> list[int]:
+    """Pids of the live (not zombie) processes in process group `pgid`, from /proc."""
+    members = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat[stat.rfind(")") + 2:].split()
+        if fields[0] not in ("Z", "X") and int(fields[2]) == pgid:
+            members.append(int(entry.name))
+    return members
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+def test_workers_die_with_a_killed_sweep_and_the_folder_resumes(tmp_path: Path) -> None:
+    path = write_yaml(tmp_path / "long.yaml", {
+        "name": "long", "scenario": TINY,
+        "overrides": {"duration_h": 4, "warmup_h": 0.5, "demand.rate_per_hour": 45},
+        "factors": {"fleet.size": [2, 3]}, "replications": 2, "master_seed": 3})
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "fleet_sim.cli", "sweep", str(path), "--out", str(out),
+               "--workers", "2"]
+    proc = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + 120
+    try:
+        while not list(out.glob("runs/*/spec.json")):  # a worker has started a run
+            assert proc.poll() is None, "the sweep ended before it could be killed"
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        assert len(_group_members(proc.pid)) >= 3  # the sweep, the fork server, workers
+        proc.kill()  # SIGKILL to the sweep process alone: its children get no signal
+        proc.wait()
+        deadline = time.monotonic() + 10
+        while _group_members(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        left = _group_members(proc.pid)
+        assert not left, f"processes of the killed sweep still running: {left}"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+    finished = {p: (p.stat().st_mtime_ns, p.read_bytes())
+                for p in out.glob("runs/*/kpis.json")}
+    result = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in finished} == finished
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert len(summary) == 4 and (summary["status"] == OK).all()
+    assert not list(out.glob("runs/*/.partial"))

@@ -55,6 +55,8 @@ import multiprocessing
 import os
 import shutil
 import socket
+import sys
+import threading
 import time
 import traceback
 from collections import deque
@@ -245,6 +247,55 @@ class RunTally:
 # ---- runners -------------------------------------------------------------------------------
 
 
+PARENT_POLL_S = 0.5
+"""How often a worker checks that the sweep process is still alive."""
+
+
+def _process_start(pid: int) -> str | None:
+    """The process's start time (field 22 of /proc/<pid>/stat), "Z" for a zombie, or None
+    where /proc cannot tell (not Linux, no such process)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text(encoding="ascii", errors="replace")
+    except OSError:
+        return None
+    fields = stat[stat.rfind(")") + 2:].split()
+    return "Z" if fields[0] in ("Z", "X") else fields[19]
+
+
+def pid_alive(pid: int, start: str | None = None) -> bool:
+    """True if process `pid` runs (and, given its /proc start time `start`, is that process)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    now = _process_start(pid)
+    return now != "Z" and (start is None or now is None or now == start)
+
+
+def _die_with(sweep_pid: int) -> None:
+    """Worker initializer: end this worker when the sweep process `sweep_pid` is gone."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            libc = ctypes.CDLL(None, use_errno=True)
+            pr_set_pdeathsig = 1
+            libc.prctl(pr_set_pdeathsig, 9, 0, 0, 0)  # SIGKILL when the parent (fork server) dies
+        except (OSError, AttributeError):
+            pass
+    start = _process_start(sweep_pid)
+    if not pid_alive(sweep_pid, start):
+        os._exit(1)
+
+    def watch() -> None:
+        while pid_alive(sweep_pid, start):
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)  # the sweep is gone: no one would take this run's result
+
+    threading.Thread(target=watch, name="fleet-sim-watch-sweep", daemon=True).start()
+
+
 def _mp_context() -> Any:
     if "forkserver" in multiprocessing.get_all_start_methods():
         context = multiprocessing.get_context("forkserver")
@@ -290,7 +341,9 @@ class LocalPool:
             while pending or suspects or inflight:
                 if self.pool is None:
                     self.pool = cf.ProcessPoolExecutor(max_workers=self.workers,
-                                                       mp_context=_mp_context())
+                                                       mp_context=_mp_context(),
+                                                       initializer=_die_with,
+                                                       initargs=(os.getpid(),))
                 pool = self.pool
                 if not inflight:
                     isolated = bool(suspects)
