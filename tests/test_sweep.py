@@ -214,7 +214,7 @@ def _group_members(pgid: int) -> list[int]:
 def test_workers_die_with_a_killed_sweep_and_the_folder_resumes(tmp_path: Path) -> None:
     path = write_yaml(tmp_path / "long.yaml", {
         "name": "long", "scenario": TINY,
-        "overrides": {"duration_h": 4, "warmup_h": 0.5, "demand.rate_per_hour": 45},
+        "overrides": {"duration_h": 40, "warmup_h": 0.5, "demand.rate_per_hour": 45},
         "factors": {"fleet.size": [2, 3]}, "replications": 2, "master_seed": 3})
     out = tmp_path / "out"
     command = [sys.executable, "-m", "fleet_sim.cli", "sweep", str(path), "--out", str(out),
@@ -246,3 +246,47 @@ def test_workers_die_with_a_killed_sweep_and_the_folder_resumes(tmp_path: Path) 
     summary = pd.read_parquet(out / "summary.parquet")
     assert len(summary) == 4 and (summary["status"] == OK).all()
     assert not list(out.glob("runs/*/.partial"))
+
+
+def test_a_second_sweep_into_a_busy_folder_is_refused(tmp_path: Path) -> None:
+    path = write_yaml(tmp_path / "long.yaml", {
+        "name": "long", "scenario": TINY,
+        "overrides": {"duration_h": 300, "warmup_h": 0.5, "demand.rate_per_hour": 45},
+        "factors": {"fleet.size": [2, 3]}, "replications": 2, "master_seed": 3,
+        "targets": [{"kpi": "throughput_pct_of_demand", "at_least": 98}]})
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "fleet_sim.cli", "sweep", str(path), "--out", str(out),
+               "--workers", "1"]
+    first = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(out.glob("runs/*/spec.json")):
+            assert first.poll() is None and time.monotonic() < deadline
+            time.sleep(0.02)
+        for second in (command, [*command[:3], "size", *command[4:]]):
+            result = subprocess.run(second, cwd=tmp_path, capture_output=True, text=True,
+                                    timeout=120)
+            assert result.returncode == 2
+            (line,) = result.stderr.splitlines()
+            assert str(out) in line and f"pid {first.pid}" in line and "in use" in line
+        assert first.poll() is None  # the first sweep goes on
+    finally:
+        os.killpg(first.pid, signal.SIGKILL)
+        first.wait()
+
+
+def test_a_stale_lock_is_taken_over(tmp_path: Path) -> None:
+    from fleet_sim.study.sweep import LOCK_FILE
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / LOCK_FILE).write_text(json.dumps({"pid": dead.pid, "host": "h", "started": "t"}))
+    stream = io.StringIO()
+    outcome = sweep(tiny_experiment(tmp_path, factors={"fleet.size": [1]}, replications=1), out,
+                    workers=1, stream=stream)
+    assert [r.status for r in outcome.results] == [OK]
+    assert f"taking over the lock of pid {dead.pid}" in stream.getvalue()
+    assert (out / LOCK_FILE).read_text() == ""  # released

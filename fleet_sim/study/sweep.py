@@ -41,6 +41,13 @@ Decisions, where the issue is silent:
   engine's occupancy trace, which the sweep turns on; it does not change the run.
 * KPIs: every run's are computed in memory (fleet_sim.analysis.kpis, as for `fleet-sim run`);
   the sweep adds ``wall_s``, the run's wall time including writing its files.
+* One sweep or sizing search per results folder: it holds an exclusive ``fcntl.flock`` on
+  ``<folder>/.fleet-sim.lock`` while it runs, and writes its pid, host and start time into it.
+  flock (not a file created with O_EXCL) because the kernel releases it when the process
+  dies, however it dies, so a lock can never be left stale; a lock file that still names a
+  process which no longer holds it is taken over with a note. A second sweep or size into a
+  busy folder stops with one line naming the folder and the owner's pid. Where fcntl does not
+  exist (Windows) the owner's pid is checked instead. The file stays (emptied) after the run.
 * DuckDB views read the Parquet files by absolute path: the database works from any folder;
   after moving a results folder, run the sweep again (nothing is recomputed) to rebuild it.
 """
@@ -60,7 +67,8 @@ import threading
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -90,6 +98,67 @@ class RunResult:
 
 class SweepError(FleetSimError):
     """The sweep cannot go on (such as a results folder holding another experiment)."""
+
+
+class FolderBusy(SweepError):
+    """Another sweep or sizing search is writing into the results folder."""
+
+
+# ---- one sweep per folder ------------------------------------------------------------------
+
+LOCK_FILE = ".fleet-sim.lock"
+
+try:
+    import fcntl
+except ImportError:  # not POSIX
+    fcntl = None  # type: ignore[assignment]
+
+
+@contextmanager
+def folder_lock(out_dir: Path, stream: IO[str] | None = None) -> Iterator[None]:
+    """Hold the results folder for this process (see the module docstring), or raise
+    FolderBusy naming the owner; `stream` gets the note when a stale lock is taken over."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / LOCK_FILE
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        owner = _lock_owner(fd)
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise _busy(out_dir, _lock_owner(fd) or owner) from None
+        elif owner and owner.get("pid") != os.getpid() and pid_alive(int(owner["pid"])):
+            raise _busy(out_dir, owner)
+        if owner:
+            print(f"fleet-sim: note: {out_dir}: taking over the lock of pid {owner.get('pid')} "
+                  f"(host {owner.get('host')}, started {owner.get('started')}), which is no "
+                  "longer running", file=stream or sys.stderr)
+        os.ftruncate(fd, 0)
+        mine = {"pid": os.getpid(), "host": socket.gethostname(),
+                "started": time.strftime("%Y-%m-%dT%H:%M:%S")}
+        os.pwrite(fd, (json.dumps(mine) + "\n").encode(), 0)
+        try:
+            yield
+        finally:
+            os.ftruncate(fd, 0)  # released: an empty lock file names no owner
+    finally:
+        os.close(fd)  # releases the flock
+
+
+def _lock_owner(fd: int) -> dict[str, Any] | None:
+    try:
+        owner = json.loads(os.pread(fd, 4096, 0).decode() or "null")
+    except (OSError, ValueError):
+        return None
+    return owner if isinstance(owner, dict) and "pid" in owner else None
+
+
+def _busy(out_dir: Path, owner: dict[str, Any] | None) -> FolderBusy:
+    who = (f"pid {owner.get('pid')} on {owner.get('host')}, started {owner.get('started')}"
+           if owner else "pid unknown")
+    return FolderBusy(f"{out_dir}: the results folder is in use by another sweep or size "
+                      f"({who}); wait for it to finish or use --out for another folder")
 
 
 # ---- one run, in a worker ------------------------------------------------------------------
@@ -574,9 +643,10 @@ def sweep(experiment: Experiment, out_dir: Path, workers: int = 0, scheduler: st
           quiet: bool = False, run_fn: RunFn = execute_run,
           stream: IO[str] | None = None) -> SweepOutcome:
     """Run the experiment's design into `out_dir` and write its summary, statistics and DB."""
-    prepare(experiment, out_dir)
-    outcome = execute(experiment.runs(), out_dir, workers, scheduler, quiet, run_fn, stream)
-    write_tables(experiment, out_dir)
+    with folder_lock(out_dir, stream):
+        prepare(experiment, out_dir)
+        outcome = execute(experiment.runs(), out_dir, workers, scheduler, quiet, run_fn, stream)
+        write_tables(experiment, out_dir)
     return outcome
 
 
