@@ -290,3 +290,25 @@ def test_a_stale_lock_is_taken_over(tmp_path: Path) -> None:
     assert [r.status for r in outcome.results] == [OK]
     assert f"taking over the lock of pid {dead.pid}" in stream.getvalue()
     assert (out / LOCK_FILE).read_text() == ""  # released
+
+
+def test_a_summary_behind_its_run_folders_is_rebuilt_for_the_report(tmp_path: Path) -> None:
+    from fleet_sim.report.report import load, section_runs
+    from fleet_sim.study.sweep import read_summary
+
+    out = tmp_path / "out"
+    sweep(tiny_experiment(tmp_path, factors={"fleet.size": [1, 2]}, replications=1), out,
+          workers=2, quiet=True)
+    assert len(pd.read_parquet(out / "summary.parquet")) == 2
+    assert not read_summary(out, ["fleet.size"])[1]  # up to date: read as written
+    # runs added later (as `size` adds them, killed before it rewrote the summary)
+    bigger = tiny_experiment(tmp_path, factors={"fleet.size": [1, 2, 3]}, replications=1)
+    added = [s for s in bigger.runs() if s.factor_dict()["fleet.size"] == 3]
+    for spec in added:
+        assert execute_run(spec, str(out / "runs")).status == OK
+    summary, rebuilt = read_summary(out, ["fleet.size"])
+    assert rebuilt and len(summary) == 3 and (summary["status"] == OK).all()
+    data = load(out)
+    assert sorted(data.summary["run_id"]) == sorted(p.name for p in (out / "runs").iterdir())
+    runs = section_runs(data)
+    assert (runs.runs, runs.finished, runs.failed) == (3, 3, 0)

@@ -48,6 +48,11 @@ Decisions, where the issue is silent:
   process which no longer holds it is taken over with a note. A second sweep or size into a
   busy folder stops with one line naming the folder and the owner's pid. Where fcntl does not
   exist (Windows) the owner's pid is checked instead. The file stays (emptied) after the run.
+* summary.parquet and stats.parquet are rewritten at the end of every sweep and sizing search;
+  one killed before its end leaves them behind its run folders. Readers go through
+  `read_summary`, which compares the summary's (run, status) pairs with the run folders and
+  rebuilds the summary from the folders (in memory: a reader never writes the folder) when
+  they differ, so a report never counts 24 runs when 28 exist.
 * DuckDB views read the Parquet files by absolute path: the database works from any folder;
   after moving a results folder, run the sweep again (nothing is recomputed) to rebuild it.
 """
@@ -698,6 +703,40 @@ def collect_summary(out_dir: Path, factor_names: Sequence[str]) -> pd.DataFrame:
             elif len(values) and all(isinstance(v, str) for v in values):
                 frame[column] = frame[column].astype("string")
     return frame
+
+
+def run_statuses(out_dir: Path) -> dict[str, str]:
+    """Per run folder (with spec.json): its status as collect_summary gives it."""
+    statuses: dict[str, str] = {}
+    runs_dir = out_dir / "runs"
+    for run_dir in runs_dir.iterdir() if runs_dir.exists() else []:
+        if not (run_dir / "spec.json").exists():
+            continue
+        status = "incomplete"
+        if (run_dir / "kpis.json").exists():
+            status = OK
+        elif (run_dir / "error.json").exists():
+            try:
+                error = json.loads((run_dir / "error.json").read_text(encoding="utf-8"))
+                status = str(error.get("status", FAILED))
+            except (OSError, json.JSONDecodeError):
+                status = FAILED
+        statuses[run_dir.name] = status
+    return statuses
+
+
+def read_summary(out_dir: Path, factor_names: Sequence[str]) -> tuple[pd.DataFrame, bool]:
+    """The results folder's summary and whether it had to be rebuilt: summary.parquet if its
+    runs and their statuses are those of the run folders, else one collected from them."""
+    summary_file = out_dir / "summary.parquet"
+    if summary_file.exists():
+        summary = pd.read_parquet(summary_file)
+        if {"run_id", "status"} <= set(summary.columns):
+            recorded = dict(zip(summary["run_id"].astype(str), summary["status"].astype(str),
+                                strict=True))
+            if len(recorded) == len(summary) and recorded == run_statuses(out_dir):
+                return summary, False
+    return collect_summary(out_dir, factor_names), True
 
 
 def write_tables(experiment: Experiment, out_dir: Path) -> pd.DataFrame:
