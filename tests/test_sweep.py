@@ -312,3 +312,21 @@ def test_a_summary_behind_its_run_folders_is_rebuilt_for_the_report(tmp_path: Pa
     assert sorted(data.summary["run_id"]) == sorted(p.name for p in (out / "runs").iterdir())
     runs = section_runs(data)
     assert (runs.runs, runs.finished, runs.failed) == (3, 3, 0)
+
+
+def test_an_interrupted_sweep_still_writes_its_summary(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    from fleet_sim.study import sweep as sweep_module
+
+    exp = tiny_experiment(tmp_path, factors={"fleet.size": [1, 2]}, replications=1)
+    out = tmp_path / "out"
+
+    def one_run_then_ctrl_c(specs: Any, out_dir: Path, *args: Any) -> Any:
+        execute_run(next(iter(specs)), str(out_dir / "runs"))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep_module, "execute", one_run_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        sweep(exp, out, workers=1, quiet=True)
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert list(summary["status"]) == [OK]

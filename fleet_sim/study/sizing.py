@@ -36,7 +36,7 @@ from fleet_sim.analysis.stats import TargetCheck, target_check
 from fleet_sim.config.experiment import FLEET, Experiment, Target, layout_for, load_trace_for
 from fleet_sim.errors import InputError
 from fleet_sim.study.progress import Progress
-from fleet_sim.study.sweep import DaskPool, LocalPool, execute, folder_lock, prepare, write_tables
+from fleet_sim.study.sweep import DaskPool, LocalPool, execute, folder_lock, prepare, tables_written
 
 DEFAULT_MAX_AGVS = 50
 
@@ -245,7 +245,7 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
     if hi_limit < lo_limit:
         raise InputError(str(experiment.file), "sizing.max_agvs", hi_limit,
                          f"at least the smallest fleet searched ({lo_limit})")
-    with folder_lock(out_dir, stream):
+    with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
         prepare(experiment, out_dir)
         results = []
         n_workers = workers or os.cpu_count() or 1
@@ -260,7 +260,6 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
                     "groups": [r.as_dict() for r in results]}
         (out_dir / "sizing.json").write_text(json.dumps(document, indent=2, default=str) + "\n",
                                              encoding="utf-8")
-        write_tables(experiment, out_dir)
     return results
 
 

@@ -52,7 +52,8 @@ Decisions, where the issue is silent:
   one killed before its end leaves them behind its run folders. Readers go through
   `read_summary`, which compares the summary's (run, status) pairs with the run folders and
   rebuilds the summary from the folders (in memory: a reader never writes the folder) when
-  they differ, so a report never counts 24 runs when 28 exist.
+  they differ, so a report never counts 24 runs when 28 exist. A sweep or search ended by an
+  exception (Ctrl-C included) still rewrites the tables on its way out.
 * DuckDB views read the Parquet files by absolute path: the database works from any folder;
   after moving a results folder, run the sweep again (nothing is recomputed) to rebuild it.
 """
@@ -60,6 +61,7 @@ Decisions, where the issue is silent:
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import importlib
 import json
 import math
@@ -648,11 +650,23 @@ def sweep(experiment: Experiment, out_dir: Path, workers: int = 0, scheduler: st
           quiet: bool = False, run_fn: RunFn = execute_run,
           stream: IO[str] | None = None) -> SweepOutcome:
     """Run the experiment's design into `out_dir` and write its summary, statistics and DB."""
-    with folder_lock(out_dir, stream):
+    with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
         prepare(experiment, out_dir)
         outcome = execute(experiment.runs(), out_dir, workers, scheduler, quiet, run_fn, stream)
-        write_tables(experiment, out_dir)
     return outcome
+
+
+@contextmanager
+def tables_written(experiment: Experiment, out_dir: Path) -> Iterator[None]:
+    """Write the summary tables when the block ends, also when an exception (Ctrl-C, a run
+    function that fails to report) ends it, so the tables keep up with the runs finished."""
+    try:
+        yield
+    except BaseException:
+        with contextlib.suppress(Exception):  # the exception that ended the block matters more
+            write_tables(experiment, out_dir)
+        raise
+    write_tables(experiment, out_dir)
 
 
 # ---- tables --------------------------------------------------------------------------------
