@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import os
@@ -191,3 +192,141 @@ def test_results_folder_of_another_experiment_is_refused(tmp_path: Path) -> None
                             master_seed=12)
     with pytest.raises(SweepError, match="another seed"):
         sweep(other, out, workers=1, quiet=True)
+
+
+def _group_members(pgid: int) -> list[int]:
+    """Pids of the live (not zombie) processes in process group `pgid`, from /proc."""
+    members = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat[stat.rfind(")") + 2:].split()
+        if fields[0] not in ("Z", "X") and int(fields[2]) == pgid:
+            members.append(int(entry.name))
+    return members
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+def test_workers_die_with_a_killed_sweep_and_the_folder_resumes(tmp_path: Path) -> None:
+    path = write_yaml(tmp_path / "long.yaml", {
+        "name": "long", "scenario": TINY,
+        "overrides": {"duration_h": 40, "warmup_h": 0.5, "demand.rate_per_hour": 45},
+        "factors": {"fleet.size": [2, 3]}, "replications": 2, "master_seed": 3})
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "fleet_sim.cli", "sweep", str(path), "--out", str(out),
+               "--workers", "2"]
+    proc = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + 120
+    try:
+        while not list(out.glob("runs/*/spec.json")):  # a worker has started a run
+            assert proc.poll() is None, "the sweep ended before it could be killed"
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        assert len(_group_members(proc.pid)) >= 3  # the sweep, the fork server, workers
+        proc.kill()  # SIGKILL to the sweep process alone: its children get no signal
+        proc.wait()
+        deadline = time.monotonic() + 10
+        while _group_members(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        left = _group_members(proc.pid)
+        assert not left, f"processes of the killed sweep still running: {left}"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+    finished = {p: (p.stat().st_mtime_ns, p.read_bytes())
+                for p in out.glob("runs/*/kpis.json")}
+    result = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in finished} == finished
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert len(summary) == 4 and (summary["status"] == OK).all()
+    assert not list(out.glob("runs/*/.partial"))
+
+
+def test_a_second_sweep_into_a_busy_folder_is_refused(tmp_path: Path) -> None:
+    path = write_yaml(tmp_path / "long.yaml", {
+        "name": "long", "scenario": TINY,
+        "overrides": {"duration_h": 300, "warmup_h": 0.5, "demand.rate_per_hour": 45},
+        "factors": {"fleet.size": [2, 3]}, "replications": 2, "master_seed": 3,
+        "targets": [{"kpi": "throughput_pct_of_demand", "at_least": 98}]})
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "fleet_sim.cli", "sweep", str(path), "--out", str(out),
+               "--workers", "1"]
+    first = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(out.glob("runs/*/spec.json")):
+            assert first.poll() is None and time.monotonic() < deadline
+            time.sleep(0.02)
+        for second in (command, [*command[:3], "size", *command[4:]]):
+            result = subprocess.run(second, cwd=tmp_path, capture_output=True, text=True,
+                                    timeout=120)
+            assert result.returncode == 2
+            (line,) = result.stderr.splitlines()
+            assert str(out) in line and f"pid {first.pid}" in line and "in use" in line
+        assert first.poll() is None  # the first sweep goes on
+    finally:
+        os.killpg(first.pid, signal.SIGKILL)
+        first.wait()
+
+
+def test_a_stale_lock_is_taken_over(tmp_path: Path) -> None:
+    from fleet_sim.study.sweep import LOCK_FILE
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / LOCK_FILE).write_text(json.dumps({"pid": dead.pid, "host": "h", "started": "t"}))
+    stream = io.StringIO()
+    outcome = sweep(tiny_experiment(tmp_path, factors={"fleet.size": [1]}, replications=1), out,
+                    workers=1, stream=stream)
+    assert [r.status for r in outcome.results] == [OK]
+    assert f"taking over the lock of pid {dead.pid}" in stream.getvalue()
+    assert (out / LOCK_FILE).read_text() == ""  # released
+
+
+def test_a_summary_behind_its_run_folders_is_rebuilt_for_the_report(tmp_path: Path) -> None:
+    from fleet_sim.report.report import load, section_runs
+    from fleet_sim.study.sweep import read_summary
+
+    out = tmp_path / "out"
+    sweep(tiny_experiment(tmp_path, factors={"fleet.size": [1, 2]}, replications=1), out,
+          workers=2, quiet=True)
+    assert len(pd.read_parquet(out / "summary.parquet")) == 2
+    assert not read_summary(out, ["fleet.size"])[1]  # up to date: read as written
+    # runs added later (as `size` adds them, killed before it rewrote the summary)
+    bigger = tiny_experiment(tmp_path, factors={"fleet.size": [1, 2, 3]}, replications=1)
+    added = [s for s in bigger.runs() if s.factor_dict()["fleet.size"] == 3]
+    for spec in added:
+        assert execute_run(spec, str(out / "runs")).status == OK
+    summary, rebuilt = read_summary(out, ["fleet.size"])
+    assert rebuilt and len(summary) == 3 and (summary["status"] == OK).all()
+    data = load(out)
+    assert sorted(data.summary["run_id"]) == sorted(p.name for p in (out / "runs").iterdir())
+    runs = section_runs(data)
+    assert (runs.runs, runs.finished, runs.failed) == (3, 3, 0)
+
+
+def test_an_interrupted_sweep_still_writes_its_summary(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    from fleet_sim.study import sweep as sweep_module
+
+    exp = tiny_experiment(tmp_path, factors={"fleet.size": [1, 2]}, replications=1)
+    out = tmp_path / "out"
+
+    def one_run_then_ctrl_c(specs: Any, out_dir: Path, *args: Any) -> Any:
+        execute_run(next(iter(specs)), str(out_dir / "runs"))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep_module, "execute", one_run_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        sweep(exp, out, workers=1, quiet=True)
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert list(summary["status"]) == [OK]

@@ -47,6 +47,7 @@ from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario, load_scenario
 from fleet_sim.errors import InputError
 from fleet_sim.report import figures as figs
+from fleet_sim.study.sweep import read_summary
 
 INCIDENT_EVENTS = ("deadlock_detected", "deadlock_unresolved", "reroute", "circulate", "backoff")
 MAIN_KPIS = ("throughput_per_hour", "lead_time_p95_s")
@@ -233,12 +234,9 @@ def load(out_dir: Path) -> ReportData:
                          "(with experiment.resolved.yaml)")
     experiment = yaml.safe_load(resolved.read_text(encoding="utf-8"))
     factors = list(experiment.get("factors") or {})
-    summary_file = out_dir / "summary.parquet"
-    if summary_file.exists():
-        summary = pd.read_parquet(summary_file)
-    else:
-        from fleet_sim.study.sweep import collect_summary
-        summary = collect_summary(out_dir, factors)
+    # summary.parquet, unless the run folders say otherwise (a sweep or size killed before
+    # it rewrote the summary): then the summary of the run folders themselves
+    summary, _ = read_summary(out_dir, factors)
     if summary.empty or "status" not in summary.columns:
         raise InputError(str(out_dir), "runs", 0, "at least one run in the results folder")
     targets = [Target(kpi=t["kpi"], at_least=t.get("at_least"), at_most=t.get("at_most"))

@@ -36,7 +36,7 @@ from fleet_sim.analysis.stats import TargetCheck, target_check
 from fleet_sim.config.experiment import FLEET, Experiment, Target, layout_for, load_trace_for
 from fleet_sim.errors import InputError
 from fleet_sim.study.progress import Progress
-from fleet_sim.study.sweep import DaskPool, LocalPool, execute, prepare, write_tables
+from fleet_sim.study.sweep import DaskPool, LocalPool, execute, folder_lock, prepare, tables_written
 
 DEFAULT_MAX_AGVS = 50
 
@@ -233,7 +233,8 @@ def groups(experiment: Experiment) -> list[dict[str, Any]]:
 def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
                scheduler: str | None = None, quiet: bool = False,
                stream: IO[str] | None = None) -> list[GroupResult]:
-    """Search every group; write sizing.json and refresh the summary tables."""
+    """Search every group; write sizing.json and refresh the summary tables (holding the
+    results folder: see fleet_sim.study.sweep.folder_lock)."""
     spec = experiment.spec
     if not spec.targets:
         raise InputError(str(experiment.file), "targets", [],
@@ -244,21 +245,21 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
     if hi_limit < lo_limit:
         raise InputError(str(experiment.file), "sizing.max_agvs", hi_limit,
                          f"at least the smallest fleet searched ({lo_limit})")
-    prepare(experiment, out_dir)
-    results = []
-    n_workers = workers or os.cpu_count() or 1
-    pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers) if scheduler \
-        else LocalPool(n_workers)
-    with pool, Progress(stream=stream, quiet=quiet) as progress:
-        for fixed in groups(experiment):
-            results.append(_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool,
-                                       progress))
-    document = {"experiment": experiment.name, "confidence": 0.95,
-                "targets": [t.describe() for t in spec.targets],
-                "groups": [r.as_dict() for r in results]}
-    (out_dir / "sizing.json").write_text(json.dumps(document, indent=2, default=str) + "\n",
-                                         encoding="utf-8")
-    write_tables(experiment, out_dir)
+    with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
+        prepare(experiment, out_dir)
+        results = []
+        n_workers = workers or os.cpu_count() or 1
+        pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers) if scheduler \
+            else LocalPool(n_workers)
+        with pool, Progress(stream=stream, quiet=quiet) as progress:
+            for fixed in groups(experiment):
+                results.append(_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool,
+                                           progress))
+        document = {"experiment": experiment.name, "confidence": 0.95,
+                    "targets": [t.describe() for t in spec.targets],
+                    "groups": [r.as_dict() for r in results]}
+        (out_dir / "sizing.json").write_text(json.dumps(document, indent=2, default=str) + "\n",
+                                             encoding="utf-8")
     return results
 
 

@@ -41,6 +41,19 @@ Decisions, where the issue is silent:
   engine's occupancy trace, which the sweep turns on; it does not change the run.
 * KPIs: every run's are computed in memory (fleet_sim.analysis.kpis, as for `fleet-sim run`);
   the sweep adds ``wall_s``, the run's wall time including writing its files.
+* One sweep or sizing search per results folder: it holds an exclusive ``fcntl.flock`` on
+  ``<folder>/.fleet-sim.lock`` while it runs, and writes its pid, host and start time into it.
+  flock (not a file created with O_EXCL) because the kernel releases it when the process
+  dies, however it dies, so a lock can never be left stale; a lock file that still names a
+  process which no longer holds it is taken over with a note. A second sweep or size into a
+  busy folder stops with one line naming the folder and the owner's pid. Where fcntl does not
+  exist (Windows) the owner's pid is checked instead. The file stays (emptied) after the run.
+* summary.parquet and stats.parquet are rewritten at the end of every sweep and sizing search;
+  one killed before its end leaves them behind its run folders. Readers go through
+  `read_summary`, which compares the summary's (run, status) pairs with the run folders and
+  rebuilds the summary from the folders (in memory: a reader never writes the folder) when
+  they differ, so a report never counts 24 runs when 28 exist. A sweep or search ended by an
+  exception (Ctrl-C included) still rewrites the tables on its way out.
 * DuckDB views read the Parquet files by absolute path: the database works from any folder;
   after moving a results folder, run the sweep again (nothing is recomputed) to rebuild it.
 """
@@ -48,6 +61,7 @@ Decisions, where the issue is silent:
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import importlib
 import json
 import math
@@ -55,10 +69,13 @@ import multiprocessing
 import os
 import shutil
 import socket
+import sys
+import threading
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -88,6 +105,67 @@ class RunResult:
 
 class SweepError(FleetSimError):
     """The sweep cannot go on (such as a results folder holding another experiment)."""
+
+
+class FolderBusy(SweepError):
+    """Another sweep or sizing search is writing into the results folder."""
+
+
+# ---- one sweep per folder ------------------------------------------------------------------
+
+LOCK_FILE = ".fleet-sim.lock"
+
+try:
+    import fcntl
+except ImportError:  # not POSIX
+    fcntl = None  # type: ignore[assignment]
+
+
+@contextmanager
+def folder_lock(out_dir: Path, stream: IO[str] | None = None) -> Iterator[None]:
+    """Hold the results folder for this process (see the module docstring), or raise
+    FolderBusy naming the owner; `stream` gets the note when a stale lock is taken over."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / LOCK_FILE
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        owner = _lock_owner(fd)
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise _busy(out_dir, _lock_owner(fd) or owner) from None
+        elif owner and owner.get("pid") != os.getpid() and pid_alive(int(owner["pid"])):
+            raise _busy(out_dir, owner)
+        if owner:
+            print(f"fleet-sim: note: {out_dir}: taking over the lock of pid {owner.get('pid')} "
+                  f"(host {owner.get('host')}, started {owner.get('started')}), which is no "
+                  "longer running", file=stream or sys.stderr)
+        os.ftruncate(fd, 0)
+        mine = {"pid": os.getpid(), "host": socket.gethostname(),
+                "started": time.strftime("%Y-%m-%dT%H:%M:%S")}
+        os.pwrite(fd, (json.dumps(mine) + "\n").encode(), 0)
+        try:
+            yield
+        finally:
+            os.ftruncate(fd, 0)  # released: an empty lock file names no owner
+    finally:
+        os.close(fd)  # releases the flock
+
+
+def _lock_owner(fd: int) -> dict[str, Any] | None:
+    try:
+        owner = json.loads(os.pread(fd, 4096, 0).decode() or "null")
+    except (OSError, ValueError):
+        return None
+    return owner if isinstance(owner, dict) and "pid" in owner else None
+
+
+def _busy(out_dir: Path, owner: dict[str, Any] | None) -> FolderBusy:
+    who = (f"pid {owner.get('pid')} on {owner.get('host')}, started {owner.get('started')}"
+           if owner else "pid unknown")
+    return FolderBusy(f"{out_dir}: the results folder is in use by another sweep or size "
+                      f"({who}); wait for it to finish or use --out for another folder")
 
 
 # ---- one run, in a worker ------------------------------------------------------------------
@@ -245,6 +323,55 @@ class RunTally:
 # ---- runners -------------------------------------------------------------------------------
 
 
+PARENT_POLL_S = 0.5
+"""How often a worker checks that the sweep process is still alive."""
+
+
+def _process_start(pid: int) -> str | None:
+    """The process's start time (field 22 of /proc/<pid>/stat), "Z" for a zombie, or None
+    where /proc cannot tell (not Linux, no such process)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text(encoding="ascii", errors="replace")
+    except OSError:
+        return None
+    fields = stat[stat.rfind(")") + 2:].split()
+    return "Z" if fields[0] in ("Z", "X") else fields[19]
+
+
+def pid_alive(pid: int, start: str | None = None) -> bool:
+    """True if process `pid` runs (and, given its /proc start time `start`, is that process)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    now = _process_start(pid)
+    return now != "Z" and (start is None or now is None or now == start)
+
+
+def _die_with(sweep_pid: int) -> None:
+    """Worker initializer: end this worker when the sweep process `sweep_pid` is gone."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            libc = ctypes.CDLL(None, use_errno=True)
+            pr_set_pdeathsig = 1
+            libc.prctl(pr_set_pdeathsig, 9, 0, 0, 0)  # SIGKILL when the parent (fork server) dies
+        except (OSError, AttributeError):
+            pass
+    start = _process_start(sweep_pid)
+    if not pid_alive(sweep_pid, start):
+        os._exit(1)
+
+    def watch() -> None:
+        while pid_alive(sweep_pid, start):
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)  # the sweep is gone: no one would take this run's result
+
+    threading.Thread(target=watch, name="fleet-sim-watch-sweep", daemon=True).start()
+
+
 def _mp_context() -> Any:
     if "forkserver" in multiprocessing.get_all_start_methods():
         context = multiprocessing.get_context("forkserver")
@@ -290,7 +417,9 @@ class LocalPool:
             while pending or suspects or inflight:
                 if self.pool is None:
                     self.pool = cf.ProcessPoolExecutor(max_workers=self.workers,
-                                                       mp_context=_mp_context())
+                                                       mp_context=_mp_context(),
+                                                       initializer=_die_with,
+                                                       initargs=(os.getpid(),))
                 pool = self.pool
                 if not inflight:
                     isolated = bool(suspects)
@@ -521,10 +650,23 @@ def sweep(experiment: Experiment, out_dir: Path, workers: int = 0, scheduler: st
           quiet: bool = False, run_fn: RunFn = execute_run,
           stream: IO[str] | None = None) -> SweepOutcome:
     """Run the experiment's design into `out_dir` and write its summary, statistics and DB."""
-    prepare(experiment, out_dir)
-    outcome = execute(experiment.runs(), out_dir, workers, scheduler, quiet, run_fn, stream)
-    write_tables(experiment, out_dir)
+    with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
+        prepare(experiment, out_dir)
+        outcome = execute(experiment.runs(), out_dir, workers, scheduler, quiet, run_fn, stream)
     return outcome
+
+
+@contextmanager
+def tables_written(experiment: Experiment, out_dir: Path) -> Iterator[None]:
+    """Write the summary tables when the block ends, also when an exception (Ctrl-C, a run
+    function that fails to report) ends it, so the tables keep up with the runs finished."""
+    try:
+        yield
+    except BaseException:
+        with contextlib.suppress(Exception):  # the exception that ended the block matters more
+            write_tables(experiment, out_dir)
+        raise
+    write_tables(experiment, out_dir)
 
 
 # ---- tables --------------------------------------------------------------------------------
@@ -575,6 +717,40 @@ def collect_summary(out_dir: Path, factor_names: Sequence[str]) -> pd.DataFrame:
             elif len(values) and all(isinstance(v, str) for v in values):
                 frame[column] = frame[column].astype("string")
     return frame
+
+
+def run_statuses(out_dir: Path) -> dict[str, str]:
+    """Per run folder (with spec.json): its status as collect_summary gives it."""
+    statuses: dict[str, str] = {}
+    runs_dir = out_dir / "runs"
+    for run_dir in runs_dir.iterdir() if runs_dir.exists() else []:
+        if not (run_dir / "spec.json").exists():
+            continue
+        status = "incomplete"
+        if (run_dir / "kpis.json").exists():
+            status = OK
+        elif (run_dir / "error.json").exists():
+            try:
+                error = json.loads((run_dir / "error.json").read_text(encoding="utf-8"))
+                status = str(error.get("status", FAILED))
+            except (OSError, json.JSONDecodeError):
+                status = FAILED
+        statuses[run_dir.name] = status
+    return statuses
+
+
+def read_summary(out_dir: Path, factor_names: Sequence[str]) -> tuple[pd.DataFrame, bool]:
+    """The results folder's summary and whether it had to be rebuilt: summary.parquet if its
+    runs and their statuses are those of the run folders, else one collected from them."""
+    summary_file = out_dir / "summary.parquet"
+    if summary_file.exists():
+        summary = pd.read_parquet(summary_file)
+        if {"run_id", "status"} <= set(summary.columns):
+            recorded = dict(zip(summary["run_id"].astype(str), summary["status"].astype(str),
+                                strict=True))
+            if len(recorded) == len(summary) and recorded == run_statuses(out_dir):
+                return summary, False
+    return collect_summary(out_dir, factor_names), True
 
 
 def write_tables(experiment: Experiment, out_dir: Path) -> pd.DataFrame:
