@@ -154,6 +154,9 @@ def serve(profile: Profile, *, seed: int | None = None, out: TextIO | None = Non
         stopping = True
 
     old_term = signal.signal(signal.SIGTERM, on_term)
+    # Ctrl-C stops it even when started by a process that ignores SIGINT (a child inherits an
+    # ignored SIGINT, and Python then installs no KeyboardInterrupt handler of its own).
+    old_int = signal.signal(signal.SIGINT, on_term)
     try:
         tty.setraw(slave_fd)  # no echo, no line editing until the host sets its own modes
         os.set_blocking(master_fd, False)
@@ -169,6 +172,7 @@ def serve(profile: Profile, *, seed: int | None = None, out: TextIO | None = Non
         pass
     finally:
         signal.signal(signal.SIGTERM, old_term)
+        signal.signal(signal.SIGINT, old_int)
         os.close(master_fd)
         os.close(slave_fd)
     return 0
