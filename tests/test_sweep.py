@@ -43,6 +43,17 @@ def kpis(run_dir: Path) -> dict[str, Any]:
     return figures
 
 
+
+def sweep_command(experiment: Path, out: Path, workers: int) -> list[str]:
+    return [sys.executable, "-m", "fleet_sim.cli", "sweep", str(experiment), "--out", str(out),
+            "--workers", str(workers)]
+
+
+def start_sweep(command: list[str], cwd: Path) -> subprocess.Popen[bytes]:
+    """A real `fleet-sim sweep` in the background, in a session of its own (for kill tests)."""
+    return subprocess.Popen(command, cwd=cwd, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+
 def test_same_seed_same_results(tmp_path: Path) -> None:
     spec = tiny_experiment(tmp_path).runs()[3]
     for out in ("a", "b"):
@@ -105,10 +116,8 @@ def test_sweep_killed_midway_resumes_without_losing_runs(tmp_path: Path) -> None
         "overrides": {"duration_h": 10, "warmup_h": 0.5, "demand.rate_per_hour": 45},
         "factors": {"fleet.size": [2, 3, 4]}, "replications": 5, "master_seed": 3})
     out = tmp_path / "out"
-    command = [sys.executable, "-m", "fleet_sim.cli", "sweep", str(path), "--out", str(out),
-               "--workers", "2"]
-    proc = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, start_new_session=True)
+    command = sweep_command(path, out, workers=2)
+    proc = start_sweep(command, tmp_path)
     deadline = time.monotonic() + 120
     try:
         while len(list(out.glob("runs/*/kpis.json"))) < 3:
@@ -217,10 +226,8 @@ def test_workers_die_with_a_killed_sweep_and_the_folder_resumes(tmp_path: Path) 
         "overrides": {"duration_h": 40, "warmup_h": 0.5, "demand.rate_per_hour": 45},
         "factors": {"fleet.size": [2, 3]}, "replications": 2, "master_seed": 3})
     out = tmp_path / "out"
-    command = [sys.executable, "-m", "fleet_sim.cli", "sweep", str(path), "--out", str(out),
-               "--workers", "2"]
-    proc = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, start_new_session=True)
+    command = sweep_command(path, out, workers=2)
+    proc = start_sweep(command, tmp_path)
     deadline = time.monotonic() + 120
     try:
         while not list(out.glob("runs/*/spec.json")):  # a worker has started a run
@@ -255,10 +262,8 @@ def test_a_second_sweep_into_a_busy_folder_is_refused(tmp_path: Path) -> None:
         "factors": {"fleet.size": [2, 3]}, "replications": 2, "master_seed": 3,
         "targets": [{"kpi": "throughput_pct_of_demand", "at_least": 98}]})
     out = tmp_path / "out"
-    command = [sys.executable, "-m", "fleet_sim.cli", "sweep", str(path), "--out", str(out),
-               "--workers", "1"]
-    first = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.DEVNULL,
-                             stderr=subprocess.DEVNULL, start_new_session=True)
+    command = sweep_command(path, out, workers=1)
+    first = start_sweep(command, tmp_path)
     try:
         deadline = time.monotonic() + 120
         while not list(out.glob("runs/*/spec.json")):
