@@ -17,9 +17,17 @@ Rules (see docs/engine.md for why):
 * Corridors (chains of two-way segments) are single-track: an AGV takes the corridor lock before
   it takes the node from which it enters the corridor, so two AGVs never meet head-on.
 * Routes follow the shortest free-flow travel time (fleet_sim.sim.traffic.routing).
-* A wait-for cycle is looked for whenever an AGV starts waiting and every `deadlock_check_s`
-  while it still waits (fleet_sim.sim.traffic.deadlock). A cycle is recorded and resolved by the
-  `DeadlockPolicy` handed to `Traffic`: one member takes another route or backs off.
+* A wait-for cycle is looked for whenever an AGV starts waiting (fleet_sim.sim.traffic.deadlock),
+  and, while a cycle it was found in may still stand, every `deadlock_check_s` while it waits. A
+  cycle is recorded and resolved by the `DeadlockPolicy` handed to `Traffic`: one member takes
+  another route or backs off.
+* Why only then: an AGV waits for one lock at a time, so the wait-for graph has at most one edge
+  out of each AGV, and a lock passed on goes to an AGV that thereby stops waiting. The only
+  change that can close a cycle is therefore an AGV starting to wait, and the cycle then runs
+  through it. AGVs that no cycle was found for do not walk their wait chains again while they
+  wait (`_suspects`): before, every blocked AGV walked its whole chain every `deadlock_check_s`
+  when anything had changed anywhere, which in a long queue cost (queue length)^2 per check
+  period, the largest cost of a congested run with 200 AGVs.
 * Giving way: an AGV that has waited `give_way_after_s` for a corridor or a side track while
   another AGV queues behind it drives on and comes back round (circulates) instead of blocking
   the main loop. This keeps loops flowing, which avoids most deadlocks by construction.
@@ -118,6 +126,9 @@ class Traffic:
         self._escapes: dict[int, Escape] = {}
         """Escapes chosen for clients that have not taken them yet."""
         self._cycles = KnownCycles()
+        self._suspects: set[int] = set()
+        """Clients found in a wait-for cycle that may still stand: they look again while they
+        wait; nobody else needs to (see the module docstring)."""
 
     # ---- clients and the table --------------------------------------------------------------
     def register(self, client: TrafficClient) -> None:
@@ -182,9 +193,13 @@ class Traffic:
     def start_waiting(self, client_id: int, lock: Lock) -> None:
         self.waiting[client_id] = lock
         self.version += 1
+        cycle = find_cycle(client_id, self.waiting)
+        if cycle is not None:
+            self._suspects.update(cycle)
 
     def stop_waiting(self, client_id: int) -> None:
         del self.waiting[client_id]
+        self._suspects.discard(client_id)
         self.version += 1
 
     def holders(self) -> Iterator[tuple[str, int]]:
@@ -255,8 +270,11 @@ class Traffic:
     def resolve_deadlock(self, client: TrafficClient) -> Escape | None:
         """Look for a wait-for cycle through `client` and resolve it. Returns the escape when
         the client itself must move; another victim is interrupted with `DeadlockVictim`."""
+        if client.id not in self._suspects:
+            return None  # no cycle closed through it since it last looked
         cycle = find_cycle(client.id, self.waiting)
         if cycle is None:
+            self._suspects.discard(client.id)
             return None
         members = [self._clients[m] for m in cycle]
         if any(m.id in self._escapes or m.failing for m in members):
