@@ -1,10 +1,12 @@
 """The fleet manager (fleet_sim.sim.agents.fleet_manager): assigning orders, putting back the
-order of an AGV that cannot carry it out, the charger queue, parking; and, in whole runs, idle
-AGVs parked, no order lost, Little's law on the order queue."""
+order of an AGV that cannot carry it out, the charger queue, parking, admission; and, in whole
+runs, idle AGVs parked, no order lost, Little's law on the order queue, admission never beyond
+its limit and a large fleet that keeps delivering under it."""
 
 from __future__ import annotations
 
 import copy
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,7 +22,7 @@ from fleet_sim.model.kinematics import Motion
 from fleet_sim.model.records import Order, Recorder
 from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.commands import CommandPath
-from fleet_sim.sim.engine import build_model, simulate
+from fleet_sim.sim.engine import RunOutput, build_model, simulate
 from fleet_sim.sim.traffic.control import Traffic
 
 from .conftest import LAYOUTS, make_scenario, write_yaml
@@ -33,6 +35,7 @@ class StubAgv:
     id: int
     node: str
     fms_link: bool = True
+    in_parking: bool = False
     notes: list[tuple[str, str]] = field(default_factory=list)
     orders: list[Order] = field(default_factory=list)
 
@@ -47,12 +50,12 @@ class StubAgv:
         self.orders.append(order)
 
 
-def fleet_manager(layout: Layout) -> FleetManager:
+def fleet_manager(layout: Layout, config: DispatchConfig | None = None) -> FleetManager:
     env = simpy.Environment()
     recorder = Recorder(0.0, 3600.0)
     traffic = Traffic(env, layout, Motion(1.0, 0.5, 0.5, 0.3), recorder)
     commands = CommandPath(env, None, 0.0, np.random.default_rng(0), recorder)
-    return FleetManager(env, layout, traffic, DispatchConfig(), recorder, commands)
+    return FleetManager(env, layout, traffic, config or DispatchConfig(), recorder, commands)
 
 
 @pytest.fixture(scope="module")
@@ -216,3 +219,99 @@ def test_littles_law_on_the_order_queue(tiny_layout: Layout) -> None:
     wait = (arrived["assigned_s"].fillna(end) - arrived["created_s"]).mean()
     assert figures["order_queue_mean"] > 0.2  # a queue worth checking
     assert figures["order_queue_mean"] == pytest.approx(rate * wait, rel=0.05)
+
+
+# ---- admission (dispatch.max_active_agvs) ----------------------------------------------------
+
+
+def test_admission_gives_parked_agvs_work_only_while_there_is_room(spurs_layout: Layout) -> None:
+    fm = fleet_manager(spurs_layout, DispatchConfig(max_active_agvs=1))
+    out, parked = StubAgv(0, "K", in_parking=True), StubAgv(1, "K", in_parking=True)
+    fm.vehicle_idle(out)
+    fm.vehicle_idle(parked)
+    first, second = Order(0, 0.0, "PICK", "DROP"), Order(1, 0.0, "PICK", "DROP")
+    fm.submit(first)
+    fm.submit(second)
+    assert out.orders == [first] and parked.orders == []  # one admission, taken by AGV 0
+    assert fm.admitted == {0} and list(fm.waiting) == [second]
+    assert out.notes == [("admitted", "1 of 1 on the track")]
+    out.in_parking = False  # AGV 0 drives off, delivers, and offers itself on the track
+    fm.vehicle_idle(out)
+    assert out.orders == [first, second]  # on the track already: no admission needed
+    out.in_parking = True
+    fm.parked(out)  # AGV 0 is back in parking: its admission is free
+    assert fm.admitted == set()
+    fm.submit(third := Order(2, 0.0, "PICK", "DROP"))
+    assert parked.orders == [third] and fm.admitted == {1}
+
+
+def test_a_freed_admission_goes_to_a_charger_before_an_order(spurs_layout: Layout) -> None:
+    fm = fleet_manager(spurs_layout, DispatchConfig(max_active_agvs=1))
+    busy = StubAgv(0, "D")
+    fm.on_track_at_start(busy)
+    waiting_idle, low = StubAgv(1, "K", in_parking=True), StubAgv(2, "K", in_parking=True)
+    fm.vehicle_idle(waiting_idle)
+    fm.submit(order := Order(0, 0.0, "PICK", "DROP"))
+    charger = fm.request_charger(low)
+    assert not charger.triggered and waiting_idle.orders == []  # AGV 0 holds the admission
+    busy.in_parking = True
+    fm.parked(busy)
+    assert charger.triggered and fm.admitted == {2}  # the battery first
+    assert waiting_idle.orders == [] and list(fm.waiting) == [order]
+
+
+def on_track_at_most(run: RunOutput) -> int:
+    """The most AGVs on the track at once, from the node holds the run recorded (an AGV on the
+    track always holds its node; in parking, none): independent of the admission bookkeeping."""
+    spans: dict[int, list[tuple[float, float]]] = {}
+    for spell in run.recorder.occupancy:
+        if spell.kind == "node":
+            spans.setdefault(spell.agv, []).append((spell.start_s, spell.end_s))
+    for vehicle in run.vehicles:  # holds still open at the end
+        for held in vehicle.held + vehicle.ahead:
+            spans.setdefault(vehicle.id, []).append((held.since_s, run.scenario.duration_s))
+    changes: list[tuple[float, int]] = []
+    for agv_spans in spans.values():  # each AGV's union of holds: +1 when it starts, -1 at end
+        agv_spans.sort()
+        start, end = agv_spans[0]
+        for a, b in agv_spans[1:]:
+            if a > end:
+                changes += [(start, 1), (end, -1)]
+                start = a
+            end = max(end, b)
+        changes += [(start, 1), (end, -1)]
+    most = now = 0
+    for _, step in sorted(changes):  # at one instant, leaving (-1) before entering (+1)
+        now += step
+        most = max(most, now)
+    return most
+
+
+def test_admission_never_admits_beyond_its_limit(warehouse_layout: Layout) -> None:
+    lulls = [{"from_h": h / 2, "multiplier": 0.05 if h % 2 else 1.0} for h in range(6)]
+    scenario = make_scenario("warehouse.yaml", duration_h=3, warmup_h=0.5, seed=5,
+                             fleet={"size": 40},  # busy half-hours and lulls: AGVs come and go
+                             demand={"rate_per_hour": 150, "profile": lulls},
+                             dispatch={"max_active_agvs": 12},
+                             charging={"threshold_pct": 60})  # charging trips too
+    run = simulate(scenario, warehouse_layout, record_occupancy=True)
+    assert on_track_at_most(run) == 12  # the limit binds, and is never passed
+    admitted = Counter(e.agv for e in run.recorder.events if e.event == "admitted")
+    assert sum(admitted.values()) > 12  # admissions freed in parking were handed out again
+    assert any(e.event == "Event_Go_Charge" for e in run.recorder.events)
+    unlimited = simulate(scenario.model_copy(update={"dispatch": DispatchConfig()}),
+                         warehouse_layout, record_occupancy=True)
+    assert on_track_at_most(unlimited) > 12  # without the rule, more AGVs go out
+
+
+def test_150_agvs_on_the_warehouse_deliver_in_every_hour_under_admission(
+        warehouse_layout: Layout) -> None:
+    """Without admission, 100 busy AGVs lock the warehouse's loop solid in the first hour
+    (bench/admission.py); with the loop's working load admitted, 150 keep delivering."""
+    scenario = make_scenario("warehouse.yaml", duration_h=3.5, warmup_h=0.5, seed=3,
+                             fleet={"size": 150}, demand={"rate_per_hour": 300},
+                             dispatch={"max_active_agvs": 20})
+    run = simulate(scenario, warehouse_layout)
+    per_hour = Counter(int((o.delivered_s - 1800.0) // 3600) for o in run.recorder.orders
+                       if o.delivered_s is not None and o.delivered_s >= 1800.0)
+    assert all(per_hour[h] >= 120 for h in range(3)), per_hour  # the plateau is ~170/h

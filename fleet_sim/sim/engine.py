@@ -100,6 +100,7 @@ def _place(vehicles: list[Vehicle], scenario: Scenario, layout: Layout,
     if scenario.fleet.start_nodes:
         for vehicle, node in zip(vehicles, scenario.fleet.start_nodes, strict=False):
             vehicle.place_at(node)
+            fleet.on_track_at_start(vehicle)
         return
     slots = [p for p in layout.parking for _ in range(p.capacity)]
     for vehicle, place in zip(vehicles, slots, strict=False):

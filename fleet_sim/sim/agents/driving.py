@@ -101,6 +101,11 @@ class Driver:
         self.process.interrupt(cause)
 
     @property
+    def in_parking(self) -> bool:
+        """In a parking area, off the track."""
+        return self.parked_in is not None
+
+    @property
     def dispatch_node(self) -> str:
         """Where the dispatcher should measure travel from: the node the AGV is committed to."""
         if self.ahead:

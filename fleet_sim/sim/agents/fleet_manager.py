@@ -14,6 +14,17 @@ Chargers: an AGV asks for one; the fleet manager gives it the nearest free charg
 (first come, first served) until one frees up. One AGV per charger.
 Orders of a failed AGV: one not yet loaded goes back to the front of the queue; a loaded one is
 recorded as failed (its load is with the broken AGV).
+
+Admission (scenario `dispatch.max_active_agvs`, off by default: RSS-AGV-001 has no such rule):
+at most N AGVs on the track at once; the others wait in parking. An AGV holds an admission from
+the moment the fleet manager gives a parked AGV work (an order or a charger) until it has driven
+back into a parking area; one that starts on the track holds one from the start, and a failed
+AGV keeps its own while the operator has it. Once N are admitted, orders go only to idle AGVs
+already on the track, and a freed admission goes to a parked AGV waiting for a charger before
+any order (a battery must not run down in parking). Like a CONWIP limit in a factory: a loop
+packed beyond what it can carry stops carrying anything (100 busy AGVs lock the 186-node
+warehouse solid), so a planner caps the AGVs on the track at the loop's working load and the
+rest wait; throughput then plateaus as the fleet grows instead of collapsing.
 """
 
 from __future__ import annotations
@@ -52,6 +63,11 @@ class FleetAgv(Protocol):
         """The AGV hears the fleet manager (no orders for it otherwise)."""
         ...
 
+    @property
+    def in_parking(self) -> bool:
+        """The AGV stands in a parking area, off the track."""
+        ...
+
     def note(self, event: str, detail: str = "") -> None:
         """Record an event about the AGV that changes no state (order_assigned...)."""
 
@@ -83,6 +99,10 @@ class FleetManager:
         self.bound_for: Counter[str] = Counter()
         self.chargers_free: list[Place] = list(layout.chargers)
         self.charger_queue: deque[tuple[FleetAgv, simpy.Event]] = deque()
+        self.max_active = config.max_active_agvs
+        """Admission: most AGVs on the track at once (None: no limit)."""
+        self.admitted: set[int] = set()
+        """AGVs holding an admission (on the track, or given work to leave parking for)."""
         recorder.queue_lengths.append((env.now, 0))
 
     # ---- orders -----------------------------------------------------------------------------
@@ -138,6 +158,7 @@ class FleetManager:
         order.reassigned += 1
         agv.note("order_reassigned", f"order {order.id}")
         self.waiting.appendleft(order)
+        self._release_if_parked(agv)
         self._dispatch()
 
     def order_failed(self, order: Order, code: str) -> None:
@@ -162,6 +183,7 @@ class FleetManager:
 
     def cancel_charger_request(self, agv: FleetAgv) -> None:
         self.charger_queue = deque((v, e) for v, e in self.charger_queue if v is not agv)
+        self._release_if_parked(agv)
 
     def release_charger(self, place: Place) -> None:
         self.chargers_free.append(place)
@@ -169,7 +191,13 @@ class FleetManager:
 
     def _assign_chargers(self) -> None:
         while self.chargers_free and self.charger_queue:
-            agv, event = self.charger_queue.popleft()
+            queued = next((item for item in self.charger_queue if self._may_admit(item[0])),
+                          None)
+            if queued is None:
+                break  # the AGVs queued wait in parking for an admission
+            self.charger_queue.remove(queued)
+            agv, event = queued
+            self._admit(agv)
             place = min(self.chargers_free, key=lambda c: (
                 self.traffic.travel_time_s(agv.dispatch_node, c.nodes[0]), c.id))
             self.chargers_free.remove(place)
@@ -189,6 +217,7 @@ class FleetManager:
             self.waiting.popleft()
             order.pickup_node = self._docking_node(pickup)
             self.idle.remove(agv)
+            self._admit(agv)
             order.dropoff_node = self._docking_node(self.layout.places[order.dropoff])
             order.agv = agv.id
             order.assigned_s = self.env.now
@@ -205,7 +234,7 @@ class FleetManager:
         agv.assign(order)
 
     def _choose(self, pickup_node: str) -> FleetAgv | None:
-        ready = [v for v in self.idle if v.fms_link]
+        ready = [v for v in self.idle if v.fms_link and self._may_admit(v)]
         if not ready:
             return None
         return self.policy.choose(ready, pickup_node, self.traffic.travel_time_s)
@@ -214,6 +243,34 @@ class FleetManager:
         node = min(place.nodes, key=lambda n: self.bound_for[n])
         self.bound_for[node] += 1
         return node
+
+    # ---- admission ----------------------------------------------------------------------------
+    def _may_admit(self, agv: FleetAgv) -> bool:
+        """The AGV may be given work: no limit, it holds an admission, or one is free."""
+        return self.max_active is None or agv.id in self.admitted \
+            or len(self.admitted) < self.max_active
+
+    def _admit(self, agv: FleetAgv) -> None:
+        if self.max_active is None or agv.id in self.admitted:
+            return
+        self.admitted.add(agv.id)
+        agv.note("admitted", f"{len(self.admitted)} of {self.max_active} on the track")
+
+    def on_track_at_start(self, agv: FleetAgv) -> None:
+        """The AGV starts on the track (scenario `fleet.start_nodes`): it holds an admission."""
+        if self.max_active is not None:
+            self.admitted.add(agv.id)
+
+    def parked(self, agv: FleetAgv) -> None:
+        """The AGV has driven into a parking area with no order: its admission is free for
+        another (unless an order is on its way to it)."""
+        self._release_if_parked(agv)
+
+    def _release_if_parked(self, agv: FleetAgv) -> None:
+        if agv.id in self.admitted and agv.in_parking and agv.id not in self.assigning:
+            self.admitted.discard(agv.id)
+            self._assign_chargers()  # a battery first, then orders
+            self._dispatch()
 
     # ---- parking ----------------------------------------------------------------------------
     def reserve_parking(self, agv: FleetAgv) -> Place | None:

@@ -74,6 +74,8 @@ class FleetManagerLink(Protocol):
 
     def release_parking(self, place: Place) -> None: ...
 
+    def parked(self, agv: Vehicle) -> None: ...
+
     def charger_available(self) -> bool: ...
 
     def request_charger(self, agv: Vehicle) -> simpy.Event: ...
@@ -261,6 +263,8 @@ class Vehicle(Driver):
                     # drive off the tape into a bay, at turn speed, before letting go of it
                     yield self.env.timeout(self.clear_m / self.profile.turn_speed_mps)
                     self._enter_parking(place)
+                    if self.order is None:  # not one assigned while it drove in
+                        self.fleet.parked(self)
                     self.parking_target = None
                     self.fire("Event_Arrived_Parking", place.id)
                 else:
