@@ -169,6 +169,14 @@ class TrafficConfig(StrictModel):
     round rather than block the way (assumed; see fleet_sim.sim.traffic.control)."""
     backoff_s: Positive = 5.0
     """Mean wait before a deadlocked AGV that cannot move tries again."""
+    congestion_cost_s: float = Field(default=0.0, ge=0, le=3600)
+    """Route cost (seconds) added per AGV standing on or queued for the node a segment leads
+    to, when the route is planned: routes go round congested segments. 0 (default): shortest
+    free-flow routes, as the spec has them."""
+    weak_wifi_cost_s: float = Field(default=0.0, ge=0, le=3600)
+    """Route cost (seconds) added per segment whose Wi-Fi signal is below
+    rules.weak_rssi_dbm: routes keep off weak-Wi-Fi segments where there is another way. 0
+    (default): off."""
 
 
 class Rules(StrictModel):

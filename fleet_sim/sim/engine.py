@@ -25,7 +25,7 @@ from fleet_sim.sim.agents.vehicle import Vehicle
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.demand import Demand
 from fleet_sim.sim.incidents import start_incidents
-from fleet_sim.sim.traffic.control import Traffic
+from fleet_sim.sim.traffic.control import RouteCosts, Traffic
 
 ProgressCallback = Callable[[float, float], None]
 """Called with (simulated seconds so far, simulated seconds in all) during a run."""
@@ -66,7 +66,9 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
                     profile.turn_speed_mps)
     recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy)
-    traffic = Traffic(env, layout, motion, recorder)
+    costs = RouteCosts(scenario.traffic.congestion_cost_s, scenario.traffic.weak_wifi_cost_s,
+                       scenario.rules.weak_rssi_dbm)
+    traffic = Traffic(env, layout, motion, recorder, costs=costs)
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
         from fleet_sim.sim.motion.sumo import SumoMotion
 

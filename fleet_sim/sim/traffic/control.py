@@ -16,7 +16,12 @@ Rules (see docs/engine.md for why):
   in order, at least the minimum gap behind the one ahead: no overtaking and no overlap.
 * Corridors (chains of two-way segments) are single-track: an AGV takes the corridor lock before
   it takes the node from which it enters the corridor, so two AGVs never meet head-on.
-* Routes follow the shortest free-flow travel time (fleet_sim.sim.traffic.routing).
+* Routes follow the shortest free-flow travel time (fleet_sim.sim.traffic.routing), unless the
+  planner gives routes a cost (`RouteCosts`, scenario `traffic.congestion_cost_s` and
+  `traffic.weak_wifi_cost_s`, both 0 by default, the spec's shortest routes): seconds added per
+  AGV standing on or queued for the node a segment leads to, at the moment the route is planned,
+  and per segment whose Wi-Fi signal is weak (below `rules.weak_rssi_dbm`, E_002), where the
+  link may drop. Dispatching still measures free-flow travel times.
 * A wait-for cycle is looked for whenever an AGV starts waiting (fleet_sim.sim.traffic.deadlock),
   and, while a cycle it was found in may still stand, every `deadlock_check_s` while it waits. A
   cycle is recorded and resolved by the `DeadlockPolicy` handed to `Traffic`: one member takes
@@ -39,6 +44,7 @@ at its last look has nothing new to find.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from typing import Protocol, cast
 
 import simpy
@@ -57,6 +63,22 @@ from fleet_sim.sim.traffic.deadlock import (
 )
 from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock
 from fleet_sim.sim.traffic.routing import Routes
+
+
+@dataclass(frozen=True)
+class RouteCosts:
+    """Extra route cost per segment (seconds); all zero: shortest free-flow routes."""
+
+    congestion_s: float = 0.0
+    """Per AGV on or queued for the node the segment leads to, when the route is planned."""
+    weak_wifi_s: float = 0.0
+    """Per segment with a Wi-Fi signal below `weak_rssi_dbm`."""
+    weak_rssi_dbm: float = -70.0
+
+    @property
+    def active(self) -> bool:
+        return self.congestion_s > 0 or self.weak_wifi_s > 0
+
 
 CorridorHold = tuple[Claim, str | None]
 """A corridor claim and the node from which the client will enter it (None once inside)."""
@@ -99,7 +121,8 @@ class Traffic:
     """The reservation table: node and corridor locks, keyed by client."""
 
     def __init__(self, env: simpy.Environment, layout: Layout, motion: Motion,
-                 recorder: Recorder, policy: DeadlockPolicy | None = None) -> None:
+                 recorder: Recorder, policy: DeadlockPolicy | None = None,
+                 costs: RouteCosts | None = None) -> None:
         self.env = env
         self.layout = layout
         self.graph = layout.graph
@@ -126,6 +149,11 @@ class Traffic:
         self._escapes: dict[int, Escape] = {}
         """Escapes chosen for clients that have not taken them yet."""
         self._cycles = KnownCycles()
+        self.costs = costs if costs is not None else RouteCosts()
+        self._weak: dict[tuple[str, str], float] = {
+            (u, v): self.costs.weak_wifi_s for u, v, d in self.graph.edges(data=True)
+            if self.costs.weak_wifi_s > 0 and d["rssi_dbm"] < self.costs.weak_rssi_dbm}
+        """Weak-Wi-Fi segments and their extra route cost."""
         self._suspects: set[int] = set()
         """Clients found in a wait-for cycle that may still stand: they look again while they
         wait; nobody else needs to (see the module docstring)."""
@@ -228,16 +256,32 @@ class Traffic:
         return None
 
     def route(self, src: str, dest: str) -> list[str]:
-        """Nodes from src to dest by shortest free-flow travel time, src included; around
-        segments reported blocked when there is a way round."""
+        """Nodes from src to dest by shortest free-flow travel time (plus the route costs, if
+        any), src included; around segments reported blocked when there is a way round."""
         if self.known_blocks:
             now = self.env.now
             self.known_blocks = {k: t for k, t in self.known_blocks.items() if t > now}
+        if self.costs.active:
             if self.known_blocks:
-                around = self.routes.route_avoiding(src, dest, set(), set(self.known_blocks))
+                around = self.routes.route_costed(src, dest, self._extra_cost,
+                                                  frozenset(self.known_blocks))
                 if around is not None:
                     return around
+            path = self.routes.route_costed(src, dest, self._extra_cost)
+            assert path is not None  # the layout is strongly connected
+            return path
+        if self.known_blocks:
+            around = self.routes.route_avoiding(src, dest, set(), set(self.known_blocks))
+            if around is not None:
+                return around
         return self.routes.route(src, dest)
+
+    def _extra_cost(self, u: str, v: str) -> float:
+        cost = self._weak.get((u, v), 0.0)
+        if self.costs.congestion_s > 0:
+            lock = self.node_locks[v]
+            cost += self.costs.congestion_s * (len(lock.users) + len(lock.put_queue))
+        return cost
 
     def entry_corridor(self, node: str, nxt: str | None) -> Corridor | None:
         """The corridor an AGV enters when it leaves `node` for `nxt`, if `node` is outside it."""

@@ -12,6 +12,11 @@
 * Each hop's pieces (a branch curve at the turn speed, then the rest of the segment) and the
   highest speed from which an AGV can still stop at the node after are cached per (prev, u, v).
 
+* Route costs (`route_costed`, scenario `traffic.congestion_cost_s` / `weak_wifi_cost_s`, off by
+  default): the same A* with extra seconds per segment, which a caller (Traffic) computes from
+  the locks or the layout. Extra costs are never negative, so the free-flow heuristic still
+  never overestimates and the route found is the cheapest.
+
 `Routes` holds no locks and no clock; it only needs the layout and the vehicle's motion limits
 (the fleet sizing estimate uses it too).
 """
@@ -20,6 +25,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+from collections.abc import Callable
 
 import networkx as nx
 
@@ -27,6 +33,9 @@ from fleet_sim.config.layout import Layout
 from fleet_sim.model.kinematics import Motion, Piece, stop_entry_speed, traverse
 
 Detour = tuple[str, str, frozenset[str], frozenset[tuple[str, str]]]
+ExtraCost = Callable[[str, str], float]
+"""Seconds added to the route cost of segment u -> v (>= 0)."""
+NO_EDGES: frozenset[tuple[str, str]] = frozenset()
 
 
 class Routes:
@@ -85,11 +94,18 @@ class Routes:
         self._detours[key] = path
         return path
 
+    def route_costed(self, src: str, dest: str, extra: ExtraCost,
+                     avoid_edges: frozenset[tuple[str, str]] = NO_EDGES) -> list[str] | None:
+        """Cheapest route by free-flow time plus `extra` per segment, off `avoid_edges`."""
+        return self._a_star(src, dest, frozenset(), avoid_edges, extra)
+
     def _a_star(self, src: str, dest: str, avoid: frozenset[str],
-                avoid_edges: frozenset[tuple[str, str]]) -> list[str] | None:
-        """Shortest free-flow route from src to dest off `avoid` and `avoid_edges` (None if
-        there is none). The heuristic, the free-flow time to dest on the whole layout, is
-        consistent, so the first time dest leaves the queue its route is the shortest."""
+                avoid_edges: frozenset[tuple[str, str]],
+                extra: ExtraCost | None = None) -> list[str] | None:
+        """Shortest route from src to dest off `avoid` and `avoid_edges` (None if there is
+        none), by free-flow time plus `extra`. The heuristic, the free-flow time to dest on the
+        whole layout, is consistent, so the first time dest leaves the queue its route is the
+        cheapest."""
         to_dest = self._table(dest)[0]
         if src not in to_dest:
             return None
@@ -116,7 +132,7 @@ class Routes:
                 h = to_dest.get(v)
                 if h is None:
                     continue  # dest cannot be reached from v at all
-                cost = g + t
+                cost = g + t if extra is None else g + t + extra(u, v)
                 if cost < best.get(v, float("inf")):
                     best[v] = cost
                     parent[v] = u
