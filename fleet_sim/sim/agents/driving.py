@@ -280,7 +280,7 @@ class Driver:
             assert isinstance(speed, float)
             v_end = speed
             self._leg = None
-        length = traffic.graph.edges[u, nxt]["length_m"]
+        length = traffic.routes.edge[u, nxt]["length_m"]
         self.recorder.drove(start, self.env.now, length)
         if self.recorder.record_occupancy:
             self.recorder.occupied("segment", f"{u}>{nxt}", self.id, start, self.env.now)

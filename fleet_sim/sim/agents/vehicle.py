@@ -440,7 +440,7 @@ class Vehicle(Driver):
         return cap
 
     def _travel(self, u: str, v: str, time_s: float) -> Proc:
-        edge = self.traffic.graph.edges[u, v]
+        edge = self.traffic.routes.edge[u, v]
         dead = edge["rssi_dbm"] < self.rules.link_min_rssi_dbm
         if dead != self.in_dead_spot:
             self.in_dead_spot = dead

@@ -10,7 +10,13 @@
   through slow view filters (10 ms per detour on the 627-node distribution centre, the largest
   cost of a congested run).
 * Each hop's pieces (a branch curve at the turn speed, then the rest of the segment) and the
-  highest speed from which an AGV can still stop at the node after are cached per (prev, u, v).
+  highest speed from which an AGV can still stop at the node after are cached per (prev, u, v),
+  and each hop's closed-form time per (prev, u, v, entry speed, end speed bound): the speeds an
+  AGV enters and may leave a hop with come from a small set (0, a pass speed, the limit), so a
+  run computes each combination once and looks it up thereafter (the same floats: `traverse`
+  is a pure function).
+* `edge[(u, v)]` is the segment's attribute dict (the graph's own), for the engine's hot path
+  (networkx's edge views cost a few microseconds per look-up).
 
 * Route costs (`route_costed`, scenario `traffic.congestion_cost_s` / `weak_wifi_cost_s`, off by
   default): the same A* with extra seconds per segment, which a caller (Traffic) computes from
@@ -26,6 +32,7 @@ from __future__ import annotations
 import heapq
 import itertools
 from collections.abc import Callable
+from typing import Any
 
 import networkx as nx
 
@@ -52,6 +59,10 @@ class Routes:
         self._pieces: dict[tuple[str | None, str, str], tuple[Piece, ...]] = {}
         self._stop_entry: dict[tuple[str, str, str], float] = {}
         self._detours: dict[Detour, list[str] | None] = {}
+        self._hops: dict[tuple[str | None, str, str, float, float], tuple[float, float]] = {}
+        self.edge: dict[tuple[str, str], dict[str, Any]] = {
+            (u, v): d for u, v, d in self.graph.edges(data=True)}
+        """Segment u -> v's attributes (length_m, speed_limit_mps, rssi_dbm...)."""
         self._succ: dict[str, tuple[tuple[str, float], ...]] = {
             u: tuple((v, d["free_time_s"]) for v, d in self.graph.succ[u].items())
             for u in self.graph.nodes}
@@ -174,5 +185,10 @@ class Routes:
     def hop(self, prev: str | None, u: str, v: str, v_in: float,
             v_end_max: float) -> tuple[float, float]:
         """(time_s, v_end) for u -> v, closed form."""
-        return traverse(self.pieces(prev, u, v), v_in, v_end_max,
-                        self.motion.accel_mps2, self.motion.decel_mps2)
+        key = (prev, u, v, v_in, v_end_max)
+        found = self._hops.get(key)
+        if found is None:
+            found = traverse(self.pieces(prev, u, v), v_in, v_end_max,
+                             self.motion.accel_mps2, self.motion.decel_mps2)
+            self._hops[key] = found
+        return found
