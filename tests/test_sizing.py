@@ -54,7 +54,7 @@ def variant(tmp_path: Path, source: Path, name: str, **changes: Any) -> Path:
 @pytest.mark.parametrize("source,changes,cap", [
     (EXPERIMENT, {}, 8),
     (ROOT / "experiments" / "warehouse_sizing.yaml",  # shortened: 2-hour shifts, one demand
-     {"overrides": {"warmup_h": 0.25, "duration_h": 2.0},
+     {"overrides": {"warmup_h": 0.25, "duration_h": 2.0}, "warmup": {"method": "fixed"},
       "factors": {"fleet.size": list(range(6, 15)), "demand.rate_per_hour": [90]}}, 6),
 ])
 def test_sequential_stopping_recommends_what_fixed_replications_do(

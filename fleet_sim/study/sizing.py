@@ -22,9 +22,12 @@ How many replications a fleet size gets (`sizing.stopping`):
   that clears the bound gives a size several chances to be declared good; spending the 5 %
   over the looks (Bonferroni, most of it kept for the last look, as in O'Brien-Fleming
   designs) keeps the chance of calling a size good that is not at most what one 95 % interval
-  allows. Failing early errs towards more AGVs, so it keeps the nominal level. A clear case
-  costs two or four runs instead of a fixed number; the tests check the answer against fixed
-  replications.
+  allows. Failing early errs towards more AGVs, so it keeps the nominal level. From four
+  replications on, a size whose mean misses a bound is given up (futility): it could only be
+  shown to meet the target if more replications moved the mean across the bound and then far
+  enough from it, and a size not shown to meet counts as not meeting whether it stops now or at
+  the limit. A clear case costs two or four runs instead of a fixed number; the tests check
+  the answer against fixed replications.
 * ``fixed``: every size runs the experiment's ``replications``; undecided counts as not meeting.
 
 Common random numbers: replication r runs with the same seed at every fleet size
@@ -65,6 +68,9 @@ from fleet_sim.study.warmup import largest_fleet, settle_warmup
 
 DEFAULT_MAX_AGVS = 50
 EARLY_ALPHA = 0.005
+FUTILE_FROM = 4
+"""Sequential stopping gives up on a size whose mean misses a bound from this many
+replications on."""
 """Two-sided error spent at each early look of sequential stopping (99.5 % intervals)."""
 
 
@@ -79,6 +85,8 @@ class Evaluation:
     failed_runs: int = 0
     values: dict[str, dict[int, float]] = field(default_factory=dict)
     """Per target KPI: replication -> value (runs that finished)."""
+    futile: bool = False
+    """Stopped undecided with a target's mean on the wrong side of its bound."""
     strict: list[TargetCheck] | None = None
     """The checks at `meets_at`, the level a size must meet at (None: the 95 % checks)."""
     meets_at: float = CONFIDENCE
@@ -95,7 +103,7 @@ class Evaluation:
     def as_dict(self) -> dict[str, Any]:
         return {
             "agvs": self.agvs, "replications": self.replications, "verdict": self.verdict,
-            "meets_at_confidence": self.meets_at,
+            "meets_at_confidence": self.meets_at, "futile": self.futile,
             "failed_runs": self.failed_runs,
             "targets": [{"target": c.target.describe(), "kpi": c.target.kpi,
                          "bound": c.target.bound, "at_least": c.target.higher_is_better,
@@ -191,6 +199,12 @@ def _why_not(ev: Evaluation) -> str:
         for c in bad) + ")"
 
 
+def _bad_side(check: TargetCheck) -> bool:
+    """The check's mean lies on the wrong side of its target's bound."""
+    mean = check.interval.mean
+    return not math.isnan(mean) and not check.target.met_by(mean)
+
+
 def _num(value: float) -> float | None:
     return None if math.isnan(value) else value
 
@@ -234,12 +248,18 @@ class Sizer:
             checks = [target_check(factors, t, arrays[t.kpi]) for t in self.targets]
             strict = [target_check(factors, t, arrays[t.kpi], meets_at) for t in self.targets] \
                 if abs(meets_at - CONFIDENCE) > 1e-12 else checks
-            ev = Evaluation(agvs, reps, checks, failed, values, strict, meets_at)
+            ev = Evaluation(agvs, reps, checks, failed, values, strict=strict, meets_at=meets_at)
             if ev.verdict != "undecided":
                 break
+            if reps >= FUTILE_FROM and any(_bad_side(c) for c in checks):
+                ev.futile = True
+                break
         result.evaluations[agvs] = ev
-        note = " (undecided at the replication limit: counted as not meeting)" \
-            if ev.verdict == "undecided" else ""
+        note = ""
+        if ev.futile:
+            note = " (a mean on the wrong side of its bound: not meeting, no more replications)"
+        elif ev.verdict == "undecided":
+            note = " (undecided at the replication limit: counted as not meeting)"
         self.progress.note(f"{_where(self.fixed)}{agvs} AGVs, {ev.replications} "
                            f"replications: {ev.verdict}{note}")
         return ev
