@@ -23,10 +23,11 @@ How many replications a fleet size gets (`sizing.stopping`):
   over the looks (Bonferroni, most of it kept for the last look, as in O'Brien-Fleming
   designs) keeps the chance of calling a size good that is not at most what one 95 % interval
   allows. Failing early errs towards more AGVs, so it keeps the nominal level. From four
-  replications on, a size whose mean misses a bound is given up (futility): it could only be
-  shown to meet the target if more replications moved the mean across the bound and then far
-  enough from it, and a size not shown to meet counts as not meeting whether it stops now or at
-  the limit. A clear case costs two or four runs instead of a fixed number; the tests check
+  replications on, a hopeless size is given up (futility): one whose mean misses a bound, or
+  sits so close to it that, with the spread seen so far, clearing it at the last look's level
+  would take more than twice ``max_replications``. A size not shown to meet counts as not
+  meeting whether it stops now or at the limit; giving up early can only err towards more
+  AGVs. A clear case costs two or four runs instead of a fixed number; the tests check
   the answer against fixed replications.
 * ``fixed``: every size runs the experiment's ``replications``; undecided counts as not meeting.
 
@@ -59,7 +60,13 @@ import numpy as np
 
 from fleet_sim.analysis.estimate import Estimate, analytic_estimate
 from fleet_sim.analysis.kpis import kpi_value
-from fleet_sim.analysis.stats import CONFIDENCE, TargetCheck, mean_ci, target_check
+from fleet_sim.analysis.stats import (
+    CONFIDENCE,
+    TargetCheck,
+    mean_ci,
+    replications_needed,
+    target_check,
+)
 from fleet_sim.config.experiment import FLEET, Experiment, Target, layout_for, load_trace_for
 from fleet_sim.errors import InputError
 from fleet_sim.study.progress import Progress
@@ -69,8 +76,9 @@ from fleet_sim.study.warmup import largest_fleet, settle_warmup
 DEFAULT_MAX_AGVS = 50
 EARLY_ALPHA = 0.005
 FUTILE_FROM = 4
-"""Sequential stopping gives up on a size whose mean misses a bound from this many
-replications on."""
+"""Sequential stopping may give up on a hopeless size from this many replications on."""
+FUTILE_MARGIN = 2
+"""... when a decision would need more than this many times max_replications."""
 """Two-sided error spent at each early look of sequential stopping (99.5 % intervals)."""
 
 
@@ -199,10 +207,17 @@ def _why_not(ev: Evaluation) -> str:
         for c in bad) + ")"
 
 
-def _bad_side(check: TargetCheck) -> bool:
-    """The check's mean lies on the wrong side of its target's bound."""
-    mean = check.interval.mean
-    return not math.isnan(mean) and not check.target.met_by(mean)
+def _futile(check: TargetCheck, cap: int, confidence: float) -> bool:
+    """No use replicating further for this target: its mean lies on the wrong side of the
+    bound, or so close to it that, with the spread seen so far, an interval at `confidence`
+    would need more than FUTILE_MARGIN x `cap` replications to clear it."""
+    if check.decision != "undecided":
+        return False
+    ci = check.interval
+    if math.isnan(ci.mean) or not check.target.met_by(ci.mean):
+        return True
+    needed = replications_needed(ci.sd, ci.mean - check.target.bound, ci.n, confidence)
+    return needed is None or needed > FUTILE_MARGIN * cap
 
 
 def _num(value: float) -> float | None:
@@ -251,13 +266,15 @@ class Sizer:
             ev = Evaluation(agvs, reps, checks, failed, values, strict=strict, meets_at=meets_at)
             if ev.verdict != "undecided":
                 break
-            if reps >= FUTILE_FROM and any(_bad_side(c) for c in checks):
+            last = alpha - early * (len(looks) - 1)
+            if i < len(looks) - 1 and reps >= FUTILE_FROM \
+                    and any(_futile(c, looks[-1], 1.0 - last) for c in checks):
                 ev.futile = True
                 break
         result.evaluations[agvs] = ev
         note = ""
         if ev.futile:
-            note = " (a mean on the wrong side of its bound: not meeting, no more replications)"
+            note = " (hopeless: a mean on or near the wrong side of its bound; not meeting)"
         elif ev.verdict == "undecided":
             note = " (undecided at the replication limit: counted as not meeting)"
         self.progress.note(f"{_where(self.fixed)}{agvs} AGVs, {ev.replications} "
