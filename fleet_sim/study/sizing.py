@@ -43,7 +43,11 @@ The warm-up is the scenario's, or estimated from pilot runs by MSER-5 (experimen
 
 Every run goes through fleet_sim.study.sweep with the experiment's seeds, so a sizing search over a
 folder that already holds a sweep reuses its runs, and an interrupted search resumes.
-Other factors of the experiment (say, two demand levels) each get their own search.
+Other factors of the experiment (say, two demand levels) each get their own search; the
+searches run side by side (`run_searches`): each asks for its next batch of runs, and the
+batches asked for at the same step run as one, so two searches of two runs each keep two
+workers busy where one after the other would leave one idle half the time. Each search sees
+exactly the runs it would see alone: the answer does not depend on the other groups.
 """
 
 from __future__ import annotations
@@ -51,7 +55,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Generator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -67,7 +71,14 @@ from fleet_sim.analysis.stats import (
     replications_needed,
     target_check,
 )
-from fleet_sim.config.experiment import FLEET, Experiment, Target, layout_for, load_trace_for
+from fleet_sim.config.experiment import (
+    FLEET,
+    Experiment,
+    RunSpec,
+    Target,
+    layout_for,
+    load_trace_for,
+)
 from fleet_sim.errors import InputError
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.sweep import DaskPool, LocalPool, execute, folder_lock, prepare, tables_written
@@ -248,7 +259,10 @@ class Sizer:
             out.append(n)
         return out
 
-    def evaluate(self, agvs: int, result: GroupResult) -> Evaluation:
+    def evaluate(self, agvs: int, result: GroupResult) -> Generator[list[RunSpec], None,
+                                                                     Evaluation]:
+        """Evaluate a fleet size: yields each batch of runs it needs (the caller makes them,
+        with other groups' batches), and returns the evaluation."""
         factors = {**self.fixed, FLEET: agvs}
         looks = self.looks()
         alpha = 1.0 - CONFIDENCE
@@ -256,7 +270,7 @@ class Sizer:
         for i, reps in enumerate(looks):
             meets_at = 1.0 - (early if i < len(looks) - 1 else alpha - early * (len(looks) - 1))
             runs = [self.experiment.run(factors, r) for r in range(reps)]
-            execute(runs, self.out_dir, quiet=True, pool=self.pool)
+            yield runs
             values, failed = self._values(runs)
             arrays = {t.kpi: np.array(list(values[t.kpi].values()), dtype=float)
                       for t in self.targets}
@@ -295,21 +309,25 @@ class Sizer:
                 values[kpi][spec.replication] = math.nan if value is None else float(value)
         return values, failed
 
-    def search(self, estimate: Estimate, lo_limit: int, hi_limit: int) -> GroupResult:
+    def search(self, estimate: Estimate, lo_limit: int,
+               hi_limit: int) -> Generator[list[RunSpec], None, GroupResult]:
+        """The search; yields the batches of runs it needs (see `run_searches`)."""
         result = GroupResult(self.fixed, estimate, min_agvs=lo_limit, max_agvs=hi_limit)
 
-        def meets(n: int) -> bool:
-            ev = result.evaluations.get(n) or self.evaluate(n, result)
+        def meets(n: int) -> Generator[list[RunSpec], None, bool]:
+            ev = result.evaluations.get(n)
+            if ev is None:
+                ev = yield from self.evaluate(n, result)
             return ev.verdict == "meets"
 
         start = min(max(estimate.minimum, lo_limit), hi_limit)
         lo = lo_limit - 1  # largest size known not to meet (lo_limit - 1: none below)
         hi: int | None = None  # smallest size known to meet
-        if meets(start):
+        if (yield from meets(start)):
             hi, step = start, 1
             while hi - step >= lo_limit:
                 probe = hi - step
-                if meets(probe):
+                if (yield from meets(probe)):
                     hi, step = probe, step * 2
                 else:
                     lo = probe
@@ -318,7 +336,7 @@ class Sizer:
             lo, step = start, 1
             while lo < hi_limit:
                 probe = min(lo + step, hi_limit)
-                if meets(probe):
+                if (yield from meets(probe)):
                     hi = probe
                     break
                 lo, step = probe, step * 2
@@ -326,12 +344,36 @@ class Sizer:
             return result
         while hi - lo > 1:
             mid = (lo + hi) // 2
-            if meets(mid):
+            if (yield from meets(mid)):
                 hi = mid
             else:
                 lo = mid
         result.recommended = hi
         return result
+
+
+def run_searches(searches: Sequence[Generator[list[RunSpec], None, GroupResult]],
+                 out_dir: Path, pool: LocalPool | DaskPool) -> list[GroupResult]:
+    """Drive every group's search together: the batches they ask for at the same step run as
+    one, so the workers stay busy while each search waits for its own few runs."""
+    results: list[GroupResult | None] = [None] * len(searches)
+    wanted: dict[int, list[RunSpec]] = {}
+
+    def advance(i: int) -> None:
+        try:
+            wanted[i] = next(searches[i])
+        except StopIteration as done:
+            results[i] = done.value
+            wanted.pop(i, None)
+
+    for i in range(len(searches)):
+        advance(i)
+    while wanted:
+        batch = [spec for i in sorted(wanted) for spec in wanted[i]]
+        execute(batch, out_dir, quiet=True, pool=pool)
+        for i in sorted(wanted):
+            advance(i)
+    return [r for r in results if r is not None]
 
 
 def groups(experiment: Experiment) -> list[dict[str, Any]]:
@@ -367,7 +409,7 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
         raise InputError(str(experiment.file), "sizing.max_agvs", hi_limit,
                          f"at least the smallest fleet searched ({lo_limit})")
     with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
-        results = []
+        results: list[GroupResult] = []
         n_workers = workers or os.cpu_count() or 1
         pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers) if scheduler \
             else LocalPool(n_workers)
@@ -375,9 +417,9 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
             experiment = settle_warmup(experiment, out_dir, groups(experiment),
                                        largest_fleet(experiment) or hi_limit, pool, progress)
             prepare(experiment, out_dir)
-            for fixed in groups(experiment):
-                results.append(_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool,
-                                           progress))
+            results = run_searches(
+                [_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool, progress)
+                 for fixed in groups(experiment)], out_dir, pool)
         document = {"experiment": experiment.name, "confidence": 0.95,
                     "stopping": spec.sizing.stopping,
                     "warmup_h": experiment.scenario().warmup_h,
@@ -390,7 +432,8 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
 
 
 def _size_group(experiment: Experiment, out_dir: Path, fixed: dict[str, Any], lo_limit: int,
-                hi_limit: int, pool: LocalPool | DaskPool, progress: Progress) -> GroupResult:
+                hi_limit: int, pool: LocalPool | DaskPool,
+                progress: Progress) -> Generator[list[RunSpec], None, GroupResult]:
     spec = experiment.spec
     scenario = experiment.scenario(fixed)
     layout = layout_for(scenario, str(experiment.scenario_file))
