@@ -16,7 +16,9 @@ a master seed and the targets a planner must meet. Example::
     targets:
       - {kpi: throughput_pct_of_demand, at_least: 98}
       - {kpi: lead_time_p95_s, at_most: 600}
-    sizing: {min_agvs: 4, max_agvs: 20, max_replications: 12}
+    sizing: {min_agvs: 4, max_agvs: 20, stopping: sequential, min_replications: 2,
+             max_replications: 12}
+    warmup: {method: mser5, pilot_replications: 2}   # or fixed: the scenario's warmup_h
 
 Decisions, where the issue is silent:
 

@@ -21,7 +21,9 @@ the moment the fleet manager gives a parked AGV work (an order or a charger) unt
 back into a parking area; one that starts on the track holds one from the start, and a failed
 AGV keeps its own while the operator has it. Once N are admitted, orders go only to idle AGVs
 already on the track, and a freed admission goes to a parked AGV waiting for a charger before
-any order (a battery must not run down in parking). Like a CONWIP limit in a factory: a loop
+any order when a charger is free (a battery must not run down in parking); with every charger
+taken it goes to an order, and the AGV waiting in parking gets the next place that frees while
+a charger is free. Like a CONWIP limit in a factory: a loop
 packed beyond what it can carry stops carrying anything (100 busy AGVs lock the 186-node
 warehouse solid), so a planner caps the AGVs on the track at the loop's working load and the
 rest wait; throughput then plateaus as the fleet grows instead of collapsing.
