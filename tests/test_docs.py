@@ -1,8 +1,11 @@
-"""The documents' pictures and relative links point at files that exist."""
+"""The documents: pictures and relative links point at files that exist; quoted messages are
+today's."""
 
 from __future__ import annotations
 
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -25,3 +28,19 @@ def test_the_studies_page_shows_its_three_plots() -> None:
     text = (ROOT / "docs" / "agv-model-studies.md").read_text(encoding="utf-8")
     shown = re.findall(r"!\[[^\]]*\]\((img/[^)]+\.png)\)", text)
     assert sorted(shown) == sorted(f"img/{p.name}" for p in (ROOT / "docs" / "img").glob("*.png"))
+
+
+def test_the_readme_quotes_todays_error_messages(tmp_path: Path) -> None:
+    """The README's two example errors are what the command prints today, word for word."""
+    readme = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    (tmp_path / "s.yaml").write_text(
+        "name: s\nlayout: " + str(ROOT / "layouts" / "tiny_loop.yaml")
+        + "\nfleet: {size: 1, colour: red}\n", encoding="utf-8")
+    for args in (["run", "s.yaml"],
+                 ["run", str(ROOT / "experiments" / "tiny_loop.yaml"), "--hours", "nan"]):
+        result = subprocess.run([sys.executable, "-m", "fleet_sim.cli", *args], cwd=tmp_path,
+                                capture_output=True, text=True, timeout=120)
+        assert result.returncode == 2
+        message = result.stderr.strip().splitlines()[-1]
+        assert message.startswith("fleet-sim: error: ")
+        assert f"`{message}`" in readme
