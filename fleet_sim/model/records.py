@@ -42,6 +42,40 @@ class OccupancySpell(NamedTuple):
     end_s: float
 
 
+class MoveRecord(NamedTuple):
+    """Where an AGV is, for the replay (recorded only with `record_moves`): a row of
+    moves.parquet.
+
+    kind "drive": it drove the hop u -> v from start_s to end_s without stopping, from
+    `driven_s` seconds into the hop's closed-form profile on (pieces: a curve of `curve_m` at
+    `curve_mps` if it turns, then the rest of the segment at `limit_mps`; entered at
+    `v_in_mps`, left at `v_out_mps`; `hop_s` in all). An obstacle pause splits a hop into two
+    rows; a fault ends one early. "wait": it stood at u waiting for lock v (a node, or
+    "corridor 3") that AGV `other` held when the wait began (-1: none). "track": set on the
+    track at u (at the start, back from parking or repair); "parking": into the parking area
+    reached through u; "off": taken off the track where it stood. "charger_wait": asked at u
+    for a charger at start_s and got charger v at end_s.
+    """
+
+    agv: int
+    kind: str
+    start_s: float
+    end_s: float
+    u: str
+    v: str = ""
+    other: int = -1
+    hop_s: float = 0.0
+    driven_s: float = 0.0
+    v_in_mps: float = 0.0
+    v_out_mps: float = 0.0
+    curve_m: float = 0.0
+    curve_mps: float = 0.0
+    limit_mps: float = 0.0
+
+
+MOVE_COLUMNS = MoveRecord._fields
+
+
 class ErrorRecord(NamedTuple):
     """An AGV entering Error (RSS-AGV-001 6.1): when, which AGV, the code and its level."""
 
@@ -104,6 +138,10 @@ class Recorder:
     warnings: Counter[str] = field(default_factory=Counter)
     soc_samples: list[tuple[float, int, float]] = field(default_factory=list)
     """(time_s, agv, soc_pct) at every state change, for battery plots."""
+    record_moves: bool = False
+    moves: list[MoveRecord] = field(default_factory=list)
+    """Drives, lock waits and placements of every AGV, when traced (record_moves): the
+    replay's data."""
 
     def warning(self, code: str) -> None:
         self.warnings[code] += 1
@@ -133,3 +171,7 @@ class Recorder:
     def occupied(self, kind: str, key: str, agv: int, start_s: float, end_s: float) -> None:
         if self.record_occupancy:
             self.occupancy.append(OccupancySpell(kind, key, agv, start_s, end_s))
+
+    def moved(self, record: MoveRecord) -> None:
+        if self.record_moves:
+            self.moves.append(record)

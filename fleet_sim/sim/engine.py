@@ -60,12 +60,13 @@ class RunOutput:
 
 
 def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
-                record_occupancy: bool = False) -> Model:
+                record_occupancy: bool = False, record_moves: bool = False) -> Model:
     env = simpy.Environment()
     profile = scenario.fleet.vehicle
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
                     profile.turn_speed_mps)
-    recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy)
+    recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy,
+                        record_moves=record_moves)
     traffic = Traffic(env, layout, motion, recorder)
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
         from fleet_sim.sim.motion.sumo import SumoMotion
@@ -108,16 +109,22 @@ def _place(vehicles: list[Vehicle], scenario: Scenario, layout: Layout,
 
 
 def simulate(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
-             progress: ProgressCallback | None = None, record_occupancy: bool = False) -> RunOutput:
-    """Run the scenario to its end and return what it recorded."""
+             progress: ProgressCallback | None = None, record_occupancy: bool = False,
+             record_moves: bool = False) -> RunOutput:
+    """Run the scenario to its end and return what it recorded. `record_moves`: also every
+    drive, lock wait and placement of every AGV (the replay's data; it changes nothing else)."""
     wall_start = time.perf_counter()
-    model = build_model(scenario, layout, trace, record_occupancy)
+    model = build_model(scenario, layout, trace, record_occupancy, record_moves)
     end = scenario.duration_s
     try:
         for step in range(1, PROGRESS_STEPS + 1):
             model.env.run(until=end * step / PROGRESS_STEPS)
             if progress is not None:
                 progress(model.env.now, end)
+        if record_moves:  # what is under way at the end, as far as it got; then nothing more
+            for vehicle in model.vehicles:
+                vehicle.end_of_run()
+            model.recorder.record_moves = False
     finally:
         model.close()
     sim_events = next(model.env._eid)  # SimPy's count of scheduled events

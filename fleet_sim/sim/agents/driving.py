@@ -33,7 +33,7 @@ from fleet_sim.config.scenario import TrafficConfig
 from fleet_sim.config.vehicle import VehicleProfile
 from fleet_sim.errors import SimulationError
 from fleet_sim.model.kinematics import Piece, traverse
-from fleet_sim.model.records import Order, Recorder
+from fleet_sim.model.records import MoveRecord, Order, Recorder
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.traffic.control import Traffic
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim
@@ -86,6 +86,12 @@ class Driver:
         """The motion backend's event for the hop under way."""
         self._moved = 0.0
         """Share of the hop under way already driven (see `_move`)."""
+        self._plan: tuple[tuple[Piece, ...], float, float, float] | None = None
+        """With moves recorded: the hop under way's pieces, entry and exit speed and time."""
+        self._drive_open: tuple[str, str, float, float] | None = None
+        """With moves recorded: the stretch being driven (u, v, since_s, driven_s)."""
+        self._wait_open: tuple[float, str, int] | None = None
+        """With moves recorded: the lock wait under way (since_s, lock, holder)."""
         traffic.register(self)
         self._corridors = traffic.corridors_of(self.id)
         """The corridors traffic has given this AGV (its view of the table, read-only)."""
@@ -122,7 +128,12 @@ class Driver:
         """Drive on until `share` of the hop u -> v is behind the AGV."""
         backend = self.traffic.motion_backend
         if backend is None:
-            yield self.env.timeout(time_s * (share - self._moved))
+            if self._plan is not None:
+                self._drive_open = (u, v, self.env.now, time_s * self._moved)
+            try:
+                yield self.env.timeout(time_s * (share - self._moved))
+            finally:  # also when a fault interrupts the hop: the AGV stops where it is
+                self._close_drive()
         elif share >= 1.0:
             assert self._leg is not None
             yield self._leg
@@ -167,10 +178,12 @@ class Driver:
             raise SimulationError(f"AGV {self.id} starts on node {node}, already occupied")
         self.held = [Held(node, claim, self.env.now)]
         self.node = node
+        self._placed("track", node)
 
     def place_in_parking(self, place: Place) -> None:
         self.parked_in = place
         self.node = place.nodes[0]
+        self._placed("parking", self.node)
 
     # ---- on and off the track -------------------------------------------------------------
     def _enter_parking(self, place: Place) -> None:
@@ -184,6 +197,7 @@ class Driver:
         self.prev = None
         if self.traffic.motion_backend is not None:
             self.traffic.motion_backend.off_track(self.id)
+        self._placed("parking", place.nodes[0])
 
     def _leave_track(self) -> None:
         """Off the tape (into a parking bay, or taken off by an operator): let go of all."""
@@ -195,6 +209,7 @@ class Driver:
         self.prev, self.speed_mps = None, 0.0
         if self.traffic.motion_backend is not None:
             self.traffic.motion_backend.off_track(self.id)
+        self._placed("off", self.node)
 
     def _reenter_track(self, access: str) -> Proc:
         """Back onto the tape at `access`, once it (and its corridor) is free."""
@@ -209,6 +224,7 @@ class Driver:
         yield from self._wait(lock, claim, may_escape=False)
         self.held = [Held(access, claim, self.env.now)]
         self.node = access
+        self._placed("track", access)
 
     # ---- driving ------------------------------------------------------------------------------
     def drive(self, goal: str, stop_early: Callable[[], bool] | None = None) -> Proc:
@@ -266,8 +282,11 @@ class Driver:
             motion = traffic.motion
             time_s, v_end = traverse(pieces, self.speed_mps, min(v_end_max, cap),
                                      motion.accel_mps2, motion.decel_mps2)
+        if self.recorder.record_moves and backend is None:
+            self._plan = (self._pieces(u, nxt, cap), self.speed_mps, v_end, time_s)
         start = self.env.now
         yield from self._travel(u, nxt, time_s)
+        self._plan = None
         if self._leg is not None:
             if self._moved < 1.0:  # a _travel override that did not drive to the end
                 yield from self._move(u, nxt, time_s, 1.0)
@@ -347,6 +366,9 @@ class Driver:
         traffic = self.traffic
         start = env.now
         traffic.start_waiting(self.id, lock)
+        if self.recorder.record_moves:
+            holder = lock.holder
+            self._wait_open = (start, str(lock.key), -1 if holder is None else holder)
         looked_at: tuple[int, bool, bool] | None = None
         try:
             while True:
@@ -379,6 +401,7 @@ class Driver:
         finally:
             traffic.stop_waiting(self.id)
             self.recorder.blocked(start, env.now)
+            self._close_wait()
 
     def _get_out(self) -> Generator[simpy.Event, Any, list[str]]:
         """After giving up a wait: take the escape (another route, or one hop back), or wait a
@@ -398,6 +421,44 @@ class Driver:
                 return self.traffic.route(self.node, self.goal)
         yield self.env.timeout(float(self.rng.exponential(self.config.backoff_s)))
         return self.traffic.route(self.node, self.goal)
+
+    # ---- the replay's record (moves) ----------------------------------------------------------
+    def _pieces(self, u: str, v: str, cap: float | None) -> tuple[Piece, ...]:
+        pieces = self.traffic.routes.pieces(self.prev, u, v)
+        if cap is None:
+            return pieces
+        return tuple((length, min(limit, cap)) for length, limit in pieces)
+
+    def _placed(self, kind: str, node: str) -> None:
+        if self.recorder.record_moves:
+            now = self.env.now
+            self.recorder.moved(MoveRecord(self.id, kind, now, now, node))
+
+    def _close_drive(self) -> None:
+        if self._drive_open is None or self._plan is None:
+            return
+        u, v, since, driven = self._drive_open
+        self._drive_open = None
+        now = self.env.now
+        if now <= since or not self.recorder.record_moves:
+            return
+        pieces, v_in, v_out, hop_s = self._plan
+        curve_m, curve_mps = pieces[0] if len(pieces) > 1 else (0.0, 0.0)
+        self.recorder.moved(MoveRecord(self.id, "drive", since, now, u, v, -1, hop_s, driven,
+                                       v_in, v_out, curve_m, curve_mps, pieces[-1][1]))
+
+    def _close_wait(self) -> None:
+        if self._wait_open is None:
+            return
+        since, lock, holder = self._wait_open
+        self._wait_open = None
+        self.recorder.moved(MoveRecord(self.id, "wait", since, self.env.now, self.node, lock,
+                                       holder))
+
+    def end_of_run(self) -> None:
+        """The run ends: record the stretch or the wait under way, as far as it got."""
+        self._close_drive()
+        self._close_wait()
 
     # ---- releasing ------------------------------------------------------------------------------
     def _release(self, held: Held) -> None:

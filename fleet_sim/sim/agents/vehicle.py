@@ -43,7 +43,7 @@ from fleet_sim.config.layout import MARKER_SPEED_MPS, Place
 from fleet_sim.config.scenario import ChargingConfig, IncidentsConfig, Rules, Scenario
 from fleet_sim.model.battery import StateOfCharge, charge_time_s
 from fleet_sim.model.error_codes import describe
-from fleet_sim.model.records import Order, Recorder
+from fleet_sim.model.records import MoveRecord, Order, Recorder
 from fleet_sim.model.state_machine import transition_for
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.agents.driving import Driver, Proc
@@ -119,6 +119,8 @@ class Vehicle(Driver):
         self.charge_due = False
         self.marker_speed_mps: float | None = None
         self.parking_target: Place | None = None
+        self._charger_asked_s: float | None = None
+        """With moves recorded: when the AGV asked for the charger it waits for."""
 
     # ---- facts the guards read (fleet_sim.model.state_machine.Facts) -----------------------
     @property
@@ -359,7 +361,12 @@ class Vehicle(Driver):
         events: list[simpy.Event] = [request]
         if math.isfinite(until_dead):
             events.append(self.env.timeout(until_dead + 1e-6))
-        yield self.env.any_of(events)
+        if self.recorder.record_moves:
+            self._charger_asked_s = asked
+        try:
+            yield self.env.any_of(events)
+        finally:
+            self._close_charger_wait(request)
         if not request.triggered:
             self.fleet.cancel_charger_request(self)
             self.fail_now("E_201")
@@ -387,6 +394,20 @@ class Vehicle(Driver):
         self.fire("Event_Charge_Complete", f"{place.id} soc {self.soc_pct:.1f}")
         self.charger = None
         self.fleet.release_charger(place)
+
+    def _close_charger_wait(self, request: simpy.Event | None) -> None:
+        asked = self._charger_asked_s
+        if asked is None:
+            return
+        self._charger_asked_s = None
+        got = request.value.id if request is not None and request.triggered \
+            and isinstance(request.value, Place) else ""
+        self.recorder.moved(MoveRecord(self.id, "charger_wait", asked, self.env.now, self.node,
+                                       got))
+
+    def end_of_run(self) -> None:
+        super().end_of_run()
+        self._close_charger_wait(None)
 
     # ---- driving with the link, markers, obstacles and the battery -----------------------------
     def _drive_to(self, goal: str) -> Proc:
