@@ -71,6 +71,10 @@ def _speed(text: str) -> float:
     return _number(text, "metres per second", 0, 100)
 
 
+def _window_hours(text: str) -> float:
+    return _number(text, "hours", 0, MAX_DURATION_H, low_open=False)
+
+
 def _workers(text: str) -> int:
     return _integer(text, "number of workers (0: one per core)", 0, 1024)
 
@@ -86,6 +90,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     run.add_argument("--seed", type=_seed, help="random seed (overrides seed)")
     run.add_argument("--out", type=Path, help="run directory (default: results/<scenario name>)")
     run.add_argument("--quiet", action="store_true", help="no progress display")
+    run.add_argument("--replay", action="store_true",
+                     help="also record every AGV's motion (moves.parquet) and write replay.html")
+
+    rpl = sub.add_parser("replay", help="write RUN_DIR/replay.html: the floor, every AGV moving, "
+                         "its timeline and the order lead times, in one offline page")
+    rpl.add_argument("run_dir", type=Path, help="run directory (of `fleet-sim run`, or a "
+                     "sweep's runs/<run>)")
+    rpl.add_argument("--from", dest="from_h", type=_window_hours, metavar="H",
+                     help="start of the window, hours since the start of the run (default 0)")
+    rpl.add_argument("--to", dest="to_h", type=_window_hours, metavar="H",
+                     help="end of the window, hours since the start (default: the end)")
+    rpl.add_argument("--quiet", action="store_true", help="no progress display")
 
     lay = sub.add_parser("layout", help="check a layout file and draw it to PNG")
     lay.add_argument("layout", type=Path, help="layout YAML file")
@@ -127,6 +143,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.command == "run":
             return _run(args)
+        if args.command == "replay":
+            return _replay(args)
         if args.command == "emulate":
             return _emulate(args)
         if args.command == "sweep":
@@ -180,12 +198,47 @@ def _run(args: argparse.Namespace) -> int:
             progress.update(now_s, f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h "
                                    f"({now_s / end_s:.0%})")
 
-        run = simulate(scenario, layout, trace, progress=simulated)
+        run = simulate(scenario, layout, trace, progress=simulated, record_moves=args.replay)
     figures = run_kpis(run)
     write_run(run, out, figures)
     print(summary_text(figures))
     print(f"  run directory               {out}  ({run.wall_s:.1f} s wall, "
           f"{run.sim_events:,} events)")
+    if args.replay:
+        from fleet_sim.analysis.replay import write_moves
+        from fleet_sim.report.replay import write_replay
+
+        write_moves(run.recorder, out)
+        del run
+        page = write_replay(out)
+        print(f"  replay                      {page}  ({_megabytes(page)})")
+    return 0
+
+
+def _megabytes(path: Path) -> str:
+    return f"{path.stat().st_size / 1e6:.1f} MB"
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from fleet_sim.analysis.replay import MOVES_FILE
+    from fleet_sim.report.replay import check_window, write_replay
+    from fleet_sim.study.progress import Progress
+
+    run_dir: Path = args.run_dir
+    check_window(run_dir, args.from_h, args.to_h)  # bad input fails before any work
+    _check_out_dir(run_dir, "run_dir", "run directory")
+    again = not (run_dir / MOVES_FILE).is_file()
+    with Progress(1.0, quiet=args.quiet, plain_lines=4) as progress:
+        if again:
+            progress.note(f"{run_dir} has no {MOVES_FILE}: simulating the run again from its "
+                          "config.resolved.yaml (same seed, same run)")
+
+        def simulated(now_s: float, end_s: float) -> None:
+            progress.update(now_s / end_s, f"re-simulated {now_s / 3600:.2f} of "
+                                           f"{end_s / 3600:.2f} h ({now_s / end_s:.0%})")
+
+        page = write_replay(run_dir, args.from_h, args.to_h, progress=simulated)
+    print(f"replay: {page.resolve()}  ({_megabytes(page)})")
     return 0
 
 
