@@ -103,6 +103,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                      help="end of the window, hours since the start (default: the end)")
     rpl.add_argument("--quiet", action="store_true", help="no progress display")
 
+    exp = sub.add_parser("export", help="a run's or a sweep's tables as CSV files or a workbook")
+    exp.add_argument("source", type=Path, help="run directory, or sweep/sizing results folder")
+    form = exp.add_mutually_exclusive_group(required=True)
+    form.add_argument("--csv", dest="format", action="store_const", const="csv",
+                      help="one CSV file per table, in SOURCE/export/")
+    form.add_argument("--xlsx", dest="format", action="store_const", const="xlsx",
+                      help="one Excel workbook, SOURCE/export.xlsx, a sheet per table")
+    exp.add_argument("--out", type=Path,
+                     help="where instead: a folder for --csv, a .xlsx file for --xlsx")
+
     lay = sub.add_parser("layout", help="check a layout file and draw it to PNG")
     lay.add_argument("layout", type=Path, help="layout YAML file")
     lay.add_argument("--png", type=Path, help="where to draw it (default: results/<name>.png)")
@@ -145,6 +155,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _run(args)
         if args.command == "replay":
             return _replay(args)
+        if args.command == "export":
+            return _export(args)
         if args.command == "emulate":
             return _emulate(args)
         if args.command == "sweep":
@@ -239,6 +251,21 @@ def _replay(args: argparse.Namespace) -> int:
 
         page = write_replay(run_dir, args.from_h, args.to_h, progress=simulated)
     print(f"replay: {page.resolve()}  ({_megabytes(page)})")
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from fleet_sim.report.export import export
+
+    if args.out is not None:
+        if args.format == "csv":
+            _check_out_dir(args.out, "--out")
+        else:
+            _check_out_file(args.out, "--out")
+    written = export(args.source, args.format, args.out,
+                     note=lambda text: print(f"  {text}", file=sys.stderr, flush=True))
+    for item in written:
+        print(f"{item.table:8s} {item.rows:>10,} rows  {item.path}")
     return 0
 
 
