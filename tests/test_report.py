@@ -15,6 +15,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 from types import SimpleNamespace
 
+import pandas as pd
 import pytest
 import yaml
 from jinja2 import UndefinedError
@@ -28,7 +29,7 @@ from fleet_sim.study.sweep import sweep
 from .conftest import LAYOUTS, ROOT, write_yaml
 
 EVIL = '<script>alert("x")</script><img src=x onerror=alert(1)> & "quotes"'
-FIGURES = {"layout", "kpis", "states-0", "blocked", "heatmap", "incidents"}
+FIGURES = {"layout", "kpis", "states-0", "blocked", "heatmap", "incidents", "leads"}
 
 CHECK = """<script>
 window.addEventListener('load', () => {
@@ -148,6 +149,44 @@ def test_names_from_user_files_are_text_in_the_page(results: Path) -> None:
     assert f"description = {EVIL}: " in text  # the sizing statement of that series
     captions = [a["alt"] for tag, a in page.tags if tag == "img"]
     assert f"Utilisation by state (description={EVIL})" in captions
+
+
+def test_the_report_shows_a_run_in_detail(results: Path) -> None:
+    """The recommended fleet's first replication: its timeline (inline SVG, one bar per state
+    spell with a hover text, each AGV's row covering the run) and its lead-time breakdown."""
+    html = (results / "report.html").read_text(encoding="utf-8")
+    page = _Page(html)
+    sizing = json.loads((results / "sizing.json").read_text())
+    recommended = sizing["groups"][0]["recommended"]
+    section = html[html.index("A run in detail"):html.index("<h2>Incidents")]
+    found = re.search(r"Run <code>([^<]+)</code>", section)
+    assert found
+    import html as html_lib
+
+    run_id = html_lib.unescape(found.group(1))
+    assert f"fleet.size={recommended}__r00" in run_id
+    assert f"(fleet.size = {recommended})" in section
+    run_dir = results / "runs" / run_id
+    from fleet_sim.analysis.replay import state_spells
+
+    events = pd.read_parquet(run_dir / "events.parquet")
+    kpis = json.loads((run_dir / "kpis.json").read_text())
+    spells = state_spells(events, 0.0, kpis["duration_h"] * 3600.0)
+    bars = re.findall(r'<rect x="([0-9.]+)" y="([0-9.]+)" width="([0-9.]+)" height="10" '
+                      r'fill="#[0-9a-f]{6}"><title>([^<]*)</title></rect>', section)
+    assert len(bars) == len(spells)
+    widths: dict[str, float] = {}
+    for _, y, width, _ in bars:
+        widths[y] = widths.get(y, 0.0) + float(width)
+    assert len(widths) == kpis["agvs"]
+    assert all(w == pytest.approx(1000.0, rel=0.02) for w in widths.values())
+    assert all(html_lib.unescape(t).startswith("AGV ") and "reason: Event_" in
+               html_lib.unescape(t) for *_, t in bars)
+    leads = {row[0]: row for row in page.tables["leads"]}
+    assert list(leads)[1:] == ["wait for assignment", "drive empty", "load", "drive loaded",
+                               "unload", "blocked by traffic", "lead time (all parts)"]
+    assert float(leads["lead time (all parts)"][1].replace(",", "")) == pytest.approx(
+        kpis["lead_time_mean_s"], rel=1e-3)
 
 
 def chromium() -> str | None:
