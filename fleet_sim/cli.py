@@ -197,6 +197,11 @@ def _run(args: argparse.Namespace) -> int:
     if args.seed is not None:
         overrides["seed"] = args.seed
     scenario = _load_with_hours(load_scenario, args.scenario, overrides, args.hours)
+    if args.replay and scenario.motion != "closed_form":
+        raise InputError(str(args.scenario), "motion", scenario.motion,
+                         "closed_form with --replay: a replay draws the closed-form speed "
+                         "profile; with SUMO moving the AGVs their positions between nodes are "
+                         "not recorded")
     out = args.out or _fresh_dir(Path("results") / folder_name(scenario.name))
     _check_out_dir(out, "--out" if args.out else "results folder")
     layout = load_layout_for(scenario, str(args.scenario))
@@ -222,6 +227,8 @@ def _run(args: argparse.Namespace) -> int:
 
         write_moves(run.recorder, out)
         del run
+        if not args.quiet:
+            print("  writing replay.html", file=sys.stderr, flush=True)
         page = write_replay(out)
         print(f"  replay                      {page}  ({_megabytes(page)})")
     return 0
@@ -249,7 +256,8 @@ def _replay(args: argparse.Namespace) -> int:
             progress.update(now_s / end_s, f"re-simulated {now_s / 3600:.2f} of "
                                            f"{end_s / 3600:.2f} h ({now_s / end_s:.0%})")
 
-        page = write_replay(run_dir, args.from_h, args.to_h, progress=simulated)
+        page = write_replay(run_dir, args.from_h, args.to_h, progress=simulated,
+                            writing=lambda: progress.note(f"writing {run_dir / 'replay.html'}"))
     print(f"replay: {page.resolve()}  ({_megabytes(page)})")
     return 0
 

@@ -496,3 +496,15 @@ def test_any_sweep_run_can_be_replayed(tmp_path: Path, capsys: pytest.CaptureFix
     assert (run_dir / "replay.html").stat().st_size > 10_000
     assert not (run_dir / MOVES_FILE).exists()
     assert '"resimulated":true' in (run_dir / "replay.html").read_text(encoding="utf-8")
+
+
+def test_run_replay_with_sumo_motion_is_refused_before_the_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scenario = write_yaml(tmp_path / "s.yaml", {
+        "name": "tiny", "layout": str(LAYOUTS / "tiny_loop.yaml"), "duration_h": 0.2,
+        "warmup_h": 0.1, "motion": "sumo"})
+    out = tmp_path / "run"
+    assert main(["run", str(scenario), "--out", str(out), "--replay", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "motion: got 'sumo'; expected closed_form with --replay" in err[0]
+    assert not out.exists()

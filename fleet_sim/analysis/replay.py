@@ -252,8 +252,8 @@ def state_spells(events: pd.DataFrame, start_s: float, end_s: float) -> pd.DataF
         order, loaded = -1, False
         spells: list[tuple[float, str, str, str, int, bool]] = []
         for t, event, before, after, detail in zip(
-                group["time_s"], group["event"].astype(str), group["from_state"].astype(str),
-                group["to_state"].astype(str), group["detail"].astype(str), strict=True):
+                *(group[c].tolist() for c in ("time_s", "event", "from_state", "to_state",
+                                              "detail")), strict=True):
             if event == "order_assigned":
                 found = _ORDER.search(detail)
                 order = int(found.group(1)) if found else -1
@@ -279,9 +279,8 @@ def orders_held(events: pd.DataFrame) -> dict[int, tuple[np.ndarray, np.ndarray]
     out: dict[int, tuple[list[float], list[int]]] = {}
     picked = events[events["event"].astype(str).isin(
         ("order_assigned", "order_reassigned", "Event_Unload_Complete", "Event_Critical_Error"))]
-    for t, agv, event, detail in zip(picked["time_s"], picked["agv"],
-                                     picked["event"].astype(str), picked["detail"].astype(str),
-                                     strict=True):
+    for t, agv, event, detail in zip(
+            *(picked[c].tolist() for c in ("time_s", "agv", "event", "detail")), strict=True):
         order = -1
         if event == "order_assigned":
             found = _ORDER.search(detail)

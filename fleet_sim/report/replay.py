@@ -55,6 +55,7 @@ from fleet_sim.report.render import environment
 
 REPLAY_FILE = "replay.html"
 KIND_CODES = {"drive": 0, "track": 1, "parking": 2, "off": 3}
+STATE_INDEX = {s.value: i for i, s in enumerate(VehicleState)}
 """How the page's positional rows name their kind."""
 
 ProgressCallback = Callable[[float, float], None]
@@ -136,9 +137,8 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
         positional = positional[positional["start_s"] <= to_s]
         p_ref: list[int] = []
         for kind, u, v, vin, vout, cm, cv, lim in zip(
-                positional["kind"].astype(str), positional["u"].astype(str),
-                positional["v"].astype(str), positional["v_in_mps"], positional["v_out_mps"],
-                positional["curve_m"], positional["curve_mps"], positional["limit_mps"],
+                *(positional[c].tolist() for c in ("kind", "u", "v", "v_in_mps", "v_out_mps",
+                                                   "curve_m", "curve_mps", "limit_mps")),
                 strict=True):
             if kind == "drive":
                 key = (edge_index[(u, v)], float(vin), float(vout), float(cm), float(cv),
@@ -159,19 +159,21 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
         agvs.append({
             "id": agv,
             "p": {"t": _ms(positional["start_s"]), "e": _ms(positional["end_s"]),
-                  "k": [KIND_CODES[k] for k in positional["kind"].astype(str)],
+                  "k": [KIND_CODES[k] for k in positional["kind"].tolist()],
                   "a": p_ref, "d": _ms(positional["driven_s"])},
             "s": {"t": _ms(mine["start_s"]), "e": _ms(mine["end_s"]),
-                  "st": [list(VehicleState).index(VehicleState(s)) for s in mine["state"]],
-                  "ev": text.many(mine["event"]), "det": text.many(mine["detail"]),
-                  "o": [int(o) for o in mine["order_id"]],
-                  "l": [int(bool(x)) for x in mine["loaded"]]},
+                  "st": [STATE_INDEX[s] for s in mine["state"].tolist()],
+                  "ev": text.many(mine["event"].tolist()),
+                  "det": text.many(mine["detail"].tolist()),
+                  "o": [int(o) for o in mine["order_id"].tolist()],
+                  "l": [int(bool(x)) for x in mine["loaded"].tolist()]},
             "o": {"t": _ms(times[keep]), "id": [int(o) for o in ids[keep]]},
             "b": {"t": _ms(soc_t[soc_keep]),
                   "v": [round(float(v), 1) for v in soc["soc_pct"].to_numpy()[soc_keep]]},
             "w": {"t": _ms(waits["start_s"]), "e": _ms(waits["end_s"]),
-                  "n": [node_index[u] for u in waits["u"].astype(str)],
-                  "lock": text.many(waits["v"]), "h": [int(h) for h in waits["other"]]},
+                  "n": [node_index[u] for u in waits["u"].tolist()],
+                  "lock": text.many(waits["v"].tolist()),
+                  "h": [int(h) for h in waits["other"].tolist()]},
         })
     charger_waits = moves[(moves["kind"] == "charger_wait") & (moves["end_s"] >= from_s)
                           & (moves["start_s"] <= to_s)] if len(moves) else moves
@@ -217,8 +219,8 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
         "chargerWaits": {
             "agv": [int(a) for a in charger_waits["agv"]],
             "t": _ms(charger_waits["start_s"]), "e": _ms(charger_waits["end_s"]),
-            "n": [node_index[u] for u in charger_waits["u"].astype(str)],
-            "ch": [place_index.get(str(v), -1) for v in charger_waits["v"].astype(str)]},
+            "n": [node_index[u] for u in charger_waits["u"].tolist()],
+            "ch": [place_index.get(str(v), -1) for v in charger_waits["v"].tolist()]},
         "blocks": [{"u": node_index[b.from_node], "v": node_index[b.to_node],
                     "t": b.at_s, "e": b.at_s + b.duration_s}
                    for b in scenario.incidents.blocks],
@@ -271,12 +273,14 @@ def _clock(seconds: float) -> str:
 
 def write_replay(run_dir: Path, from_h: float | None = None, to_h: float | None = None,
                  progress: ProgressCallback | None = None,
-                 run: RunRecord | None = None) -> Path:
-    """Write RUN_DIR/replay.html for the window (hours; default: the whole run). `run`: the
-    run already loaded (else read, and re-simulated if it has no moves.parquet)."""
+                 writing: Callable[[], None] | None = None) -> Path:
+    """Write RUN_DIR/replay.html for the window (hours; default: the whole run), from the run
+    directory (re-simulated if it has no moves.parquet: `progress` sees that; `writing` is
+    called when the page is being written)."""
     from_s, to_s = check_window(run_dir, from_h, to_h)
-    if run is None:
-        run = load_run(run_dir, progress)
+    run = load_run(run_dir, progress)
+    if writing is not None:
+        writing()
     path = run_dir / REPLAY_FILE
     tmp = run_dir / f".{REPLAY_FILE}.tmp"
     tmp.write_text(render_replay(run, from_s, to_s), encoding="utf-8")

@@ -539,9 +539,8 @@ def gantt_svg(spells: pd.DataFrame, agvs: list[int], start_s: float, end_s: floa
     row_of = {a: top + i * row_h for i, a in enumerate(agvs)}
     bars = []
     for agv, t0, t1, state, event, detail, order, loaded in zip(
-            spells["agv"], spells["start_s"], spells["end_s"], spells["state"].astype(str),
-            spells["event"].astype(str), spells["detail"].astype(str), spells["order_id"],
-            spells["loaded"], strict=True):
+            *(spells[c].tolist() for c in ("agv", "start_s", "end_s", "state", "event", "detail",
+                                           "order_id", "loaded")), strict=True):
         x = label_w + (float(t0) - start_s) / span * plot_w
         width = max((float(t1) - float(t0)) / span * plot_w, 0.3)
         title = (f"AGV {agv}: {state} {_hms(float(t0))} to {_hms(float(t1))} "
