@@ -355,10 +355,10 @@ def _browser(args: list[str], url: str, profile: Path) -> subprocess.CompletedPr
         capture_output=True, text=True, timeout=180, stdin=subprocess.DEVNULL)
 
 
-def _page_state(run_dir: Path, t: float, profile: Path) -> dict[str, Any]:
+def _page_state(run_dir: Path, t: float, profile: Path, more: str = "") -> dict[str, Any]:
     import html as html_lib
 
-    url = (run_dir / "replay.html").as_uri() + f"#t={t}"
+    url = (run_dir / "replay.html").as_uri() + f"#t={t}{more}"
     result = _browser(["--dump-dom"], url, profile)
     assert result.returncode == 0, result.stderr[-2000:]
     found = re.search(r'<pre id="replay-check">(.*?)</pre>', result.stdout, re.S)
@@ -384,7 +384,7 @@ def test_the_page_draws_every_agv_where_the_engine_had_it(
     mid_hop = float(drive["start_s"].iloc[200] + 1.7)
     window = run.scenario.duration_s
     for t in (mid_hop, paused_at, queued_at):
-        state = _page_state(run_dir, t, tmp_path / "profile")
+        state = _page_state(run_dir, t, tmp_path / "profile", "&agv=3")
         assert state["t"] == pytest.approx(t)
         assert state["resources"] == 0 and state["violations"] == []
         assert {int(k): v for k, v in state["totals"].items()} == pytest.approx(
@@ -405,6 +405,19 @@ def test_the_page_draws_every_agv_where_the_engine_had_it(
                     <= 0.1
             moving += bool(where.to_node)
         assert moving >= 2
+        # AGV 3 selected through the address: its state, order and SOC in the side panel
+        spells = state_spells(events, 0.0, window)
+        now = spells[(spells["agv"] == 3) & (spells["start_s"] <= t) & (spells["end_s"] > t)]
+        info = state["info"]
+        assert info.startswith(f"AGV 3  {now['state'].iloc[0]} since ")
+        order = int(now["order_id"].iloc[0])
+        assert f"order  {order if order >= 0 else 'none'}" in info
+        soc = pd.read_parquet(run_dir / "soc.parquet")
+        last = soc[(soc["agv"] == 3) & (soc["time_s"] <= t)]["soc_pct"].iloc[-1]
+        assert f"SOC    {last:.1f} %" in info
+    # the charger queue at queued_at names the AGV that waits
+    waiting = waits.iloc[0]
+    assert f"AGV {waiting['agv']} (" in state["chargers"].split("queue: ")[1]
 
 
 def test_a_screenshot_shows_the_agvs_in_their_state_colours(
