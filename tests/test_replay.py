@@ -521,3 +521,26 @@ def test_run_replay_with_sumo_motion_is_refused_before_the_run(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "motion: got 'sumo'; expected closed_form with --replay" in err[0]
     assert not out.exists()
+
+
+def test_a_window_of_the_run_draws_the_same_positions(recorded: tuple[Path, RunOutput],
+                                                      tmp_path: Path) -> None:
+    """--from/--to keep what the window needs: where each AGV stands when it opens (even if it
+    got there long before), its state, and every move inside it."""
+    run_dir, run = recorded
+    copy = tmp_path / "copy"
+    shutil.copytree(run_dir, copy)
+    write_replay(copy, 0.5, 0.75)
+    vehicle = run.scenario.fleet.vehicle
+    moves = pd.read_parquet(run_dir / MOVES_FILE)
+    for t in (1800.0, 2222.2):
+        state = _page_state(copy, t, tmp_path / "profile")
+        assert state["window"] == [1800.0, 2700.0]
+        totals = list(state["totals"].values())
+        assert len(totals) == run.scenario.fleet.size
+        assert totals == pytest.approx([900.0] * len(totals), abs=0.01)
+        truth = positions_at(moves, run.layout, vehicle.accel_mps2, vehicle.decel_mps2, t)
+        for agv, where in truth.items():
+            shown = state["positions"][str(agv)]
+            assert math.hypot(shown["x"] - where.x_m, shown["y"] - where.y_m) <= 0.1
+            assert shown["where"] == where.where
