@@ -20,16 +20,29 @@ Modelling decisions written down here because the engine relies on them:
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+import re
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from datetime import datetime
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Final, Literal
 
 import networkx as nx
-from pydantic import Field, Strict
+import yaml
+from pydantic import Field, Strict, field_validator
 
-from agv_model.inputs import Items, NonNegative, Positive, StrictModel, Text, read_yaml, validate
+from agv_model.inputs import (
+    Items,
+    NonNegative,
+    Positive,
+    Problem,
+    StrictModel,
+    Text,
+    read_yaml,
+    validate,
+)
 from fleet_sim.config.distributions import FixedTime, TimeDistribution
+from fleet_sim.config.writing import comment_lines, tidy_numbers
 from fleet_sim.errors import InputError
 
 NodeKind = Literal["tag", "junction", "station", "charger", "parking"]
@@ -110,6 +123,55 @@ class ZoneSpec(StrictModel):
     obstacle_duration: TimeDistribution | None = None
 
 
+EPOCH_TIMESTAMP: Final = "1970-01-01T00:00:00.00Z"
+"""The LIF export timestamp when neither the layout nor --timestamp gives one: a fixed value,
+so that exporting the same layout twice gives the same bytes."""
+LIF_CREATOR: Final = "fleet-sim"
+LIF_VEHICLE_TYPE: Final = "fleet-sim"
+
+
+def is_timestamp(text: str) -> bool:
+    """Whether `text` is an ISO 8601 date and time with its time zone (LIF wants UTC: ``Z``)."""
+    if not re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(\.\d+)?(Z|[+-]\d\d:\d\d)", text):
+        return False
+    try:
+        datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except ValueError:
+        return False
+    return True
+
+
+class LifInfo(StrictModel):
+    """How the layout is named in a VDMA LIF file (`fleet-sim layout export --lif`); `fleet-sim
+    layout import` writes the values of the file it read, where they differ from these
+    defaults, so that a layout exported again keeps them."""
+
+    project: Text | None = None
+    """metaInformation.projectIdentification; default: the layout's name."""
+    creator: Text = LIF_CREATOR
+    """metaInformation.creator."""
+    export_timestamp: Text = EPOCH_TIMESTAMP
+    """metaInformation.exportTimestamp (ISO 8601, UTC); `--timestamp` overrides it."""
+    layout_id: Text | None = None
+    """layoutId; default: the layout's name."""
+    layout_version: Text = "1"
+    level_id: Text | None = None
+    """layoutLevelId: the floor or level; default: none."""
+    map_id: Text | None = None
+    """Every node's mapId; default: the layout id."""
+    vehicle_type_id: Text = LIF_VEHICLE_TYPE
+    """The vehicleTypeId the nodes and edges are written for (VDMA suggests
+    manufacturer.seriesName of the vehicle's VDA 5050 factsheet)."""
+
+    @field_validator("export_timestamp")
+    @classmethod
+    def _iso_8601(cls, text: str) -> str:
+        if not is_timestamp(text):
+            raise Problem("", text, "an ISO 8601 date and time in UTC such as "
+                                    "2017-04-15T11:40:03.12Z")
+        return text
+
+
 class LayoutSpec(StrictModel):
     """A layout file: the nodes and segments of the track and the places on it."""
 
@@ -122,6 +184,8 @@ class LayoutSpec(StrictModel):
     description: Text = ""
     defaults: LayoutDefaults = LayoutDefaults()
     zones: Items[ZoneSpec] = ()
+    lif: LifInfo = LifInfo()
+    """Names and ids for LIF export (`fleet-sim layout export --lif`)."""
 
 
 @dataclass(frozen=True)
@@ -413,3 +477,50 @@ def _find_corridors(graph: nx.DiGraph) -> list[Corridor]:
         if frozenset((u, v)) not in assigned:  # a two-way segment directly between junctions
             corridors.append(Corridor(len(corridors), frozenset(), frozenset({(u, v), (v, u)})))
     return corridors
+
+
+def layout_yaml(spec: LayoutSpec, comments: Sequence[str] = ()) -> str:
+    """The layout file of `spec`, one line per node, segment and place as the bundled layouts
+    are written, `comments` as its first lines; loading it gives `spec` back."""
+    lines = [comment_lines(comments).rstrip("\n")] if comments else []
+    lines.append(_flow({"name": spec.name}))
+    if spec.description:
+        lines.append(_flow({"description": spec.description}))
+    lines.append(_flow({"defaults": spec.defaults.model_dump(mode="json")}))
+    sections: list[tuple[str, list[dict[str, Any]]]] = [
+        ("nodes", [{"id": n.id, "x": n.x, "y": n.y, "kind": n.kind}
+                   | ({"marker": n.marker} if n.marker is not None else {}) for n in spec.nodes]),
+        ("segments", [s.model_dump(mode="json", by_alias=True, exclude_defaults=True)
+                      for s in spec.segments]),
+        ("stations", [{"id": s.id, "kind": s.kind, "nodes": list(s.nodes),
+                       "handling": s.handling.model_dump(mode="json")} for s in spec.stations]),
+        ("chargers", [c.model_dump(mode="json") for c in spec.chargers]),
+        ("parking", [p.model_dump(mode="json") for p in spec.parking]),
+        ("zones", [z.model_dump(mode="json", exclude_none=True) for z in spec.zones]),
+    ]
+    for key, items in sections:
+        if items or key in ("nodes", "segments", "stations", "parking"):
+            lines.append(f"{key}:" if items else f"{key}: []")
+            lines += [f"- {_flow(item)}" for item in items]
+    lif = spec.lif.model_dump(mode="json", exclude_defaults=True)
+    if lif:
+        lines.append(_flow({"lif": lif}))
+    return "\n".join(lines) + "\n"
+
+
+def _flow(data: dict[str, Any]) -> str:
+    """One mapping on one line (a top-level key's value in flow style)."""
+    if len(data) == 1:
+        (key, value), = data.items()
+        if not isinstance(value, dict | list):
+            return yaml.safe_dump(tidy_numbers(data), sort_keys=False, allow_unicode=True,
+                                  width=1 << 30).rstrip("\n")
+        return f"{key}: {_flow_value(value)}"
+    return _flow_value(data)
+
+
+def _flow_value(value: Any) -> str:
+    text = yaml.safe_dump(tidy_numbers(value), default_flow_style=True, sort_keys=False,
+                          allow_unicode=True, width=1 << 30)
+    return text.rstrip("\n").removesuffix("\n...").rstrip("\n")
+
