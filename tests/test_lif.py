@@ -377,3 +377,16 @@ def test_schema_command_publishes_lif_and_factsheet(capsys: Any) -> None:
         assert schema["$id"] == f"fleet-sim/{kind}.schema.json"
         jsonschema.Draft202012Validator.check_schema(schema)
     assert LifFile.model_json_schema()["required"] == ["metaInformation", "layouts"]
+
+
+def test_edge_ids_stay_unique_when_node_ids_hold_dashes(tmp_path: Path) -> None:
+    data = spec_of(LAYOUTS / "tiny_loop.yaml").model_dump(mode="json", by_alias=True)
+    data["nodes"] += [{"id": "S1-P", "x": 6, "y": 1}, {"id": "P-S3", "x": 10, "y": 1}]
+    data["segments"] += [{"from": "S1", "to": "S1-P"}, {"from": "S1-P", "to": "S3"},
+                         {"from": "S1", "to": "P-S3"}, {"from": "P-S3", "to": "S3"}]
+    spec = validate(LayoutSpec, data, "t.yaml")
+    layout_from_spec(spec, "t.yaml")
+    edges = layout_to_lif(spec)["layouts"][0]["edges"]
+    assert [(e["edgeId"], e["startNodeId"], e["endNodeId"]) for e in edges[-3:]] == [
+        ("S1-P-S3", "S1-P", "S3"), ("S1-P-S3~2", "S1", "P-S3"), ("P-S3-S3", "P-S3", "S3")]
+    assert export_import(spec, tmp_path).spec == spec
