@@ -124,7 +124,13 @@ def _cases() -> Iterator[Case]:
     for field, value in [("duration_h", 8761), ("demand.rate_per_hour", 100_001),
                          ("fleet.size", 2001), ("fleet.size", 0), ("unknown_key", 1),
                          ("fleet.vehicle.max_speed_mps", NAN), ("fleet.start_nodes", ["ZZ"]),
-                         ("layout", "missing.yaml"), ("layout", str(ROOT / "layouts"))]:
+                         ("layout", "missing.yaml"), ("layout", str(ROOT / "layouts")),
+                         ("fleet.vehicle.battery", True), ("fleet.vehicle.battery", "on"),
+                         ("fleet.vehicle.battery", "empty"), ("fleet.vehicle.battery", 0),
+                         ("fleet.vehicle.battery", [1]),
+                         ("fleet.vehicle.battery", {"capacity_wh": 0}),
+                         ("fleet.vehicle.battery", {"idle_w": NAN}),
+                         ("fleet.vehicle.battery", {"switch": "off"})]:
         yield Case(f"scenario-{field}-{value!r}", "scenario",
                    lambda _d, f=field, v=value: _yaml(_set(_scenario(), f, v)))
     for field, value in [("nodes.0.x", NAN), ("nodes.0.x", INF), ("nodes.0.y", "north"),

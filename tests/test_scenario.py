@@ -16,6 +16,7 @@ from fleet_sim.config.scenario import (
     resolved,
 )
 from fleet_sim.config.trace import load_trace
+from fleet_sim.config.vehicle import BatteryProfile
 from fleet_sim.errors import InputError
 
 from .conftest import LAYOUTS, ROOT, write_yaml
@@ -163,3 +164,35 @@ def test_known_keys_do_not_list_internal_ones(tmp_path: Path) -> None:
     internal = write_yaml(tmp_path / "t.yaml", {"layout": "x.yaml", "_base_dir": "/etc"})
     with pytest.raises(InputError, match=r"_base_dir: got '/etc'; expected no such key"):
         load_scenario(internal)
+
+
+# ---- the battery switch --------------------------------------------------------------
+
+
+@pytest.mark.parametrize("off", ["off", "false", "null", "'off'"])
+def test_battery_off_is_written_out_and_reloads(tmp_path: Path, off: str) -> None:
+    path = tmp_path / "s.yaml"
+    path.write_text(f"layout: {LAYOUTS / 'tiny_loop.yaml'}\nfleet:\n  vehicle:\n"
+                    f"    battery: {off}\n", encoding="utf-8")
+    scenario = load_scenario(path)
+    assert scenario.fleet.vehicle.battery is None
+    plain = resolved(scenario)
+    assert plain["fleet"]["vehicle"]["battery"] is None
+    again = load_scenario(write_yaml(tmp_path / "again.yaml", plain))
+    assert again.fleet.vehicle.battery is None and resolved(again) == plain
+    assert load_scenario(ROOT / "experiments" / "warehouse_shift.yaml").fleet.vehicle.battery \
+        == BatteryProfile()  # left out: the default battery
+
+
+def test_the_schema_publishes_the_battery_switch() -> None:
+    import jsonschema
+
+    from fleet_sim.config.schemas import json_schema
+
+    schema = json_schema("scenario")
+    base = {"layout": "x.yaml"}
+    for good in (False, None, {"idle_w": 5}):
+        jsonschema.validate({**base, "fleet": {"vehicle": {"battery": good}}}, schema)
+    for bad in (True, "on", 3, {"idle_w": -1}):
+        with pytest.raises(jsonschema.ValidationError):
+            jsonschema.validate({**base, "fleet": {"vehicle": {"battery": bad}}}, schema)

@@ -122,3 +122,20 @@ def test_the_trip_to_the_charger_is_moving_with_its_purpose(tmp_path: Path) -> N
     trip_s = trapezoid_s(8, 0.0, TURN) + 1.0 / TURN + trapezoid_s(3, TURN, 0.0)
     assert trip_s == pytest.approx(17.3133, abs=1e-4)  # 9.49 + 3.3333 + 4.49
     assert list(rows["time_s"])[:4] == pytest.approx([0.0, 5.0, 5.0, 5.0 + trip_s], abs=1e-9)
+
+
+# ---- the battery switch and scheduled charging ---------------------------------------------
+
+
+def test_scheduled_charging_calls_need_charging_and_a_battery(tiny_layout: Layout) -> None:
+    """A charging schedule with charging off, or without a battery, calls no one (a call that
+    could never be answered left the AGV turning back from each parking trip, forever, at
+    one instant: the run never ended)."""
+    for fleet, charging in [({"size": 1}, {"enabled": False, "schedule_h": [0.05]}),
+                            ({"size": 1, "vehicle": {"battery": "off"}}, {"schedule_h": [0.05]})]:
+        scenario = make_scenario(duration_h=1, warmup_h=0, fleet=fleet, charging=charging,
+                                 demand={"rate_per_hour": 20})
+        run = simulate(scenario, tiny_layout)
+        assert not any(v.charge_due for v in run.vehicles)
+        assert not [e for e in run.recorder.events if e.event == "Event_Stop"]
+        assert sum(o.delivered_s is not None for o in run.recorder.orders) >= 10

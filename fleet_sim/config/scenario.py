@@ -450,8 +450,8 @@ def agv_start_nodes(scenario: Scenario, layout: Layout) -> list[str]:
 
 def agvs_without_charger(scenario: Scenario, layout: Layout) -> list[int]:
     """The AGVs (numbers) that cannot drive to any charger from their start, if charging is on;
-    empty when charging is off."""
-    if not scenario.charging.enabled:
+    empty when charging is off or there is no battery model."""
+    if not scenario.charging.enabled or scenario.fleet.vehicle.battery is None:
         return []
     chargers = {n for c in layout.chargers for n in c.nodes}
     stranded: list[int] = []

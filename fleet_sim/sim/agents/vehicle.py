@@ -10,7 +10,9 @@ sensor, link, obstacle timing...) and records the transition. The behaviours:
 * Battery: drained per metre (more when loaded), by handling and by idling. An AGV at or below the
   charging threshold (or P_050, Event_Low_Battery) asks the fleet manager for a charger, drives
   there (Moving, purpose to_charger), docks, charges along the charge curve until SOC > 95 %,
-  undocks. Below P_051 it shuts down with E_201.
+  undocks. Below P_051 it shuts down with E_201. With no battery model
+  (``fleet.vehicle.battery: off``) SOC stays at 100 %, nothing drains it, the AGV never charges
+  and its SOC is not recorded.
 * Obstacles (4.2.3/4.2.4): met while driving; seen for < 300 ms they only slow the AGV (the
   P_005/P_006 zone), otherwise it pauses until the path has been clear for 2000 ms; E_101 after
   5 minutes paused. Scripted blocks stop AGVs in front of the blocked segment.
@@ -41,6 +43,7 @@ import simpy
 
 from fleet_sim.config.layout import MARKER_SPEED_MPS, Place
 from fleet_sim.config.scenario import ChargingConfig, IncidentsConfig, Rules, Scenario
+from fleet_sim.config.vehicle import BatteryProfile
 from fleet_sim.model.battery import StateOfCharge, charge_time_s
 from fleet_sim.model.error_codes import describe
 from fleet_sim.model.records import Order, Recorder
@@ -83,6 +86,11 @@ class FleetManagerLink(Protocol):
     def release_charger(self, place: Place) -> None: ...
 
 
+NO_BATTERY = BatteryProfile(initial_soc_pct=100.0, drive_wh_per_m=0.0, drive_loaded_wh_per_m=0.0,
+                            handling_w=0.0, idle_w=0.0)
+"""The battery of an AGV without a battery model: full, and nothing drains it."""
+
+
 class Failure:
     """The cause of an interrupt that sends an AGV to Error."""
 
@@ -102,7 +110,9 @@ class Vehicle(Driver):
         self.charging: ChargingConfig = scenario.charging
         self.incidents: IncidentsConfig = scenario.incidents
         self.incident_rng = incident_rng
-        self.battery = StateOfCharge(scenario.fleet.vehicle.battery, env.now)
+        self.has_battery = scenario.fleet.vehicle.battery is not None
+        """False with ``fleet.vehicle.battery: off``: no drain, no charging, no SOC record."""
+        self.battery = StateOfCharge(scenario.fleet.vehicle.battery or NO_BATTERY, env.now)
         self._wake_up: simpy.Event = env.event()
         """Succeeds when an order or a charging call comes for the AGV waiting idle."""
         self.loaded = False
@@ -176,7 +186,8 @@ class Vehicle(Driver):
         now = self.env.now
         self.recorder.event(now, self.id, event, self.state.value, transition.target.value,
                             self.node, detail)
-        self.recorder.soc_samples.append((now, self.id, self.soc_pct))
+        if self.has_battery:
+            self.recorder.soc_samples.append((now, self.id, self.soc_pct))
         self.state = transition.target
         return True
 
@@ -226,7 +237,7 @@ class Vehicle(Driver):
                 yield from self._recover(interrupt.cause)
 
     def needs_charge(self) -> bool:
-        if not self.charging.enabled:
+        if not self.charging.enabled or not self.has_battery:
             return False
         soc = self.soc_pct
         if soc <= max(self.charging.threshold_pct, self.rules.bat_low_pct):
@@ -330,7 +341,7 @@ class Vehicle(Driver):
         """The four sub-states of Loading (4.3) or Unloading: approach, handshake, transfer,
         verify. A failed transfer raises E_102."""
         profile = self.profile
-        self.battery.draw(self.env.now, profile.battery.handling_w)
+        self.battery.draw(self.env.now, self.battery.profile.handling_w)
         for name, seconds in (("Approach", profile.approach_s),
                               ("Handshake", profile.handshake_s),
                               ("Transfer", transfer_s), ("Verify", profile.verify_s)):
@@ -338,9 +349,9 @@ class Vehicle(Driver):
             yield self.env.timeout(seconds)
             if name == "Transfer" and self.incidents.transfer_failure_prob > 0 \
                     and self.incident_rng.random() < self.incidents.transfer_failure_prob:
-                self.battery.draw(self.env.now, profile.battery.idle_w)
+                self.battery.draw(self.env.now, self.battery.profile.idle_w)
                 self.fail_now("E_102")
-        self.battery.draw(self.env.now, profile.battery.idle_w)
+        self.battery.draw(self.env.now, self.battery.profile.idle_w)
 
     def _unpark(self) -> Proc:
         place = self.parked_in
@@ -383,7 +394,7 @@ class Vehicle(Driver):
         self.battery.set_soc(self.env.now, max(start, target))
         yield self.env.timeout(place.docking_s)  # undocking
         self.docked = False
-        self.battery.draw(self.env.now, self.profile.battery.idle_w)
+        self.battery.draw(self.env.now, self.battery.profile.idle_w)
         self.fire("Event_Charge_Complete", f"{place.id} soc {self.soc_pct:.1f}")
         self.charger = None
         self.fleet.release_charger(place)
