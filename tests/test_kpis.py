@@ -72,7 +72,7 @@ def test_every_kpi_of_a_hand_made_run() -> None:
     figures = hand_made_figures()
     assert figures == {
         "scenario": "hand", "layout": "tiny_loop", "agvs": 2, "seed": 3, "duration_h": 1.0,
-        "warmup_h": 0.25,
+        "warmup_h": 0.25, "setup_warnings": [],
         "orders_created": 6,
         "orders_completed": 4,  # orders 1, 2, 3 and 6 (delivered in the warm-up)
         "throughput_per_hour": 4.0,  # orders 1, 2, 3 in 0.75 h

@@ -20,6 +20,9 @@ Decisions, where the issue is silent:
 * `wall_s` (the run's wall-clock time) is added by the sweep to each run's kpis.json: it is in
   the catalogue so that a summary column can be named in a target, though it is not a result.
 * Every float is rounded to 6 decimals (kpis.json stays readable and byte-identical per seed).
+* `setup_warnings` (a run field, not a KPI): the battery and charging traps of the run's
+  settings (fleet_sim.config.scenario.setup_warnings), one line each, so that a report can
+  show them; a sweep summary joins them with newlines.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from fleet_sim.config.scenario import Scenario
+from fleet_sim.config.scenario import Scenario, setup_warnings
 from fleet_sim.model.error_codes import CODES
 from fleet_sim.model.records import EventRecord, Order, Recorder
 from fleet_sim.model.states import VehicleState
@@ -40,7 +43,8 @@ from fleet_sim.sim.engine import RunOutput
 DOWN_STATES = (VehicleState.ERROR, VehicleState.MAINTENANCE, VehicleState.SAFE_MODE)
 """States in which an AGV is not available (availability_pct)."""
 
-RUN_FIELDS = ("scenario", "layout", "agvs", "seed", "duration_h", "warmup_h")
+RUN_FIELDS = ("scenario", "layout", "agvs", "seed", "duration_h", "warmup_h",
+              "setup_warnings")
 """What kpis.json says about the run before its KPIs (not KPIs themselves)."""
 
 
@@ -123,11 +127,13 @@ def kpi_value(figures: Mapping[str, Any], name: str) -> Any:
 
 
 def run_kpis(run: RunOutput) -> dict[str, Any]:
-    """The KPIs of a finished run (see compute_kpis)."""
-    return compute_kpis(run.recorder, run.scenario, run.layout.name)
+    """The KPIs of a finished run (see compute_kpis), with its setup warnings."""
+    warnings = [w.text for w in setup_warnings(run.scenario, run.layout)]
+    return compute_kpis(run.recorder, run.scenario, run.layout.name, warnings)
 
 
-def compute_kpis(recorder: Recorder, scenario: Scenario, layout_name: str) -> dict[str, Any]:
+def compute_kpis(recorder: Recorder, scenario: Scenario, layout_name: str,
+                 warnings: Sequence[str] = ()) -> dict[str, Any]:
     """The run fields and every KPI of the catalogue but wall_s, from the run's records."""
     start, end = scenario.warmup_s, scenario.duration_s
     window_h = (end - start) / 3600.0
@@ -148,6 +154,7 @@ def compute_kpis(recorder: Recorder, scenario: Scenario, layout_name: str) -> di
         "seed": scenario.seed,
         "duration_h": scenario.duration_h,
         "warmup_h": scenario.warmup_h,
+        "setup_warnings": list(warnings),
         "orders_created": len(orders),
         "orders_completed": len(delivered),
         "throughput_per_hour": throughput,
