@@ -91,6 +91,7 @@ def test_a_battery_that_runs_down_is_warned_at_the_start_and_recorded(tmp_path: 
     assert "For no battery model set fleet.vehicle.battery: off" in warning
     figures = json.loads((tmp_path / "run" / "kpis.json").read_text())
     assert figures["setup_warnings"] == [warning.removeprefix("fleet-sim: warning: ")]
+    assert "idle with orders waiting" in result.stdout
 
 
 def test_a_sweep_warns_once_per_experiment_not_per_run(tmp_path: Path) -> None:

@@ -253,3 +253,23 @@ def test_charging_on_without_a_charger_says_when_the_agvs_stop(tmp_path: Path) -
         "charging is on but the layout has no charger: AGV 0 (1 of 1) will run down and stop "
         "with E_201: from 90 % to the charging threshold 30 %, where they stop taking orders, "
         "in about 2.9 h working flat out or 28.8 h idle, then E_201 at 10 % 9.6 h later"))
+
+
+@pytest.mark.parametrize(("name", "hours"), [("tiny_loop", 100), ("warehouse_shift", 24)])
+def test_bundled_scenarios_stay_meaningful_on_long_runs(name: str, hours: float) -> None:
+    """A planner's --hours far beyond the shift: no silent run-down (no battery on the tiny
+    loop; chargers in the warehouse), the demand is met, AGVs hardly ever stand Idle while
+    orders wait, and when they do the reasons account for it."""
+    from fleet_sim.analysis.kpis import run_kpis
+    from fleet_sim.sim.engine import simulate
+
+    path = ROOT / "experiments" / f"{name}.yaml"
+    scenario = load_scenario(path, {"duration_h": hours})
+    layout = load_layout_for(scenario, str(path))
+    assert setup_warnings(scenario, layout) == []
+    figures = run_kpis(simulate(scenario, layout))
+    assert figures["throughput_pct_of_demand"] >= 98
+    assert "E_201" not in figures["errors_by_code"]
+    assert figures["idle_with_orders_waiting_pct"] < 0.5
+    assert sum(figures["idle_with_orders_waiting_pct_by_reason"].values()) == pytest.approx(
+        figures["idle_with_orders_waiting_pct"], abs=1e-4)

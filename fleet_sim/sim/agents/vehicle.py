@@ -10,7 +10,8 @@ sensor, link, obstacle timing...) and records the transition. The behaviours:
 * Battery: drained per metre (more when loaded), by handling and by idling. An AGV at or below the
   charging threshold (or P_050, Event_Low_Battery) asks the fleet manager for a charger, drives
   there (Moving, purpose to_charger), docks, charges along the charge curve until SOC > 95 %,
-  undocks. Below P_051 it shuts down with E_201. With no battery model
+  undocks. Below P_051 it shuts down with E_201. With charging off, an AGV at P_050 withdraws
+  from the orders (reason battery_low) and stands until E_201. With no battery model
   (``fleet.vehicle.battery: off``) SOC stays at 100 %, nothing drains it, the AGV never charges
   and its SOC is not recorded.
 * Obstacles (4.2.3/4.2.4): met while driving; seen for < 300 ms they only slow the AGV (the
@@ -29,13 +30,16 @@ sensor, link, obstacle timing...) and records the transition. The behaviours:
 
 The AGV knows the fleet manager only through `FleetManagerLink` (declared here); the fleet
 manager hands it work by calling `assign`, and a scheduled charging call by `call_to_charge`.
-Both wake the AGV if it waits idle; nothing outside writes its attributes.
+Both wake the AGV if it waits idle; nothing outside writes its attributes. The AGV tells the
+fleet manager of every change of state or FMS link (`status_changed`), which is how the fleet
+manager knows which AGVs stand Idle while orders wait (fleet_sim.model.not_dispatched).
 """
 
 from __future__ import annotations
 
 import math
-from typing import NoReturn, Protocol
+from collections.abc import Generator
+from typing import Any, NoReturn, Protocol
 
 import networkx as nx
 import numpy as np
@@ -46,6 +50,7 @@ from fleet_sim.config.scenario import ChargingConfig, IncidentsConfig, Rules, Sc
 from fleet_sim.config.vehicle import BatteryProfile
 from fleet_sim.model.battery import StateOfCharge, charge_time_s
 from fleet_sim.model.error_codes import describe
+from fleet_sim.model.not_dispatched import NotDispatched
 from fleet_sim.model.records import Order, Recorder
 from fleet_sim.model.state_machine import transition_for
 from fleet_sim.model.states import VehicleState
@@ -65,7 +70,11 @@ class FleetManagerLink(Protocol):
 
     def vehicle_idle(self, agv: Vehicle) -> None: ...
 
-    def withdraw(self, agv: Vehicle) -> None: ...
+    def withdraw(self, agv: Vehicle, reason: NotDispatched | None = None) -> None: ...
+
+    def status_changed(self, agv: Vehicle) -> None: ...
+
+    def resume(self, agv: Vehicle) -> Generator[simpy.Event, Any, None]: ...
 
     def requeue(self, agv: Vehicle, order: Order) -> None: ...
 
@@ -189,6 +198,7 @@ class Vehicle(Driver):
         if self.has_battery:
             self.recorder.soc_samples.append((now, self.id, self.soc_pct))
         self.state = transition.target
+        self.fleet.status_changed(self)
         return True
 
     def start(self) -> None:
@@ -254,6 +264,7 @@ class Vehicle(Driver):
             return
         if self.soc_pct <= self.rules.bat_low_pct:
             # may not start moving (P_050) and may not charge: stand until the battery dies
+            self.fleet.withdraw(self, NotDispatched.BATTERY_LOW)
             yield self.env.timeout(
                 self.battery.seconds_until(self.env.now, self.rules.bat_critical_pct) + 1e-6)
             self.fail_now("E_201")
@@ -283,9 +294,10 @@ class Vehicle(Driver):
                         return
                 if self.order is not None:
                     return
-        # wait for work, a charging call, the battery running down, or (no link) 10 minutes
+        # wait for work, a charging call, the battery running down (to the charging threshold, or
+        # with charging off to P_050, below which it may not move), or (no link) 10 minutes
         threshold = max(self.charging.threshold_pct, self.rules.bat_low_pct) \
-            if self.charging.enabled else self.rules.bat_critical_pct
+            if self.charging.enabled else self.rules.bat_low_pct
         until_low = self.battery.seconds_until(self.env.now, threshold)
         events = [self._wake_up]
         if math.isfinite(until_low):
@@ -423,7 +435,7 @@ class Vehicle(Driver):
             if left <= 0:
                 self.fail_now("E_301")
             yield self.link_changed | self.env.timeout(left)
-        yield from self.fleet.commands.wait("resume")
+        yield from self.fleet.resume(self)
         if not self.fire("Event_Heartbeat_Restored", "link back"):
             # may not move on (SOC at or below P_050): charge first, then resume the trip
             yield from self._charge()
@@ -433,6 +445,7 @@ class Vehicle(Driver):
         """An FMS link loss starts (+1) or ends (-1); wakes an AGV waiting for the link."""
         self.links_down += down_delta
         self._link_changed()
+        self.fleet.status_changed(self)
 
     def _link_changed(self) -> None:
         if not self.link_changed.triggered:
