@@ -256,7 +256,7 @@ def _run(args: argparse.Namespace) -> int:
     out = args.out or _fresh_dir(Path("results") / folder_name(scenario.name))
     _check_out_dir(out, "--out" if args.out else "results folder")
     layout = load_layout_for(scenario, str(args.scenario))
-    _warn_unreachable_chargers(scenario, layout)
+    _warn_setup(scenario, layout)
     trace = []
     if scenario.demand.kind == "trace":
         assert scenario.demand.trace_csv is not None
@@ -330,19 +330,21 @@ def _check_out_file(out: Path, argument: str) -> None:
     _check_out_dir(out.parent, argument, f"{argument.lstrip('-')} folder")
 
 
-def _warn_unreachable_chargers(scenario: typing.Any, layout: typing.Any) -> None:
-    """One warning line on stderr if charging is on and some AGVs cannot reach a charger."""
-    from fleet_sim.config.scenario import agvs_without_charger
+def _warn_setup(scenario: typing.Any, layout: typing.Any) -> None:
+    """One warning line on stderr per battery or charging trap of the scenario (AGVs that
+    cannot reach a charger, a draining battery with charging off): the run goes on."""
+    from fleet_sim.config.scenario import setup_warnings
 
-    stranded = agvs_without_charger(scenario, layout)
-    if not stranded:
-        return
-    shown = ", ".join(str(a) for a in stranded[:20]) + (", ..." if len(stranded) > 20 else "")
-    why = "the layout has no charger" if not layout.chargers else "no charger is reachable " \
-        "from their start nodes"
-    print(f"fleet-sim: warning: charging is on but {why}: AGV {shown} "
-          f"({len(stranded)} of {scenario.fleet.size}) will run down and stop with E_201",
-          file=sys.stderr)
+    for warning in setup_warnings(scenario, layout):
+        print(f"fleet-sim: warning: {warning.text}", file=sys.stderr)
+
+
+def _warn_experiment(experiment: typing.Any) -> None:
+    """The setup warnings of an experiment's design points, each kind once."""
+    from fleet_sim.config.experiment import experiment_warnings
+
+    for text in experiment_warnings(experiment):
+        print(f"fleet-sim: warning: {text}", file=sys.stderr)
 
 
 def _fresh_dir(base: Path) -> Path:
@@ -380,6 +382,7 @@ def _sweep(args: argparse.Namespace) -> int:
     _check_workers(args)
     experiment = load_experiment(args.experiment)
     check_targets_known(experiment)
+    _warn_experiment(experiment)
     out = args.out or default_out(experiment)
     runs = experiment.runs()
     where = f"Dask cluster {args.scheduler}" if args.scheduler else \
@@ -418,6 +421,7 @@ def _size(args: argparse.Namespace) -> int:
     _check_workers(args)
     experiment = load_experiment(args.experiment)
     check_targets_known(experiment)
+    _warn_experiment(experiment)
     out = args.out or default_out(experiment)
     print(f"size {experiment.name}: targets "
           + ", ".join(t.describe() for t in experiment.spec.targets))

@@ -119,8 +119,8 @@ def _set(data: dict[str, Any], dotted: str, value: Any) -> None:
         if i == len(parts) - 1:
             target[key] = value
         else:
-            if isinstance(key, str) and key not in target:
-                target[key] = {}
+            if isinstance(key, str) and not isinstance(target.get(key), dict | list):
+                target[key] = {}  # absent, or a switch such as battery: off
             target = target[key]
 
 

@@ -16,11 +16,28 @@ Decisions, where the issue is silent:
   layouts), not in the hash.
 * The resolved config names the layout and the order trace by absolute path, so
   ``fleet-sim run results/<run>/config.resolved.yaml`` reruns the run from any folder.
-* Charging on, but some AGVs cannot reach a charger from where they start (no charger in the
-  layout, or none reachable along one-way segments): `agvs_without_charger` names them and
-  ``fleet-sim run`` prints one warning line; the run goes on. Not refused: "how long does the
-  fleet last without chargers" is a fair question, and the answer (each such AGV runs down and
-  stops with E_201) is in the results. Sweeps do not warn (their runs share the scenario).
+* Battery traps are warned about, not refused (`setup_warnings`, one line each): "how long
+  does the fleet last without charging" is a fair question, and the answer (each AGV runs down
+  and stops with E_201) is in the results. ``fleet-sim run`` prints them; ``sweep`` and
+  ``size`` print each kind once per experiment (`fleet_sim.config.experiment
+  .experiment_warnings`); every run records them in kpis.json (``warnings``).
+
+  - Charging on, but some AGVs cannot reach a charger from where they start (no charger in the
+    layout, or none reachable along one-way segments): `agvs_without_charger` names them.
+    Warned whatever the run's length: charging that cannot happen is a contradiction in the
+    files.
+  - Charging off with a battery that drains: warned when the run is long enough for an AGV
+    working flat out to reach P_050 (20 %), where it stops taking orders (4.2.2) and stands
+    until E_201. A shorter run with charging off is a fair choice and is not warned about.
+    No battery model at all is ``fleet.vehicle.battery: off``.
+
+  How long a battery lasts (`battery_hours`): the energy between two SOCs,
+  E = (from_pct - to_pct) / 100 x capacity_wh, over a power: standing idle, idle_w; working
+  flat out, the larger of handling_w and driving at max_speed_mps with half the distance
+  loaded, idle_w + (drive_wh_per_m + drive_loaded_wh_per_m) / 2 x max_speed_mps x 3600 W (the
+  controller's idle draw goes on while driving, as in fleet_sim.model.battery). With the
+  defaults, 90 % -> 20 % is 672 Wh: 3.4 h flat out (200 W), 33.6 h idle (20 W); 20 % -> 10 %
+  standing idle is 4.8 h. Real work lies in between.
 * The scenario ``name`` is free text (reports show it, escaped); the default run folder is
   ``results/<folder_name(name)>``, every character outside the experiment name's rule
   (`is_folder_name`) replaced by ``_``, so ``../x`` or ``/abs`` never writes outside
@@ -29,9 +46,10 @@ Decisions, where the issue is silent:
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
-from typing import Any, Final, Literal
+from typing import Any, Final, Literal, NamedTuple
 
 import networkx as nx
 from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
@@ -450,8 +468,8 @@ def agv_start_nodes(scenario: Scenario, layout: Layout) -> list[str]:
 
 def agvs_without_charger(scenario: Scenario, layout: Layout) -> list[int]:
     """The AGVs (numbers) that cannot drive to any charger from their start, if charging is on;
-    empty when charging is off."""
-    if not scenario.charging.enabled:
+    empty when charging is off or there is no battery model."""
+    if not scenario.charging.enabled or scenario.fleet.vehicle.battery is None:
         return []
     chargers = {n for c in layout.chargers for n in c.nodes}
     stranded: list[int] = []
@@ -463,6 +481,88 @@ def agvs_without_charger(scenario: Scenario, layout: Layout) -> list[int]:
         if not reach[node]:
             stranded.append(agv)
     return stranded
+
+
+class BatteryHours(NamedTuple):
+    """How long a battery takes to fall from one SOC to another (see the module docstring)."""
+
+    busy_h: float
+    """Working flat out: driving at top speed, half the distance loaded (or handling)."""
+    idle_h: float
+    """Standing idle (inf if idling draws nothing)."""
+
+
+def battery_hours(vehicle: VehicleProfile, from_pct: float, to_pct: float) -> BatteryHours:
+    """Hours for the vehicle's battery to fall from `from_pct` to `to_pct`; zero if it is
+    there already, inf if nothing drains it. No battery model: inf."""
+    battery = vehicle.battery
+    if battery is None:
+        return BatteryHours(math.inf, math.inf)
+    energy_wh = max(0.0, from_pct - to_pct) / 100.0 * battery.capacity_wh
+    driving_w = battery.idle_w + (battery.drive_wh_per_m + battery.drive_loaded_wh_per_m) \
+        / 2.0 * vehicle.max_speed_mps * 3600.0
+    busy_w = max(driving_w, battery.handling_w)
+
+    def hours(power_w: float) -> float:
+        if energy_wh == 0:
+            return 0.0
+        return energy_wh / power_w if power_w > 0 else math.inf
+
+    return BatteryHours(hours(busy_w), hours(battery.idle_w))
+
+
+class SetupWarning(NamedTuple):
+    """A trap in a scenario's settings: `kind` groups the same trap across the design points
+    of an experiment, `text` is the one line shown."""
+
+    kind: str
+    text: str
+
+
+def setup_warnings(scenario: Scenario, layout: Layout) -> list[SetupWarning]:
+    """The battery and charging traps of `scenario` on `layout`, one line each (see the module
+    docstring): AGVs that cannot reach a charger with charging on; a draining battery with
+    charging off on a run long enough to run it down."""
+    battery = scenario.fleet.vehicle.battery
+    if battery is None:
+        return []
+    rules, charging = scenario.rules, scenario.charging
+    out: list[SetupWarning] = []
+    if charging.enabled:
+        stranded = agvs_without_charger(scenario, layout)
+        if stranded:
+            stop = max(charging.threshold_pct, rules.bat_low_pct)
+            down = battery_hours(scenario.fleet.vehicle, battery.initial_soc_pct, stop)
+            dead = battery_hours(scenario.fleet.vehicle, stop, rules.bat_critical_pct)
+            shown = ", ".join(str(a) for a in stranded[:20]) \
+                + (", ..." if len(stranded) > 20 else "")
+            why = "the layout has no charger" if not layout.chargers \
+                else "no charger is reachable from their start nodes"
+            out.append(SetupWarning("no_charger", (
+                f"charging is on but {why}: AGV {shown} ({len(stranded)} of "
+                f"{scenario.fleet.size}) will run down and stop with E_201: from "
+                f"{battery.initial_soc_pct:g} % to the charging threshold {stop:g} %, where "
+                f"they stop taking orders, in about {_hours(down.busy_h)} working flat out or "
+                f"{_hours(down.idle_h)} idle, then E_201 at {rules.bat_critical_pct:g} % "
+                f"{_hours(dead.idle_h)} later")))
+        return out
+    down = battery_hours(scenario.fleet.vehicle, battery.initial_soc_pct, rules.bat_low_pct)
+    if scenario.duration_h > down.busy_h:
+        dead = battery_hours(scenario.fleet.vehicle, rules.bat_low_pct, rules.bat_critical_pct)
+        out.append(SetupWarning("charging_off", (
+            f"charging.enabled is false but the battery drains (fleet.vehicle.battery): from "
+            f"{battery.initial_soc_pct:g} % an AGV runs down to {rules.bat_low_pct:g} % (P_050) "
+            f"and stops taking orders after about {_hours(down.busy_h)} working flat out or "
+            f"{_hours(down.idle_h)} idle, then stands until E_201 at "
+            f"{rules.bat_critical_pct:g} % {_hours(dead.idle_h)} later; the run is "
+            f"{scenario.duration_h:g} h. For no battery model set fleet.vehicle.battery: off")))
+    return out
+
+
+def _hours(hours: float) -> str:
+    if hours == 0:
+        return "no time"
+    return "never" if math.isinf(hours) else f"{hours:.1f} h"
 
 
 def resolved(scenario: Scenario) -> dict[str, Any]:

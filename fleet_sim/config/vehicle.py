@@ -1,13 +1,22 @@
 """The vehicle as a scenario describes it: kinematics, body, sub-state times and battery.
 
 Defaults come from RSS-AGV-001 section 7.1 where the spec gives a figure, "assumed" where not.
+
+Decisions, where the issue is silent:
+
+* ``battery: off`` (YAML ``off``, ``false`` or ``null``) is the switch for the battery model:
+  no drain, no charging, no battery thresholds; SOC is not recorded. The model holds None and
+  the resolved config writes ``battery: null``. ``on``/``true`` is refused: write the figures
+  (or leave the key out for the defaults). The battery is a property of the vehicle, so the
+  switch sits with its figures rather than at the top of the scenario.
 """
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
+from pydantic.config import JsonDict
 
 from agv_model.inputs import NonNegative, Percent, Positive, Problem, StrictModel, Text
 
@@ -37,6 +46,13 @@ class BatteryProfile(StrictModel):
         return 100.0 / self.capacity_wh
 
 
+def _battery_off_schema(schema: JsonDict) -> None:
+    """Publish ``false`` (YAML ``off``) beside the battery's figures and ``null``."""
+    variants = schema.get("anyOf")
+    if isinstance(variants, list):
+        variants.insert(1, {"const": False})
+
+
 class VehicleProfile(StrictModel):
     name: Text = "rss-agv-001"
     max_speed_mps: Positive = 1.0
@@ -62,7 +78,19 @@ class VehicleProfile(StrictModel):
     handling time."""
     spin_s: NonNegative = 6.0
     """Assumed: a 180-degree spin on the spot (5.3 TYPE_CMD 0x10)."""
-    battery: BatteryProfile = BatteryProfile()
+    battery: BatteryProfile | None = Field(default=BatteryProfile(),
+                                           json_schema_extra=_battery_off_schema)
+    """The battery's figures; off (false, null): no battery model (no drain, no charging)."""
+
+    @field_validator("battery", mode="before")
+    @classmethod
+    def _battery_off(cls, value: Any) -> Any:
+        if value is False or value is None or value == "off":
+            return None
+        if not isinstance(value, dict | BatteryProfile):
+            raise Problem("", value, "a mapping of battery figures, or off (no battery model: "
+                                     "no drain, no charging)")
+        return value
 
     @model_validator(mode="after")
     def _turn_within_top_speed(self) -> VehicleProfile:
