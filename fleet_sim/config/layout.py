@@ -82,6 +82,9 @@ class SegmentSpec(StrictModel):
     branch: Branch = "auto"
     rssi_dbm: float | None = None
     """Wi-Fi signal on the segment; default: its zone's, else defaults.rssi_dbm."""
+    allowed_types: Items[Text] = ()
+    """Vehicle types (the scenario's fleet.vehicles[].type, or a one-type fleet's
+    vehicle.name) that may drive the segment; empty: every type."""
 
 
 class StationSpec(StrictModel):
@@ -89,6 +92,9 @@ class StationSpec(StrictModel):
     kind: Literal["pickup", "dropoff"]
     nodes: Items[Text]
     handling: TimeDistribution = FixedTime(mean_s=20.0)
+    allowed_types: Items[Text] = ()
+    """Vehicle types that may serve the station; empty: every type. An order goes only to an
+    AGV whose type may serve both its stations."""
 
 
 class ChargerSpec(StrictModel):
@@ -210,6 +216,11 @@ class Place:
     handling: TimeDistribution | None = None
     power_kw: float = 0.0
     docking_s: float = 0.0
+    allowed_types: frozenset[str] = frozenset()
+    """Types that may serve a station; empty: every type."""
+
+    def serves(self, vehicle_type: str) -> bool:
+        return not self.allowed_types or vehicle_type in self.allowed_types
 
 
 class Layout:
@@ -228,7 +239,8 @@ class Layout:
         self._corridor_at: dict[str, Corridor] = {n: c for c in corridors for n in c.members}
         places: list[Place] = []
         for s in spec.stations:
-            places.append(Place(s.id, s.kind, s.nodes, len(s.nodes), handling=s.handling))
+            places.append(Place(s.id, s.kind, s.nodes, len(s.nodes), handling=s.handling,
+                                allowed_types=frozenset(s.allowed_types)))
         for c in spec.chargers:
             places.append(Place(c.id, "charger", (c.node,), 1, power_kw=c.power_kw,
                                 docking_s=c.docking_s))
@@ -273,6 +285,20 @@ class Layout:
         if abs(diff) > REVERSE_BEYOND_DEG:
             return "reverse"
         return "left" if diff > 0 else "right"
+
+    @property
+    def restricts_types(self) -> bool:
+        """Some segment or station is open to some vehicle types only."""
+        return any(s.allowed_types for s in self.spec.segments) \
+            or any(s.allowed_types for s in self.spec.stations)
+
+    def type_graph(self, vehicle_type: str) -> nx.DiGraph:
+        """The track an AGV of `vehicle_type` may drive: a view without the segments closed
+        to it (segments' `allowed_types`)."""
+        def allowed(u: str, v: str) -> bool:
+            types: frozenset[str] = self.graph.edges[u, v]["allowed_types"]
+            return not types or vehicle_type in types
+        return nx.subgraph_view(self.graph, filter_edge=allowed)
 
     @property
     def total_length_m(self) -> float:
@@ -348,7 +374,7 @@ def _build_graph(spec: LayoutSpec, file: str, max_speed_mps: float | None) -> nx
             graph.add_edge(u, v, length_m=length, speed_limit_mps=limit,
                            two_way=seg.direction == "two_way", branch=branch, index=i,
                            rssi_dbm=seg.rssi_dbm, obstacle_rate_per_km=None,
-                           obstacle_duration=None)
+                           obstacle_duration=None, allowed_types=frozenset(seg.allowed_types))
     _apply_zones(spec, file, graph)
     for node in spec.nodes:
         if graph.out_degree(node.id) == 0:
@@ -493,7 +519,9 @@ def layout_yaml(spec: LayoutSpec, comments: Sequence[str] = ()) -> str:
         ("segments", [s.model_dump(mode="json", by_alias=True, exclude_defaults=True)
                       for s in spec.segments]),
         ("stations", [{"id": s.id, "kind": s.kind, "nodes": list(s.nodes),
-                       "handling": s.handling.model_dump(mode="json")} for s in spec.stations]),
+                       "handling": s.handling.model_dump(mode="json")}
+                      | ({"allowed_types": list(s.allowed_types)} if s.allowed_types else {})
+                      for s in spec.stations]),
         ("chargers", [c.model_dump(mode="json") for c in spec.chargers]),
         ("parking", [p.model_dump(mode="json") for p in spec.parking]),
         ("zones", [z.model_dump(mode="json", exclude_none=True) for z in spec.zones]),

@@ -87,6 +87,8 @@ class Driver:
         self._moved = 0.0
         """Share of the hop under way already driven (see `_move`)."""
         traffic.register(self)
+        self.routes = traffic.routes_of(agv_id)
+        """Routes and hop kinematics of this AGV's vehicle type."""
         self._corridors = traffic.corridors_of(self.id)
         """The corridors traffic has given this AGV (its view of the table, read-only)."""
 
@@ -215,7 +217,7 @@ class Driver:
         """Drive to `goal` and stop there, holding it. When `stop_early()` turns true, stop at
         the first node where the AGV can instead."""
         self.goal = goal
-        path = self.traffic.route(self.node, goal)
+        path = self.traffic.route(self.node, goal, self.id)
         i = 0
         while self.node != self.goal:
             nxt = path[i + 1]
@@ -233,7 +235,7 @@ class Driver:
                 w = path[i + 2]
                 x = path[i + 3] if i + 3 < len(path) else None
                 if self._try_take(nxt, w, x):
-                    v_end_max = self.traffic.routes.pass_speed_mps(self.node, nxt, w)
+                    v_end_max = self.routes.pass_speed_mps(self.node, nxt, w)
             yield from self._hop(nxt, v_end_max)
             i += 1
             if stop_early is not None and stop_early():
@@ -258,12 +260,12 @@ class Driver:
             self._leg = backend.hop(self.id, self.prev, u, nxt, after, cap)
             time_s = v_end = 0.0
         elif cap is None:
-            time_s, v_end = traffic.routes.hop(self.prev, u, nxt, self.speed_mps, v_end_max)
+            time_s, v_end = self.routes.hop(self.prev, u, nxt, self.speed_mps, v_end_max)
         else:
             pieces: tuple[Piece, ...] = tuple(
                 (length, min(limit, cap))
-                for length, limit in traffic.routes.pieces(self.prev, u, nxt))
-            motion = traffic.motion
+                for length, limit in self.routes.pieces(self.prev, u, nxt))
+            motion = self.routes.motion
             time_s, v_end = traverse(pieces, self.speed_mps, min(v_end_max, cap),
                                      motion.accel_mps2, motion.decel_mps2)
         start = self.env.now
@@ -395,9 +397,9 @@ class Driver:
             if self._try_take(self.node, step, None):
                 self.note("backoff", f"{self.node} -> {step}")
                 yield from self._hop(step, 0.0)
-                return self.traffic.route(self.node, self.goal)
+                return self.traffic.route(self.node, self.goal, self.id)
         yield self.env.timeout(float(self.rng.exponential(self.config.backoff_s)))
-        return self.traffic.route(self.node, self.goal)
+        return self.traffic.route(self.node, self.goal, self.id)
 
     # ---- releasing ------------------------------------------------------------------------------
     def _release(self, held: Held) -> None:

@@ -14,6 +14,14 @@ Chargers: an AGV asks for one; the fleet manager gives it the nearest free charg
 (first come, first served) until one frees up. One AGV per charger.
 Orders of a failed AGV: one not yet loaded goes back to the front of the queue; a loaded one is
 recorded as failed (its load is with the broken AGV).
+
+Vehicle types (mixed fleets, or a layout whose stations have `allowed_types`; `set_types`): an
+order goes only to an AGV whose type may serve both its stations, oldest order first; an order
+that no idle AGV may serve waits while younger ones are served (no head-of-line blocking). An
+idle AGV passed over for such an order is recorded once per order as a `not_dispatched` event
+with detail ``type_not_allowed order N`` (work conservation: it was idle, but may not go). An
+order that no type of the fleet may serve (from a trace; flows are checked when the scenario is
+read) fails when it is created, with failure ``type_not_allowed``.
 """
 
 from __future__ import annotations
@@ -28,7 +36,7 @@ import simpy
 from fleet_sim.config.layout import Layout, Place
 from fleet_sim.config.scenario import DispatchConfig
 from fleet_sim.model.records import Order, Recorder
-from fleet_sim.sim.agents.dispatch import POLICIES, DispatchPolicy
+from fleet_sim.sim.agents.dispatch import POLICIES, Candidate, DispatchPolicy, TravelTime
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.traffic.control import Traffic
 
@@ -84,10 +92,34 @@ class FleetManager:
         self.chargers_free: list[Place] = list(layout.chargers)
         self.charger_queue: deque[tuple[FleetAgv, simpy.Event]] = deque()
         recorder.queue_lengths.append((env.now, 0))
+        self.agv_types: dict[int, str] = {}
+        """AGV id -> its vehicle type; empty: every AGV may serve every order."""
+        self._passed_over: set[tuple[int, int]] = set()
+        """(order id, AGV id) already recorded as not_dispatched (type_not_allowed)."""
+
+    # ---- vehicle types ----------------------------------------------------------------------
+    def set_types(self, agv_types: dict[int, str]) -> None:
+        """The vehicle type of each AGV: orders go only to types their stations allow."""
+        self.agv_types = dict(agv_types)
+
+    def may_serve(self, agv: FleetAgv, order: Order) -> bool:
+        """May `agv`'s type serve both stations of `order`?"""
+        kind = self.agv_types.get(agv.id)
+        if kind is None:
+            return True
+        places = self.layout.places
+        return places[order.pickup].serves(kind) and places[order.dropoff].serves(kind)
+
+    def _travel_of(self, agv: Candidate) -> TravelTime:
+        return partial(self.traffic.travel_time_s, client_id=agv.id)
 
     # ---- orders -----------------------------------------------------------------------------
     def submit(self, order: Order) -> None:
         self.recorder.orders.append(order)
+        if self.agv_types and not self._servable(order):
+            order.failed_s = self.env.now
+            order.failure = "type_not_allowed"
+            return
         self.waiting.append(order)
         self._dispatch()
 
@@ -171,22 +203,31 @@ class FleetManager:
         while self.chargers_free and self.charger_queue:
             agv, event = self.charger_queue.popleft()
             place = min(self.chargers_free, key=lambda c: (
-                self.traffic.travel_time_s(agv.dispatch_node, c.nodes[0]), c.id))
+                self.traffic.travel_time_s(agv.dispatch_node, c.nodes[0], agv.id), c.id))
             self.chargers_free.remove(place)
             self.commands.send("assign", partial(event.succeed, place))
 
     def left_station(self, node: str) -> None:
         self.bound_for[node] -= 1
 
+    def _servable(self, order: Order) -> bool:
+        places = self.layout.places
+        return any(places[order.pickup].serves(t) and places[order.dropoff].serves(t)
+                   for t in set(self.agv_types.values()))
+
     def _dispatch(self) -> None:
         changed = False
-        while self.waiting and self.idle:
-            order = self.waiting[0]
+        skipped = 0  # orders at the head that no idle AGV's type may serve (types only)
+        while len(self.waiting) > skipped and self.idle:
+            order = self.waiting[skipped]
             pickup = self.layout.places[order.pickup]
-            agv = self._choose(min(pickup.nodes, key=lambda n: self.bound_for[n]))
+            agv = self._choose(min(pickup.nodes, key=lambda n: self.bound_for[n]), order)
             if agv is None:
+                if self.agv_types and any(v.fms_link for v in self.idle):
+                    skipped += 1  # ready AGVs, none of a type that may serve it: the next
+                    continue
                 break
-            self.waiting.popleft()
+            del self.waiting[skipped]
             order.pickup_node = self._docking_node(pickup)
             self.idle.remove(agv)
             order.dropoff_node = self._docking_node(self.layout.places[order.dropoff])
@@ -204,10 +245,21 @@ class FleetManager:
         self.assigning.discard(agv.id)
         agv.assign(order)
 
-    def _choose(self, pickup_node: str) -> FleetAgv | None:
+    def _choose(self, pickup_node: str, order: Order | None = None) -> FleetAgv | None:
         ready = [v for v in self.idle if v.fms_link]
         if not ready:
             return None
+        if self.agv_types and order is not None:
+            allowed = [v for v in ready if self.may_serve(v, order)]
+            if not allowed:
+                for v in ready:
+                    # work-conservation hook: an idle AGV that may not take the waiting order
+                    if (order.id, v.id) not in self._passed_over:
+                        self._passed_over.add((order.id, v.id))
+                        v.note("not_dispatched", f"type_not_allowed order {order.id}")
+                return None
+            return self.policy.choose(allowed, pickup_node, self.traffic.travel_time_s,
+                                      self._travel_of)
         return self.policy.choose(ready, pickup_node, self.traffic.travel_time_s)
 
     def _docking_node(self, place: Place) -> str:
@@ -221,8 +273,8 @@ class FleetManager:
         free = [p for p in self.layout.parking if self.parking_free[p.id] > 0]
         if not free:
             return None
-        place = min(free, key=lambda p: (self.traffic.travel_time_s(agv.node, p.nodes[0]),
-                                         p.id))
+        place = min(free, key=lambda p: (
+            self.traffic.travel_time_s(agv.node, p.nodes[0], agv.id), p.id))
         self.parking_free[place.id] -= 1
         return place
 

@@ -118,6 +118,25 @@ class Traffic:
         self._escapes: dict[int, Escape] = {}
         """Escapes chosen for clients that have not taken them yet."""
         self._cycles = KnownCycles()
+        self._type_routes: dict[str, Routes] = {}
+        """Vehicle type -> its routes (mixed fleets, layouts with `allowed_types`)."""
+        self._client_routes: dict[int, Routes] = {}
+        """Client id -> its type's routes; clients not listed use `routes`."""
+
+    # ---- vehicle types ----------------------------------------------------------------------
+    def add_vehicle_type(self, name: str, motion: Motion) -> None:
+        """Route AGVs of type `name` on the segments open to it, at its own top speed."""
+        self._type_routes[name] = Routes(self.layout, motion, name)
+
+    def assign_type(self, client_id: int, name: str) -> None:
+        """Client `client_id` is an AGV of type `name` (added with `add_vehicle_type`)."""
+        self._client_routes[client_id] = self._type_routes[name]
+
+    def routes_of(self, client_id: int | None) -> Routes:
+        """The routes and hop kinematics of a client's vehicle type."""
+        if client_id is None:
+            return self.routes
+        return self._client_routes.get(client_id, self.routes)
 
     # ---- clients and the table --------------------------------------------------------------
     def register(self, client: TrafficClient) -> None:
@@ -195,9 +214,9 @@ class Traffic:
                 yield node, holder
 
     # ---- routes -----------------------------------------------------------------------------
-    def travel_time_s(self, src: str, dest: str) -> float:
-        """Free-flow travel time from src to dest."""
-        return self.routes.travel_time_s(src, dest)
+    def travel_time_s(self, src: str, dest: str, client_id: int | None = None) -> float:
+        """Free-flow travel time from src to dest (for client `client_id`'s vehicle type)."""
+        return self.routes_of(client_id).travel_time_s(src, dest)
 
     def block(self, u: str, v: str, from_s: float, until_s: float) -> None:
         for key in ((u, v), (v, u)):
@@ -212,17 +231,18 @@ class Traffic:
                 return end
         return None
 
-    def route(self, src: str, dest: str) -> list[str]:
+    def route(self, src: str, dest: str, client_id: int | None = None) -> list[str]:
         """Nodes from src to dest by shortest free-flow travel time, src included; around
-        segments reported blocked when there is a way round."""
+        segments reported blocked when there is a way round (for client `client_id`'s type)."""
+        routes = self.routes_of(client_id)
         if self.known_blocks:
             now = self.env.now
             self.known_blocks = {k: t for k, t in self.known_blocks.items() if t > now}
             if self.known_blocks:
-                around = self.routes.route_avoiding(src, dest, set(), set(self.known_blocks))
+                around = routes.route_avoiding(src, dest, set(), set(self.known_blocks))
                 if around is not None:
                     return around
-        return self.routes.route(src, dest)
+        return routes.route(src, dest)
 
     def entry_corridor(self, node: str, nxt: str | None) -> Corridor | None:
         """The corridor an AGV enters when it leaves `node` for `nxt`, if `node` is outside it."""
@@ -309,8 +329,9 @@ class Traffic:
                 corridor = self.layout.corridors[key.corridor_id]
                 avoid_nodes |= corridor.members
                 avoid_edges |= corridor.segments
+        routes = self.routes_of(client_id)
         if goal is not None and (avoid_nodes or avoid_edges):
-            path = self.routes.route_avoiding(node, goal, avoid_nodes, avoid_edges)
+            path = routes.route_avoiding(node, goal, avoid_nodes, avoid_edges)
             if path is not None and len(path) > 1 \
                     and self._free_to_enter(client_id, node, path[1]) \
                     and (inside is None or any(n not in inside.members for n in path[1:])):
@@ -324,6 +345,8 @@ class Traffic:
                 continue
             if inside is not None and nxt in inside.members:
                 continue
+            if not routes.allows(node, nxt):
+                continue
             if self._free_to_enter(client_id, node, nxt):
                 return Escape("backoff", (node, nxt))
         return None
@@ -332,17 +355,22 @@ class Traffic:
                    avoid_edges: set[tuple[str, str]]) -> Escape | None:
         """Drive on two hops past what blocks the way (a busy corridor, a full siding) and come
         back round by the usual route: a loop's answer to waiting in everyone's way."""
+        routes = self.routes_of(client_id)
         for first in sorted(self.graph.successors(node)):
             if first in avoid_nodes or (node, first) in avoid_edges:
+                continue
+            if not routes.allows(node, first):
                 continue
             if not self._free_to_enter(client_id, node, first):
                 continue
             for second in sorted(self.graph.successors(first)):
                 if second in avoid_nodes or (first, second) in avoid_edges or second == node:
                     continue
+                if not routes.allows(first, second):
+                    continue
                 if self.layout.corridor_of(first, second) is not None:
                     continue  # circulate on one-way track only
-                back = self.route(second, goal)
+                back = self.route(second, goal, client_id)
                 return Escape("circulate", (node, first, *back))
         return None
 
