@@ -239,7 +239,14 @@ def _cases() -> Iterator[Case]:
     for field, value in [("duration_h", 8761), ("demand.rate_per_hour", 100_001),
                          ("fleet.size", 2001), ("fleet.size", 0), ("unknown_key", 1),
                          ("fleet.vehicle.max_speed_mps", NAN), ("fleet.start_nodes", ["ZZ"]),
-                         ("layout", "missing.yaml"), ("layout", str(ROOT / "layouts"))]:
+                         ("layout", "missing.yaml"), ("layout", str(ROOT / "layouts")),
+                         ("fleet.vehicles", [{"type": "a", "count": 1}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 2, "profile": "nowhere"}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 1},
+                                             {"type": "a", "count": 1}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 2, "speed": 1}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 2.5}]),
+                         ("fleet.vehicles", "many")]:
         yield Case(f"scenario-{field}-{value!r}", "scenario",
                    lambda _d, f=field, v=value: _yaml(_set(_scenario(), f, v)))
     for field, value in [("nodes.0.x", NAN), ("nodes.0.x", INF), ("nodes.0.y", "north"),
@@ -247,6 +254,8 @@ def _cases() -> Iterator[Case]:
                          ("segments.0.speed_limit_mps", 0), ("nodes.1.id", "SW"),
                          ("parking.0.capacity", 1e308), ("parking.0.capacity", 0),
                          ("defaults.speed_limit_mps", NAN), ("stations.0.nodes", []),
+                         ("segments.0.allowed_types", "narrow"),
+                         ("stations.0.allowed_types", [["a"]]),
                          ("nodes", "none")]:
         yield Case(f"layout-{field}-{value!r}", "layout",
                    lambda _d, f=field, v=value: _yaml(_set(_layout(), f, v)))

@@ -160,7 +160,7 @@ class FleetConfig(StrictModel):
         counts = [t.get("count") for t in types if isinstance(t, dict)] \
             if isinstance(types, list | tuple) else []
         if "size" not in data and counts and len(counts) == len(types) \
-                and all(type(c) is int for c in counts):
+                and all(type(c) is int and c >= 1 for c in counts):
             return {**data, "size": sum(counts)}
         return data
 
