@@ -255,6 +255,10 @@ def _cases() -> Iterator[Case]:
                          ("parking.0.capacity", 1e308), ("parking.0.capacity", 0),
                          ("defaults.speed_limit_mps", NAN), ("stations.0.nodes", []),
                          ("segments.0.allowed_types", "narrow"),
+                         ("traffic_zones", [{"id": "Z", "kind": "mutex", "nodes": ["ZZ"]}]),
+                         ("traffic_zones", [{"id": "Z", "kind": "mutex", "nodes": ["SW"],
+                                             "capacity": 0}]),
+                         ("traffic_zones", [{"id": "Z", "kind": "ban", "nodes": ["SW"]}]),
                          ("stations.0.allowed_types", [["a"]]),
                          ("nodes", "none")]:
         yield Case(f"layout-{field}-{value!r}", "layout",

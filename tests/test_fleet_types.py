@@ -67,7 +67,7 @@ def run_mixed(folder: Path, **fields: Any) -> Any:
 
 
 def test_a_type_never_enters_an_aisle_closed_to_it(tmp_path: Path) -> None:
-    scenario, _, model = run_mixed(tmp_path)
+    _, _, model = run_mixed(tmp_path)
     wide = {2, 3}
     for spell in model.recorder.occupancy:
         if spell.agv in wide:
@@ -84,7 +84,7 @@ def test_a_type_never_enters_an_aisle_closed_to_it(tmp_path: Path) -> None:
 
 
 def test_each_type_drives_at_its_own_top_speed(tmp_path: Path) -> None:
-    scenario, layout, model = run_mixed(tmp_path)
+    _, layout, model = run_mixed(tmp_path)
     fastest = {0: 1.0, 1: 1.0, 2: 0.5, 3: 0.5}
     hops = 0
     for spell in model.recorder.occupancy:

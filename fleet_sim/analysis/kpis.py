@@ -26,6 +26,8 @@ Decisions, where the issue is silent:
   flattens it as it does errors_by_code, to ``by_type.heavy.throughput_per_hour``. Type names
   are the scenario's, so these names are not in `CATALOGUE`; `is_kpi_name` accepts them. A
   one-type fleet's kpis.json has no `by_type` (it stays as it was).
+* A layout with mutex zones adds `zone_wait_s` last: zone id -> AGV-seconds spent in the window
+  waiting to enter it (``zone_wait_s.<zone>``, s; also counted in blocked_time_pct).
 """
 
 from __future__ import annotations
@@ -131,6 +133,8 @@ def is_kpi_name(name: str) -> bool:
     if family == "by_type":
         kind, _, kpi = rest.rpartition(".")
         return bool(kind) and kpi in {k.name for k in BY_TYPE}
+    if family == "zone_wait_s":
+        return bool(rest)
     return name in kpi_names()
 
 
@@ -221,6 +225,8 @@ def compute_kpis(recorder: Recorder, scenario: Scenario, layout_name: str) -> di
     })
     if scenario.fleet.vehicles:
         out["by_type"] = by_type_kpis(recorder, scenario)
+    if recorder.zone_wait_s:
+        out["zone_wait_s"] = {z: _round(s) for z, s in recorder.zone_wait_s.items()}
     return out
 
 

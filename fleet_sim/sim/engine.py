@@ -72,6 +72,7 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
                     profile.turn_speed_mps)
     recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy)
     traffic = Traffic(env, layout, motion, recorder)
+    recorder.zone_wait_s = {z: 0.0 for z in traffic.zone_locks}
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
         from fleet_sim.sim.motion.sumo import SumoMotion
 

@@ -20,6 +20,8 @@ Rules (see docs/engine.md for why):
 * A wait-for cycle is looked for whenever an AGV starts waiting and every `deadlock_check_s`
   while it still waits (fleet_sim.sim.traffic.deadlock). A cycle is recorded and resolved by the
   `DeadlockPolicy` handed to `Traffic`: one member takes another route or backs off.
+* Mutex zones (the layout's `traffic_zones`, fleet_sim.sim.traffic.zones): at most N AGVs
+  inside; an AGV takes the zone's lock (a `Gate`) before its first node in it.
 * Giving way: an AGV that has waited `give_way_after_s` for a corridor or a side track while
   another AGV queues behind it drives on and comes back round (circulates) instead of blocking
   the main loop. This keeps loops flowing, which avoids most deadlocks by construction.
@@ -47,8 +49,9 @@ from fleet_sim.sim.traffic.deadlock import (
     KnownCycles,
     find_cycle,
 )
-from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock
+from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock, ZoneLock
 from fleet_sim.sim.traffic.routing import Routes
+from fleet_sim.sim.traffic.zones import Gate
 
 CorridorHold = tuple[Claim, str | None]
 """A corridor claim and the node from which the client will enter it (None once inside)."""
@@ -122,6 +125,12 @@ class Traffic:
         """Vehicle type -> its routes (mixed fleets, layouts with `allowed_types`)."""
         self._client_routes: dict[int, Routes] = {}
         """Client id -> its type's routes; clients not listed use `routes`."""
+        self.zone_locks: dict[str, Gate] = {
+            z.id: Gate(env, ZoneLock(z.id), z.capacity) for z in layout.traffic_zones
+            if z.kind == "mutex"}
+        """Mutex zone id -> its lock."""
+        self._zones: dict[int, dict[str, Claim]] = {}
+        """Client id -> zone id -> its zone claims (granted or waiting)."""
 
     # ---- vehicle types ----------------------------------------------------------------------
     def add_vehicle_type(self, name: str, motion: Motion) -> None:
@@ -143,6 +152,7 @@ class Traffic:
         self._clients[client.id] = client
         self._nodes[client.id] = set()
         self._corridors[client.id] = {}
+        self._zones[client.id] = {}
 
     def request(self, client_id: int, lock: Lock, entry: str | None = None) -> Claim:
         """Ask for `lock`: the claim is granted (`triggered`) at once if the lock is free, else
@@ -152,6 +162,8 @@ class Traffic:
         key = lock.key
         if isinstance(key, NodeLock):
             self._nodes[client_id].add(claim)
+        elif isinstance(key, ZoneLock):
+            self._zones[client_id][key.zone_id] = claim
         else:
             self._corridors[client_id][key.corridor_id] = (claim, entry)
         self.version += 1
@@ -179,6 +191,9 @@ class Traffic:
         key = lock.key
         if isinstance(key, NodeLock):
             self._nodes[client_id].discard(claim)
+        elif isinstance(key, ZoneLock):
+            if self._zones[client_id].get(key.zone_id) is claim:
+                del self._zones[client_id][key.zone_id]
         else:
             hold = self._corridors[client_id].get(key.corridor_id)
             if hold is not None and hold[0] is claim:
@@ -193,6 +208,10 @@ class Traffic:
     def corridors_of(self, client_id: int) -> Mapping[int, CorridorHold]:
         """The client's corridor claims (corridor id -> claim, entry node), oldest first."""
         return self._corridors[client_id]
+
+    def zones_of(self, client_id: int) -> Mapping[str, Claim]:
+        """The client's mutex zone claims (zone id -> claim)."""
+        return self._zones[client_id]
 
     def holds_corridor(self, client_id: int, corridor_id: int) -> bool:
         hold = self._corridors[client_id].get(corridor_id)
@@ -319,12 +338,20 @@ class Traffic:
             if hold is None or not hold[0].triggered or hold[1] is not None:
                 return Escape("yield", (node,))
             inside = self.layout.corridors[cid]
+        if must_free is not None and isinstance(must_free.key, ZoneLock):
+            zone = next(z for z in self.layout.traffic_zones if z.id == must_free.key.zone_id)
+            if not any(c.triggered and cast(Lock, c.resource).key in
+                       {NodeLock(n) for n in zone.nodes} for c in self._nodes[client_id]):
+                return Escape("yield", (node,))  # holds the zone, not yet inside: give it up
         avoid_nodes: set[str] = set()
         avoid_edges: set[tuple[str, str]] = set()
         if waited is not None:
             key = waited.key
             if isinstance(key, NodeLock):
                 avoid_nodes.add(key.node)
+            elif isinstance(key, ZoneLock):
+                avoid_nodes |= next(z.nodes for z in self.layout.traffic_zones
+                                    if z.id == key.zone_id)
             else:
                 corridor = self.layout.corridors[key.corridor_id]
                 avoid_nodes |= corridor.members
@@ -382,11 +409,17 @@ class Traffic:
         for claim, _ in self._corridors[client_id].values():
             if claim.triggered and claim.resource.put_queue:
                 return True
+        for claim in self._zones[client_id].values():
+            if claim.triggered and claim.resource.put_queue:
+                return True
         return False
 
     def _free_to_enter(self, client_id: int, node: str, nxt: str) -> bool:
         if not self.node_locks[nxt].is_free:
             return False
+        for zone in self.layout.mutex_zones_at.get(nxt, ()):
+            if zone.id not in self._zones[client_id] and not self.zone_locks[zone.id].is_free:
+                return False
         corridor = self.layout.corridor_of(node, nxt)
         if corridor is None or self.holds_corridor(client_id, corridor.id):
             return True
