@@ -245,7 +245,14 @@ def _cases() -> Iterator[Case]:
                          ("fleet.vehicle.battery", [1]),
                          ("fleet.vehicle.battery", {"capacity_wh": 0}),
                          ("fleet.vehicle.battery", {"idle_w": NAN}),
-                         ("fleet.vehicle.battery", {"switch": "off"})]:
+                         ("fleet.vehicle.battery", {"switch": "off"}),
+                         ("fleet.vehicles", [{"type": "a", "count": 1}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 2, "profile": "nowhere"}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 1},
+                                             {"type": "a", "count": 1}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 2, "speed": 1}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 2.5}]),
+                         ("fleet.vehicles", "many")]:
         yield Case(f"scenario-{field}-{value!r}", "scenario",
                    lambda _d, f=field, v=value: _yaml(_set(_scenario(), f, v)))
     for field, value in [("nodes.0.x", NAN), ("nodes.0.x", INF), ("nodes.0.y", "north"),
@@ -253,6 +260,12 @@ def _cases() -> Iterator[Case]:
                          ("segments.0.speed_limit_mps", 0), ("nodes.1.id", "SW"),
                          ("parking.0.capacity", 1e308), ("parking.0.capacity", 0),
                          ("defaults.speed_limit_mps", NAN), ("stations.0.nodes", []),
+                         ("segments.0.allowed_types", "narrow"),
+                         ("traffic_zones", [{"id": "Z", "kind": "mutex", "nodes": ["ZZ"]}]),
+                         ("traffic_zones", [{"id": "Z", "kind": "mutex", "nodes": ["SW"],
+                                             "capacity": 0}]),
+                         ("traffic_zones", [{"id": "Z", "kind": "ban", "nodes": ["SW"]}]),
+                         ("stations.0.allowed_types", [["a"]]),
                          ("nodes", "none")]:
         yield Case(f"layout-{field}-{value!r}", "layout",
                    lambda _d, f=field, v=value: _yaml(_set(_layout(), f, v)))

@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -63,8 +64,7 @@ def fleet_manager(layout: Layout) -> FleetManager:
     return FleetManager(env, layout, traffic, DispatchConfig(), recorder, commands)
 
 
-@pytest.fixture(scope="module")
-def spurs_layout(tmp_path_factory: pytest.TempPathFactory) -> Layout:
+def spurs_data() -> dict[str, Any]:
     """The tiny loop with two chargers and a second parking area, each on a 4 m two-way spur:
     CN north of N1, CS south of S3, and a one-place parking Q north of D (PARK is K, west)."""
     data = copy.deepcopy(yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text()))
@@ -77,8 +77,22 @@ def spurs_layout(tmp_path_factory: pytest.TempPathFactory) -> Layout:
     data["chargers"] = [{"id": "CHG_N", "node": "CN", "power_kw": 1.0},
                         {"id": "CHG_S", "node": "CS", "power_kw": 1.0}]
     data["parking"].append({"id": "PARK2", "node": "Q", "capacity": 1})
-    path = write_yaml(tmp_path_factory.mktemp("spurs") / "spurs.yaml", data)
-    return load_layout(path)
+    return data
+
+
+@pytest.fixture(scope="module")
+def spurs_layout(tmp_path_factory: pytest.TempPathFactory) -> Layout:
+    """spurs_data as a layout."""
+    return load_layout(write_yaml(tmp_path_factory.mktemp("spurs") / "spurs.yaml", spurs_data()))
+
+
+def closed_pick_layout(folder: Path) -> Layout:
+    """The spurs layout whose pickup only vehicle type `a` may serve."""
+    data = spurs_data()
+    for station in data["stations"]:
+        if station["id"] == "PICK":
+            station["allowed_types"] = ["a"]
+    return load_layout(write_yaml(folder / "closed_pick.yaml", data))
 
 
 def test_an_idle_agv_gets_the_oldest_order_at_once(tiny_layout: Layout) -> None:
@@ -324,6 +338,12 @@ REASON_RUNS: dict[NotDispatched, dict[str, Any]] = {
         "duration_h": 1, "fleet": {"size": 2, "vehicle": BATTERY_OFF,
                                    "command_profile": "carriro-ad-plus"},
         "dispatch": {"park_idle": False}, "demand": {"rate_per_hour": 90}},
+    # two types, the pickup open to type a only (closed_pick_layout): b stands Idle
+    NotDispatched.TYPE_NOT_ALLOWED: {
+        "duration_h": 1, "fleet": {"vehicles": [
+            {"type": "a", "count": 1, "vehicle": BATTERY_OFF},
+            {"type": "b", "count": 1, "vehicle": BATTERY_OFF}]},
+        "demand": {"rate_per_hour": 90}},
 }
 
 
@@ -333,9 +353,12 @@ def test_every_reason_has_a_run_that_provokes_it() -> None:
 
 @pytest.mark.parametrize("reason", list(REASON_RUNS), ids=[r.value for r in REASON_RUNS])
 def test_each_reason_for_not_dispatching_is_provoked_and_recorded(
-        reason: NotDispatched, spurs_layout: Layout) -> None:
+        reason: NotDispatched, spurs_layout: Layout, tmp_path: Path) -> None:
     scenario = make_scenario(warmup_h=0, seed=3, **REASON_RUNS[reason])
-    run = simulate(scenario, spurs_layout)  # the tiny loop with two chargers on spurs
+    layout = spurs_layout  # the tiny loop with two chargers on spurs
+    if reason is NotDispatched.TYPE_NOT_ALLOWED:
+        layout = closed_pick_layout(tmp_path)
+    run = simulate(scenario, layout)
     events = run.recorder.events
     assert _recorded_reasons(events) == {reason.value}
     figures = run_kpis(run)

@@ -30,6 +30,14 @@ Decisions, where the issue is silent:
 * `setup_warnings` (a run field, not a KPI): the battery and charging traps of the run's
   settings (fleet_sim.config.scenario.setup_warnings), one line each, so that a report can
   show them; a sweep summary joins them with newlines.
+* A mixed fleet (`fleet.vehicles`) adds `by_type` last in kpis.json: one mapping whose keys are
+  ``<type>.<kpi>`` (`BY_TYPE`: agvs, orders_completed, throughput_per_hour, lead_time_mean_s,
+  agv_utilisation_pct, availability_pct, each over the type's AGVs only), so the sweep summary
+  flattens it as it does errors_by_code, to ``by_type.heavy.throughput_per_hour``. Type names
+  are the scenario's, so these names are not in `CATALOGUE`; `is_kpi_name` accepts them. A
+  one-type fleet's kpis.json has no `by_type` (it stays as it was).
+* A layout with mutex zones adds `zone_wait_s` last: zone id -> AGV-seconds spent in the window
+  waiting to enter it (``zone_wait_s.<zone>``, s; also counted in blocked_time_pct).
 """
 
 from __future__ import annotations
@@ -129,6 +137,31 @@ CATALOGUE: tuple[Kpi, ...] = (
 """Every KPI a run reports, in the order of kpis.json (per-code ones flattened)."""
 
 
+BY_TYPE: tuple[Kpi, ...] = (
+    Kpi("agvs", "AGVs", "AGVs of the type"),
+    Kpi("orders_completed", "orders", "orders the type's AGVs delivered over the whole run"),
+    Kpi("throughput_per_hour", "orders/h", "orders the type's AGVs delivered in the window, "
+        "per hour"),
+    Kpi("lead_time_mean_s", "s", "mean time from creation to delivery of the orders the "
+        "type's AGVs delivered in the window (none if none was)"),
+    Kpi("agv_utilisation_pct", "%", "share of the type's AGV time busy with an order"),
+    Kpi("availability_pct", "%", "share of the type's AGV time not in Error, Maintenance or "
+        "SafeMode"),
+)
+"""The per-type KPIs of a mixed fleet, named ``by_type.<type>.<name>`` (see the module)."""
+
+
+def is_kpi_name(name: str) -> bool:
+    """A KPI of the catalogue, or a per-type one (``by_type.<type>.<name of BY_TYPE>``)."""
+    family, _, rest = name.partition(".")
+    if family == "by_type":
+        kind, _, kpi = rest.rpartition(".")
+        return bool(kind) and kpi in {k.name for k in BY_TYPE}
+    if family == "zone_wait_s":
+        return bool(rest)
+    return name in kpi_names()
+
+
 def kpi_names() -> frozenset[str]:
     """The names a target may use: every KPI of the catalogue."""
     return frozenset(k.name for k in CATALOGUE)
@@ -138,6 +171,9 @@ def kpi_value(figures: Mapping[str, Any], name: str) -> Any:
     """KPI `name` from a kpis.json mapping, a flattened per-code name included (zero for a
     code the run never raised); None where the run has no value."""
     family, dot, code = name.partition(".")
+    if dot and family == "by_type":
+        by_type = figures.get(family)
+        return by_type.get(code) if isinstance(by_type, Mapping) else None
     if dot and isinstance(figures.get(family), Mapping):
         return figures[family].get(code, 0)
     return figures.get(name)
@@ -219,6 +255,37 @@ def compute_kpis(recorder: Recorder, scenario: Scenario, layout_name: str,
         "throughput_pct_of_demand": _round(100.0 * throughput / demand) if demand > 0 else None,
         "orders_open_at_end": len(orders) - len(delivered),
     })
+    if scenario.fleet.vehicles:
+        out["by_type"] = by_type_kpis(recorder, scenario)
+    if recorder.zone_wait_s:
+        out["zone_wait_s"] = {z: _round(s) for z, s in recorder.zone_wait_s.items()}
+    return out
+
+
+def by_type_kpis(recorder: Recorder, scenario: Scenario) -> dict[str, Any]:
+    """`BY_TYPE` for each type of a mixed fleet, keyed ``<type>.<kpi>``, in fleet order."""
+    start, end = scenario.warmup_s, scenario.duration_s
+    window_h = (end - start) / 3600.0
+    agv_types = scenario.fleet.agv_types
+    out: dict[str, Any] = {}
+    for kind in scenario.fleet.type_profiles:
+        agvs = {i for i, t in enumerate(agv_types) if t == kind}
+        agv_s = len(agvs) * (end - start)
+        orders = [o for o in recorder.orders if o.agv in agvs]
+        delivered = [o for o in orders if o.delivered_s is not None]
+        lead = [o.delivered_s - o.created_s for o in delivered
+                if o.delivered_s is not None and start <= o.delivered_s <= end]
+        states = state_seconds([e for e in recorder.events if e.agv in agvs], start, end)
+        down = sum(states[s.value] for s in DOWN_STATES)
+        out.update({
+            f"{kind}.agvs": len(agvs),
+            f"{kind}.orders_completed": len(delivered),
+            f"{kind}.throughput_per_hour": _round(len(lead) / window_h),
+            f"{kind}.lead_time_mean_s": _round(float(np.mean(lead))) if lead else None,
+            f"{kind}.agv_utilisation_pct": _round(100.0 * busy_seconds(orders, start, end)
+                                                  / agv_s),
+            f"{kind}.availability_pct": _round(100.0 * (1.0 - down / agv_s)),
+        })
     return out
 
 
@@ -396,6 +463,13 @@ def summary_text(figures: Mapping[str, Any]) -> str:
         f"{figures['comm_losses']} link losses, errors {figures['errors_by_code'] or 'none'}, "
         f"{figures['orders_failed']} orders failed",
     ]
+    by_type = figures.get("by_type") or {}
+    for kind in dict.fromkeys(key.rpartition(".")[0] for key in by_type):
+        lines.append(
+            f"  type {kind:<22}{by_type[f'{kind}.agvs']} AGVs, "
+            f"{fmt(by_type[f'{kind}.throughput_per_hour'], ' orders/h')}, utilisation "
+            f"{fmt(by_type[f'{kind}.agv_utilisation_pct'], ' %')}, lead time "
+            f"{fmt(by_type[f'{kind}.lead_time_mean_s'], ' s')}")
     return "\n".join(lines)
 
 

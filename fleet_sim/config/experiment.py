@@ -387,7 +387,7 @@ def layout_for(scenario: Scenario, scenario_file: str) -> Layout:
     if not layout_path.exists():
         raise InputError(scenario_file, "layout", scenario.layout,
                          f"an existing layout file (looked for {layout_path})")
-    layout = cached_layout(str(layout_path.resolve()), scenario.fleet.vehicle.max_speed_mps)
+    layout = cached_layout(str(layout_path.resolve()), scenario.fleet.max_speed_mps)
     check_against_layout(scenario, layout, scenario_file)
     return layout
 

@@ -19,6 +19,7 @@ from pydantic import Field, field_validator, model_validator
 from pydantic.config import JsonDict
 
 from agv_model.inputs import NonNegative, Percent, Positive, Problem, StrictModel, Text
+from agv_model.profile import Profile as AgvModelProfile
 
 ShareAboveZero = Annotated[float, Field(gt=0, le=1)]
 
@@ -98,3 +99,43 @@ class VehicleProfile(StrictModel):
             raise Problem("turn_speed_mps", self.turn_speed_mps,
                           f"at most max_speed_mps ({self.max_speed_mps})")
         return self
+
+
+LOADED_DRIVE_FACTOR = 1.5
+"""Assumed, as the defaults above: driving loaded costs 50 % more energy per metre."""
+
+
+def vehicle_from_profile(profile: AgvModelProfile) -> dict[str, Any]:
+    """The fields of a `VehicleProfile` taken from an agv_model profile (a bundled one, or one
+    written by `fleet-sim profile import` from a VDA 5050 factsheet), as plain data.
+
+    The bridge, where the two models differ in units and in what they carry:
+
+    * kinematics: mm, mm/s, mm/s2 -> m, m/s, m/s2 (top speed, acceleration, deceleration, turn
+      speed, length); one to one.
+    * battery: the profile's `moving_w` is the mean power while driving, in W; the scenario
+      drains the battery per metre. At the profile's top speed a metre takes 1 / v seconds, so
+      ``drive_wh_per_m = moving_w / (max_speed_mps * 3600)``, and loaded 1.5 times that
+      (`LOADED_DRIVE_FACTOR`, the scenario's own assumption). `capacity_wh` and `idle_w` carry
+      over; `charge_w` does not: a charge is as fast as the layout's charger (`power_kw`).
+      Handling power, initial SOC and the charge curve keep the scenario's defaults.
+    * everything else (min_gap_m, boot and station sub-state times, spin): the scenario's
+      defaults, since a profile does not carry them.
+    """
+    kin = profile.kinematics
+    bat = profile.battery
+    drive_wh_per_m = bat.moving_w / (kin.max_speed_mps * 3600.0)
+    return {
+        "name": profile.name,
+        "max_speed_mps": kin.max_speed_mps,
+        "accel_mps2": kin.accel_mps2,
+        "decel_mps2": kin.decel_mps2,
+        "turn_speed_mps": kin.turn_speed_mps,
+        "length_m": kin.length_m,
+        "battery": {
+            "capacity_wh": bat.capacity_wh,
+            "drive_wh_per_m": round(drive_wh_per_m, 9),
+            "drive_loaded_wh_per_m": round(drive_wh_per_m * LOADED_DRIVE_FACTOR, 9),
+            "idle_w": bat.idle_w,
+        },
+    }

@@ -14,7 +14,7 @@ reasons of their own). The KPI `idle_with_orders_waiting_pct` and its breakdown 
 link with its order (Req.Err.011), or one whose assign command is still on its way, stands Idle
 too, and its reason says so.
 
-To add a reason (vehicle types an AGV may not carry, zones that are full...): add a member here
+To add a reason (zones that are full...): add a member here
 with its meaning; the KPI catalogue, kpis.json and the report pick it up. The fleet manager
 decides the reason (`FleetManager._reason`), or the AGV gives it when it withdraws.
 """
@@ -38,6 +38,7 @@ class NotDispatched(StrEnum):
     LINK_LOST = "link_lost"
     STATUS_POLL = "status_poll"
     COMMAND_IN_TRANSIT = "command_in_transit"
+    TYPE_NOT_ALLOWED = "type_not_allowed"
 
     @property
     def meaning(self) -> str:
@@ -59,4 +60,7 @@ MEANINGS: Final[dict[NotDispatched, str]] = {
     NotDispatched.COMMAND_IN_TRANSIT:
         "an order or a resume command is on its way over the command link "
         "(fleet.command_profile)",
+    NotDispatched.TYPE_NOT_ALLOWED:
+        "its vehicle type may not serve the stations of any waiting order (mixed fleets, "
+        "`allowed_types` in the layout)",
 }

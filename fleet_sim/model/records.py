@@ -104,6 +104,13 @@ class Recorder:
     warnings: Counter[str] = field(default_factory=Counter)
     soc_samples: list[tuple[float, int, float]] = field(default_factory=list)
     """(time_s, agv, soc_pct) at every state change, for battery plots."""
+    zone_wait_s: dict[str, float] = field(default_factory=dict)
+    """Mutex zone id -> AGV-seconds spent (in the window) waiting to enter it; the engine
+    lists every mutex zone of the layout (none: no zone_wait_s KPI)."""
+
+    def zone_waited(self, zone_id: str, start_s: float, end_s: float) -> None:
+        self.zone_wait_s[zone_id] = self.zone_wait_s.get(zone_id, 0.0) \
+            + self.window(start_s, end_s)
 
     def warning(self, code: str) -> None:
         self.warnings[code] += 1

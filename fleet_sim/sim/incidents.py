@@ -44,7 +44,8 @@ def start_incidents(env: simpy.Environment, scenario: Scenario, vehicles: list[V
             env.process(_random_internal_losses(env, scenario, vehicle, recorder, rng))
         if incidents.mtbf_h > 0:
             env.process(_random_faults(env, scenario, vehicle, rng))
-    if scenario.charging.enabled and scenario.fleet.vehicle.battery is not None:
+    if scenario.charging.enabled and any(p.battery is not None
+                                         for p in scenario.fleet.type_profiles.values()):
         for hour in scenario.charging.schedule_h:
             env.process(_charging_call(env, scenario, vehicles, fleet, hour))
 
@@ -118,6 +119,7 @@ def _charging_call(env: simpy.Environment, scenario: Scenario, vehicles: list[Ve
     yield env.timeout(first)
     while True:
         for vehicle in vehicles:
-            fleet.commands.send("stop", vehicle.call_to_charge)
+            if vehicle.has_battery:  # a type without a battery model never charges
+                fleet.commands.send("stop", vehicle.call_to_charge)
         yield env.timeout(24 * 3600.0)
 

@@ -23,6 +23,14 @@ a charger, battery low with charging off, no FMS link, the status poll not yet c
 other event of that instant (`EndOfInstant`), so what it records is the settled state, not the
 steps an AGV takes within one instant. An Idle AGV with orders waiting and none of these
 reasons would be a dispatching bug: the run stops with a SimulationError naming it.
+
+Vehicle types (mixed fleets, or a layout whose stations have `allowed_types`; `set_types`): an
+order goes only to an AGV whose type may serve both its stations, oldest order first; an order
+that no idle AGV may serve waits while younger ones are served (no head-of-line blocking). An
+Idle AGV that may serve none of the waiting orders is recorded as not dispatched for the reason
+``type_not_allowed`` (work conservation). An
+order that no type of the fleet may serve (from a trace; flows are checked when the scenario is
+read) fails when it is created, with failure ``type_not_allowed``.
 """
 
 from __future__ import annotations
@@ -41,7 +49,7 @@ from fleet_sim.errors import SimulationError
 from fleet_sim.model.not_dispatched import NOT_DISPATCHED, NOT_DISPATCHED_END, NotDispatched
 from fleet_sim.model.records import Order, Recorder
 from fleet_sim.model.states import VehicleState
-from fleet_sim.sim.agents.dispatch import POLICIES, DispatchPolicy
+from fleet_sim.sim.agents.dispatch import POLICIES, Candidate, DispatchPolicy, TravelTime
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.traffic.control import Traffic
 
@@ -129,10 +137,32 @@ class FleetManager:
         self.not_dispatched: dict[int, tuple[FleetAgv, NotDispatched]] = {}
         """The open not_dispatched spells: AGV id -> (AGV, reason)."""
         self._review_due = False
+        self.agv_types: dict[int, str] = {}
+        """AGV id -> its vehicle type; empty: every AGV may serve every order."""
+
+    # ---- vehicle types ----------------------------------------------------------------------
+    def set_types(self, agv_types: dict[int, str]) -> None:
+        """The vehicle type of each AGV: orders go only to types their stations allow."""
+        self.agv_types = dict(agv_types)
+
+    def may_serve(self, agv: FleetAgv, order: Order) -> bool:
+        """May `agv`'s type serve both stations of `order`?"""
+        kind = self.agv_types.get(agv.id)
+        if kind is None:
+            return True
+        places = self.layout.places
+        return places[order.pickup].serves(kind) and places[order.dropoff].serves(kind)
+
+    def _travel_of(self, agv: Candidate) -> TravelTime:
+        return partial(self.traffic.travel_time_s, client_id=agv.id)
 
     # ---- orders -----------------------------------------------------------------------------
     def submit(self, order: Order) -> None:
         self.recorder.orders.append(order)
+        if self.agv_types and not self._servable(order):
+            order.failed_s = self.env.now
+            order.failure = "type_not_allowed"
+            return
         self.waiting.append(order)
         self._dispatch()
 
@@ -255,7 +285,7 @@ class FleetManager:
         while self.chargers_free and self.charger_queue:
             agv, event = self.charger_queue.popleft()
             place = min(self.chargers_free, key=lambda c: (
-                self.traffic.travel_time_s(agv.dispatch_node, c.nodes[0]), c.id))
+                self.traffic.travel_time_s(agv.dispatch_node, c.nodes[0], agv.id), c.id))
             self.chargers_free.remove(place)
             self.commands.send("assign", partial(self._charger_delivered, agv, event, place))
 
@@ -268,15 +298,24 @@ class FleetManager:
     def left_station(self, node: str) -> None:
         self.bound_for[node] -= 1
 
+    def _servable(self, order: Order) -> bool:
+        places = self.layout.places
+        return any(places[order.pickup].serves(t) and places[order.dropoff].serves(t)
+                   for t in set(self.agv_types.values()))
+
     def _dispatch(self) -> None:
         changed = False
-        while self.waiting and self.idle:
-            order = self.waiting[0]
+        skipped = 0  # orders at the head that no idle AGV's type may serve (types only)
+        while len(self.waiting) > skipped and self.idle:
+            order = self.waiting[skipped]
             pickup = self.layout.places[order.pickup]
-            agv = self._choose(min(pickup.nodes, key=lambda n: self.bound_for[n]))
+            agv = self._choose(min(pickup.nodes, key=lambda n: self.bound_for[n]), order)
             if agv is None:
+                if self.agv_types and any(v.fms_link for v in self.idle):
+                    skipped += 1  # ready AGVs, none of a type that may serve it: the next
+                    continue
                 break
-            self.waiting.popleft()
+            del self.waiting[skipped]
             order.pickup_node = self._docking_node(pickup)
             self.idle.remove(agv)
             order.dropoff_node = self._docking_node(self.layout.places[order.dropoff])
@@ -296,10 +335,16 @@ class FleetManager:
         agv.assign(order)
         self._changed()
 
-    def _choose(self, pickup_node: str) -> FleetAgv | None:
+    def _choose(self, pickup_node: str, order: Order | None = None) -> FleetAgv | None:
         ready = [v for v in self.idle if v.fms_link]
         if not ready:
             return None
+        if self.agv_types and order is not None:
+            allowed = [v for v in ready if self.may_serve(v, order)]
+            if not allowed:
+                return None  # recorded as not_dispatched type_not_allowed by _review
+            return self.policy.choose(allowed, pickup_node, self.traffic.travel_time_s,
+                                      self._travel_of)
         return self.policy.choose(ready, pickup_node, self.traffic.travel_time_s)
 
     def _docking_node(self, place: Place) -> str:
@@ -350,6 +395,8 @@ class FleetManager:
             return NotDispatched.LINK_LOST
         if agv.id in self.polling:
             return NotDispatched.STATUS_POLL
+        if self.agv_types and not any(self.may_serve(agv, order) for order in self.waiting):
+            return NotDispatched.TYPE_NOT_ALLOWED
         return None
 
     # ---- parking ----------------------------------------------------------------------------
@@ -358,8 +405,8 @@ class FleetManager:
         free = [p for p in self.layout.parking if self.parking_free[p.id] > 0]
         if not free:
             return None
-        place = min(free, key=lambda p: (self.traffic.travel_time_s(agv.node, p.nodes[0]),
-                                         p.id))
+        place = min(free, key=lambda p: (
+            self.traffic.travel_time_s(agv.node, p.nodes[0], agv.id), p.id))
         self.parking_free[place.id] -= 1
         return place
 

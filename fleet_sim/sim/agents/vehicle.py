@@ -47,7 +47,7 @@ import simpy
 
 from fleet_sim.config.layout import MARKER_SPEED_MPS, Place
 from fleet_sim.config.scenario import ChargingConfig, IncidentsConfig, Rules, Scenario
-from fleet_sim.config.vehicle import BatteryProfile
+from fleet_sim.config.vehicle import BatteryProfile, VehicleProfile
 from fleet_sim.model.battery import StateOfCharge, charge_time_s
 from fleet_sim.model.error_codes import describe
 from fleet_sim.model.not_dispatched import NotDispatched
@@ -111,17 +111,19 @@ class Failure:
 class Vehicle(Driver):
     def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
                  fleet: FleetManagerLink, recorder: Recorder, scenario: Scenario,
-                 rng: np.random.Generator, incident_rng: np.random.Generator) -> None:
-        super().__init__(agv_id, env, traffic, recorder, scenario.fleet.vehicle,
-                         scenario.traffic, rng)
+                 rng: np.random.Generator, incident_rng: np.random.Generator,
+                 profile: VehicleProfile | None = None) -> None:
+        """`profile`: the AGV's vehicle (mixed fleets); default `scenario.fleet.vehicle`."""
+        profile = profile if profile is not None else scenario.fleet.vehicle
+        super().__init__(agv_id, env, traffic, recorder, profile, scenario.traffic, rng)
         self.fleet = fleet
         self.rules: Rules = scenario.rules
         self.charging: ChargingConfig = scenario.charging
         self.incidents: IncidentsConfig = scenario.incidents
         self.incident_rng = incident_rng
-        self.has_battery = scenario.fleet.vehicle.battery is not None
-        """False with ``fleet.vehicle.battery: off``: no drain, no charging, no SOC record."""
-        self.battery = StateOfCharge(scenario.fleet.vehicle.battery or NO_BATTERY, env.now)
+        self.has_battery = profile.battery is not None
+        """False with ``battery: off``: no drain, no charging, no SOC record."""
+        self.battery = StateOfCharge(profile.battery or NO_BATTERY, env.now)
         self._wake_up: simpy.Event = env.event()
         """Succeeds when an order or a charging call comes for the AGV waiting idle."""
         self.loaded = False
@@ -503,7 +505,7 @@ class Vehicle(Driver):
         paused for 5 minutes, it raises E_101.
         """
         rules = self.rules
-        motion = self.traffic.motion
+        motion = self.routes.motion
         v = max(self.speed_mps, min(self.profile.max_speed_mps, 1.0))
         self._obstacle_near_s = seen_s
         if self.traffic.motion_backend is not None:
@@ -578,7 +580,7 @@ class Vehicle(Driver):
 
         if has_link(self.node):
             return self.node
-        times = nx.single_source_dijkstra_path_length(graph, self.node, weight="free_time_s")
+        times = nx.single_source_dijkstra_path_length(graph, self.node, weight=self.routes.weight)
         good = [n for n in sorted(times, key=lambda n: (times[n], n)) if has_link(n)]
         return good[0] if good else self.node
 
