@@ -117,6 +117,7 @@ def test_each_drive_reproduces_the_engines_hop_time(recorded: tuple[Path, RunOut
     for m in (m for m in run.recorder.moves if m.kind == "drive"):
         pieces = hop_pieces(graph.edges[m.u, m.v]["length_m"], m.curve_m, m.curve_mps,
                             m.limit_mps)
+        assert (m.accel_mps2, m.decel_mps2) == (vehicle.accel_mps2, vehicle.decel_mps2)
         time_s, v_end = traverse(pieces, m.v_in_mps, m.v_out_mps, vehicle.accel_mps2,
                                  vehicle.decel_mps2)
         assert time_s == pytest.approx(m.hop_s, rel=1e-12, abs=1e-12)
@@ -142,10 +143,8 @@ def test_positions_follow_the_engines_segment_traversals(
         spell = spells[int(k)]
         u, v = spell.key.split(">")
         mine = moves[moves["agv"] == spell.agv]
-        start = positions_at(mine, layout, vehicle.accel_mps2, vehicle.decel_mps2,
-                             spell.start_s)[spell.agv]
-        end = positions_at(mine, layout, vehicle.accel_mps2, vehicle.decel_mps2,
-                           spell.end_s)[spell.agv]
+        start = positions_at(mine, layout, spell.start_s)[spell.agv]
+        end = positions_at(mine, layout, spell.end_s)[spell.agv]
         assert (start.x_m, start.y_m) == pytest.approx(layout.position(u), abs=1e-9)
         assert (end.x_m, end.y_m) == pytest.approx(layout.position(v), abs=1e-9)
         assert end.node == v  # at v, or setting off from it when it passes through
@@ -155,7 +154,7 @@ def test_positions_follow_the_engines_segment_traversals(
         assert len(drives) >= 1
         row = drives.iloc[0]
         t = float(row["start_s"]) + 0.5 * (float(row["end_s"]) - float(row["start_s"]))
-        mid = positions_at(mine, layout, vehicle.accel_mps2, vehicle.decel_mps2, t)[spell.agv]
+        mid = positions_at(mine, layout, t)[spell.agv]
         pieces = hop_pieces(layout.graph.edges[u, v]["length_m"], float(row["curve_m"]),
                             float(row["curve_mps"]), float(row["limit_mps"]))
         along = distance_at(pieces, float(row["v_in_mps"]), float(row["v_out_mps"]),
@@ -170,7 +169,6 @@ def test_an_obstacle_pause_holds_the_agv_mid_segment(recorded: tuple[Path, RunOu
     """Paused (4.2.3) on a segment: the AGV stands where it stopped until it drives on."""
     _, run = recorded
     moves = moves_table(run.recorder)
-    vehicle = run.scenario.fleet.vehicle
     events = events_table(run.recorder)
     paused = events[events["to_state"] == "Paused"]
     resumed = events[(events["from_state"] == "Paused") & (events["to_state"] != "Paused")]
@@ -179,8 +177,8 @@ def test_an_obstacle_pause_holds_the_agv_mid_segment(recorded: tuple[Path, RunOu
         until = float(resumed[(resumed["agv"] == agv) & (resumed["time_s"] >= t)]
                       ["time_s"].iloc[0])
         mine = moves[moves["agv"] == agv]
-        here = [positions_at(mine, run.layout, vehicle.accel_mps2, vehicle.decel_mps2,
-                             float(s))[int(agv)] for s in np.linspace(t, until, 4)]
+        here = [positions_at(mine, run.layout, float(s))[int(agv)]
+                for s in np.linspace(t, until, 4)]
         assert len({(p.x_m, p.y_m) for p in here}) == 1  # it does not move
         if here[0].to_node:
             length = run.layout.graph.edges[here[0].node, here[0].to_node]["length_m"]
@@ -194,20 +192,17 @@ def test_a_fault_stops_the_agv_where_it_is(recorded: tuple[Path, RunOutput]) -> 
     there, off the track, until it is put back."""
     _, run = recorded
     moves = moves_table(run.recorder)
-    vehicle = run.scenario.fleet.vehicle
     events = events_table(run.recorder)
     checked = 0
     for agv, t in zip(events[events["event"] == "Event_Critical_Error"]["agv"],
                       events[events["event"] == "Event_Critical_Error"]["time_s"], strict=True):
         mine = moves[moves["agv"] == agv]
         off = mine[(mine["kind"] == "off") & (mine["start_s"] >= t)]
-        at_fault = positions_at(mine, run.layout, vehicle.accel_mps2, vehicle.decel_mps2,
-                                float(t))[int(agv)]
+        at_fault = positions_at(mine, run.layout, float(t))[int(agv)]
         if off.empty or at_fault.where != "track":
             continue
         taken = float(off["start_s"].iloc[0])
-        later = positions_at(mine, run.layout, vehicle.accel_mps2, vehicle.decel_mps2,
-                             taken + 1.0)[int(agv)]
+        later = positions_at(mine, run.layout, taken + 1.0)[int(agv)]
         assert later.where == "off"
         assert (later.x_m, later.y_m) == pytest.approx((at_fault.x_m, at_fault.y_m), abs=1e-9)
         checked += 1
@@ -389,7 +384,7 @@ def test_the_page_draws_every_agv_where_the_engine_had_it(
         assert state["resources"] == 0 and state["violations"] == []
         assert {int(k): v for k, v in state["totals"].items()} == pytest.approx(
             dict.fromkeys(range(run.scenario.fleet.size), window), abs=0.01)
-        truth = positions_at(moves, run.layout, vehicle.accel_mps2, vehicle.decel_mps2, t)
+        truth = positions_at(moves, run.layout, t)
         shown = {int(k): v for k, v in state["positions"].items()}
         drawn = {d["agv"]: d for d in state["drawn"]}
         assert set(shown) == set(truth) == set(drawn) == set(range(run.scenario.fleet.size))
@@ -531,7 +526,6 @@ def test_a_window_of_the_run_draws_the_same_positions(recorded: tuple[Path, RunO
     copy = tmp_path / "copy"
     shutil.copytree(run_dir, copy)
     write_replay(copy, 0.5, 0.75)
-    vehicle = run.scenario.fleet.vehicle
     moves = pd.read_parquet(run_dir / MOVES_FILE)
     for t in (1800.0, 2222.2):
         state = _page_state(copy, t, tmp_path / "profile")
@@ -539,8 +533,41 @@ def test_a_window_of_the_run_draws_the_same_positions(recorded: tuple[Path, RunO
         totals = list(state["totals"].values())
         assert len(totals) == run.scenario.fleet.size
         assert totals == pytest.approx([900.0] * len(totals), abs=0.01)
-        truth = positions_at(moves, run.layout, vehicle.accel_mps2, vehicle.decel_mps2, t)
+        truth = positions_at(moves, run.layout, t)
         for agv, where in truth.items():
             shown = state["positions"][str(agv)]
             assert math.hypot(shown["x"] - where.x_m, shown["y"] - where.y_m) <= 0.1
             assert shown["where"] == where.where
+
+
+def test_a_mixed_fleet_moves_each_agv_on_its_own_profile(tmp_path: Path) -> None:
+    """Two vehicle types with different accelerations and lengths: each drive carries its
+    AGV's own motion limits, and the page draws each AGV with its own size."""
+    scenario_file = write_yaml(tmp_path / "mixed.yaml", {
+        "name": "mixed", "layout": str(LAYOUTS / "warehouse.yaml"), "duration_h": 0.5,
+        "warmup_h": 0.1, "demand": {"rate_per_hour": 90},
+        "fleet": {"vehicles": [
+            {"type": "quick", "count": 3, "vehicle": {"accel_mps2": 0.8, "decel_mps2": 0.7}},
+            {"type": "slow", "count": 2, "vehicle": {"accel_mps2": 0.3, "decel_mps2": 0.25,
+                                                     "length_m": 1.6}}]}})
+    run_dir = tmp_path / "run"
+    assert main(["run", str(scenario_file), "--out", str(run_dir), "--replay", "--quiet"]) == 0
+    moves = pd.read_parquet(run_dir / MOVES_FILE)
+    drives = moves[moves["kind"] == "drive"]
+    limits = drives.groupby("agv")[["accel_mps2", "decel_mps2"]].agg(set)
+    assert limits.loc[0, "accel_mps2"] == {0.8} and limits.loc[4, "decel_mps2"] == {0.25}
+    layout = load_layout_for(load_scenario(scenario_file), str(scenario_file))
+    t = float(drives[drives["agv"] == 4]["start_s"].iloc[10]) + 1.0
+    where = positions_at(moves, layout, t)[4]
+    row = drives[(drives["agv"] == 4) & (drives["start_s"] <= t)].iloc[-1]
+    pieces = hop_pieces(layout.graph.edges[row["u"], row["v"]]["length_m"], row["curve_m"],
+                        row["curve_mps"], row["limit_mps"])
+    assert where.along_m == pytest.approx(distance_at(
+        pieces, row["v_in_mps"], row["v_out_mps"], 0.3, 0.25,
+        row["driven_s"] + t - row["start_s"]), abs=1e-9)
+    html = (run_dir / "replay.html").read_text(encoding="utf-8")
+    found = re.search(r'id="replay-data">(.*?)</script>', html, re.S)
+    assert found
+    data = json.loads(found.group(1))
+    assert [a["length_m"] for a in data["agv"]] == [1.0, 1.0, 1.0, 1.6, 1.6]
+    assert set(data["profiles"]["acc"]) == {0.8, 0.3}

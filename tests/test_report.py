@@ -22,7 +22,15 @@ from jinja2 import UndefinedError
 
 from fleet_sim.config.experiment import load_experiment
 from fleet_sim.report.render import environment, render_html, write_report
-from fleet_sim.report.report import Figure, Report, RunsSection, ScenarioSection, Table
+from fleet_sim.report.report import (
+    Figure,
+    Report,
+    ReportData,
+    RunsSection,
+    ScenarioSection,
+    Table,
+    section_idle_waiting,
+)
 from fleet_sim.study.sizing import size_fleet
 from fleet_sim.study.sweep import sweep
 
@@ -126,6 +134,11 @@ def test_report_files(results: Path) -> None:
     sizing = json.loads((results / "sizing.json").read_text())
     recommended = sizing["groups"][0]["recommended"]
     assert recommended is not None and f"{recommended} AGVs meet every target" in html
+    # the tiny loop has no charger, and charging is on: every run recorded the warning
+    text = " ".join("".join(_Page(html).text).split())
+    assert "Settings warnings" in text and \
+        "charging is on but the layout has no charger" in text
+    assert "In none of the" in text  # no AGV stood Idle while orders waited
 
 
 def test_names_from_user_files_are_text_in_the_page(results: Path) -> None:
@@ -238,6 +251,33 @@ def test_report_cli_prints_where_it_is(results: Path) -> None:
 
 
 # ---- the templates, without a sweep --------------------------------------------------------
+
+
+def test_idle_with_orders_waiting_is_shown_where_it_is_above_zero(tmp_path: Path) -> None:
+    by = "idle_with_orders_waiting_pct_by_reason."
+    summary = pd.DataFrame({
+        "run_id": ["a", "b", "c", "d"], "status": ["ok"] * 4, "fleet.size": [1, 1, 2, 2],
+        "idle_with_orders_waiting_pct": [30.0, 20.0, 0.0, 0.0],
+        f"{by}battery_low": [30.0, 10.0, 0.0, 0.0], f"{by}link_lost": [0.0, 10.0, 0.0, 0.0],
+        f"{by}status_poll": [0.0] * 4,
+        "setup_warnings": ["charging.enabled is false but ..."] * 2 + ["", ""]})
+    data = ReportData(tmp_path, {}, summary, ["fleet.size"], [], None, None, None)
+    sec = section_idle_waiting(data)
+    assert sec.runs_above_zero == 2
+    assert sec.points is not None
+    assert sec.points.header == ["fleet.size", "Idle with orders waiting [% of AGV time]",
+                                 "battery_low", "link_lost"]  # reasons above zero somewhere
+    assert sec.points.rows == [["1", "25", "20", "5"]]  # means; the 2-AGV point is all zero
+    assert sec.warnings == ["charging.enabled is false but ... (2 of 4 runs)"]
+    page = _Page(render_html(Report("t", "l", [], [], [sec])))
+    assert page.tables["stats"][1] == ["1", "25", "20", "5"]
+    text = " ".join("".join(page.text).split())
+    assert "battery_low: SOC at or below P_050" in text
+    quiet = section_idle_waiting(ReportData(tmp_path, {}, summary.iloc[2:], ["fleet.size"], [],
+                                            None, None, None))
+    assert quiet.points is None and quiet.warnings == []
+    assert "In none of the 2 runs did an AGV stand Idle while an order waited" in " ".join(
+        "".join(_Page(render_html(Report("t", "l", [], [], [quiet]))).text).split())
 
 
 def _hostile_report() -> Report:

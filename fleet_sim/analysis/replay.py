@@ -69,7 +69,8 @@ def moves_table(recorder: Recorder) -> pd.DataFrame:
                           "end_s": "float64", "u": "string", "v": "string", "other": "int64",
                           "hop_s": "float64", "driven_s": "float64", "v_in_mps": "float64",
                           "v_out_mps": "float64", "curve_m": "float64", "curve_mps": "float64",
-                          "limit_mps": "float64"})
+                          "limit_mps": "float64", "accel_mps2": "float64",
+                          "decel_mps2": "float64"})
     return frame.sort_values(["agv", "start_s"], kind="stable").reset_index(drop=True)
 
 
@@ -95,14 +96,6 @@ class RunRecord:
     moves: pd.DataFrame
     resimulated: bool
     """True if the moves come from a re-run of config.resolved.yaml."""
-
-    @property
-    def accel_mps2(self) -> float:
-        return self.scenario.fleet.vehicle.accel_mps2
-
-    @property
-    def decel_mps2(self) -> float:
-        return self.scenario.fleet.vehicle.decel_mps2
 
 
 def load_run(run_dir: Path, progress: ProgressCallback | None = None,
@@ -194,8 +187,7 @@ def hop_pieces(length_m: float, curve_m: float, curve_mps: float,
     return ((length_m, limit_mps),)
 
 
-def positions_at(moves: pd.DataFrame, layout: Layout, accel_mps2: float, decel_mps2: float,
-                 t_s: float) -> dict[int, Position]:
+def positions_at(moves: pd.DataFrame, layout: Layout, t_s: float) -> dict[int, Position]:
     """Where every AGV placed by time `t_s` is at `t_s`, from the moves (see the module
     docstring). The engine's own record of the motion: the replay page draws the same."""
     out: dict[int, Position] = {}
@@ -204,13 +196,11 @@ def positions_at(moves: pd.DataFrame, layout: Layout, accel_mps2: float, decel_m
         group = group[group["start_s"] <= t_s]
         if group.empty:
             continue
-        out[int(str(agv))] = _position(group, len(group) - 1, t_s, layout, accel_mps2,
-                                       decel_mps2)
+        out[int(str(agv))] = _position(group, len(group) - 1, t_s, layout)
     return out
 
 
-def _position(rows: pd.DataFrame, i: int, t_s: float, layout: Layout, accel: float,
-              decel: float) -> Position:
+def _position(rows: pd.DataFrame, i: int, t_s: float, layout: Layout) -> Position:
     row = rows.iloc[i]
     kind = str(row["kind"])
     u = str(row["u"])
@@ -220,8 +210,8 @@ def _position(rows: pd.DataFrame, i: int, t_s: float, layout: Layout, accel: flo
         pieces = hop_pieces(length, float(row["curve_m"]), float(row["curve_mps"]),
                             float(row["limit_mps"]))
         driven = float(row["driven_s"]) + min(t_s, float(row["end_s"])) - float(row["start_s"])
-        along = distance_at(pieces, float(row["v_in_mps"]), float(row["v_out_mps"]), accel,
-                            decel, driven)
+        along = distance_at(pieces, float(row["v_in_mps"]), float(row["v_out_mps"]),
+                            float(row["accel_mps2"]), float(row["decel_mps2"]), driven)
         (x0, y0), (x1, y1) = layout.position(u), layout.position(v)
         share = along / length
         if along >= length:
@@ -231,7 +221,7 @@ def _position(rows: pd.DataFrame, i: int, t_s: float, layout: Layout, accel: flo
         if i == 0:
             x, y = layout.position(u)
             return Position(x, y, "off", u)
-        before = _position(rows, i - 1, float(row["start_s"]), layout, accel, decel)
+        before = _position(rows, i - 1, float(row["start_s"]), layout)
         return Position(before.x_m, before.y_m, "off", before.node, before.to_node,
                         before.along_m)
     x, y = layout.position(u)

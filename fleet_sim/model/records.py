@@ -49,7 +49,8 @@ class MoveRecord(NamedTuple):
     kind "drive": it drove the hop u -> v from start_s to end_s without stopping, from
     `driven_s` seconds into the hop's closed-form profile on (pieces: a curve of `curve_m` at
     `curve_mps` if it turns, then the rest of the segment at `limit_mps`; entered at
-    `v_in_mps`, left at `v_out_mps`; `hop_s` in all). An obstacle pause splits a hop into two
+    `v_in_mps`, left at `v_out_mps`, with the AGV's own `accel_mps2` and `decel_mps2`;
+    `hop_s` in all). An obstacle pause splits a hop into two
     rows; a fault ends one early. "wait": it stood at u waiting for lock v (a node, or
     "corridor 3") that AGV `other` held when the wait began (-1: none). "track": set on the
     track at u (at the start, back from parking or repair); "parking": into the parking area
@@ -71,6 +72,8 @@ class MoveRecord(NamedTuple):
     curve_m: float = 0.0
     curve_mps: float = 0.0
     limit_mps: float = 0.0
+    accel_mps2: float = 0.0
+    decel_mps2: float = 0.0
 
 
 MOVE_COLUMNS = MoveRecord._fields
@@ -138,10 +141,17 @@ class Recorder:
     warnings: Counter[str] = field(default_factory=Counter)
     soc_samples: list[tuple[float, int, float]] = field(default_factory=list)
     """(time_s, agv, soc_pct) at every state change, for battery plots."""
+    zone_wait_s: dict[str, float] = field(default_factory=dict)
+    """Mutex zone id -> AGV-seconds spent (in the window) waiting to enter it; the engine
+    lists every mutex zone of the layout (none: no zone_wait_s KPI)."""
     record_moves: bool = False
     moves: list[MoveRecord] = field(default_factory=list)
     """Drives, lock waits and placements of every AGV, when traced (record_moves): the
     replay's data."""
+
+    def zone_waited(self, zone_id: str, start_s: float, end_s: float) -> None:
+        self.zone_wait_s[zone_id] = self.zone_wait_s.get(zone_id, 0.0) \
+            + self.window(start_s, end_s)
 
     def warning(self, code: str) -> None:
         self.warnings[code] += 1

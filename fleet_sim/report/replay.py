@@ -120,11 +120,12 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
                  for c in layout.corridors}
 
     moves = run.moves
-    profiles: dict[tuple[int, float, float, float, float, float], int] = {}
+    profiles: dict[tuple[int, float, float, float, float, float, float, float], int] = {}
     agvs: list[dict[str, Any]] = []
     spells = state_spells(run.events, from_s, to_s)
     held = orders_held(run.events)
     fleet = scenario.fleet.size
+    profiles_by_agv = scenario.fleet.agv_profiles
     by_agv = {int(str(a)): g for a, g in moves.groupby("agv", sort=True)} if len(moves) else {}
     soc_by_agv = {int(str(a)): g for a, g in run.soc.groupby("agv", sort=True)}
     spells_by_agv = {int(str(a)): g for a, g in spells.groupby("agv", sort=True)}
@@ -136,13 +137,14 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
         positional = positional.iloc[anchor:]
         positional = positional[positional["start_s"] <= to_s]
         p_ref: list[int] = []
-        for kind, u, v, vin, vout, cm, cv, lim in zip(
+        for kind, u, v, vin, vout, cm, cv, lim, acc, dec in zip(
                 *(positional[c].tolist() for c in ("kind", "u", "v", "v_in_mps", "v_out_mps",
-                                                   "curve_m", "curve_mps", "limit_mps")),
+                                                   "curve_m", "curve_mps", "limit_mps",
+                                                   "accel_mps2", "decel_mps2")),
                 strict=True):
             if kind == "drive":
                 key = (edge_index[(u, v)], float(vin), float(vout), float(cm), float(cv),
-                       float(lim))
+                       float(lim), float(acc), float(dec))
                 p_ref.append(profiles.setdefault(key, len(profiles)))
             else:
                 p_ref.append(node_index[u])
@@ -157,7 +159,7 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
         soc_keep = slice(max(int(np.searchsorted(soc_t, from_s, side="right")) - 1, 0),
                          int(np.searchsorted(soc_t, to_s, side="right")))
         agvs.append({
-            "id": agv,
+            "id": agv, "length_m": profiles_by_agv[agv].length_m,
             "p": {"t": _ms(positional["start_s"]), "e": _ms(positional["end_s"]),
                   "k": [KIND_CODES[k] for k in positional["kind"].tolist()],
                   "a": p_ref, "d": _ms(positional["driven_s"])},
@@ -183,14 +185,12 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
     found = found[(found["time_s"] >= from_s) & (found["time_s"] <= to_s)]
     leads = lead_times(run.orders, moves if len(moves) else None, from_s, to_s)
     profile_keys = list(profiles)
-    vehicle = scenario.fleet.vehicle
     return {
         "meta": {
             "scenario": scenario.name, "layout": layout.name, "agvs": fleet,
             "seed": scenario.seed, "duration_s": scenario.duration_s,
             "warmup_s": scenario.warmup_s, "start_h": scenario.start_h,
-            "from_s": from_s, "to_s": to_s, "accel": vehicle.accel_mps2,
-            "decel": vehicle.decel_mps2, "agv_length_m": vehicle.length_m,
+            "from_s": from_s, "to_s": to_s,
             "resimulated": run.resimulated,
         },
         "states": [s.value for s in VehicleState],
@@ -214,7 +214,8 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
                    "capacity": [p.capacity for p in places]},
         "profiles": {"seg": [k[0] for k in profile_keys], "vin": [k[1] for k in profile_keys],
                      "vout": [k[2] for k in profile_keys], "cm": [k[3] for k in profile_keys],
-                     "cv": [k[4] for k in profile_keys], "lim": [k[5] for k in profile_keys]},
+                     "cv": [k[4] for k in profile_keys], "lim": [k[5] for k in profile_keys],
+                     "acc": [k[6] for k in profile_keys], "dec": [k[7] for k in profile_keys]},
         "agv": agvs,
         "chargerWaits": {
             "agv": [int(a) for a in charger_waits["agv"]],

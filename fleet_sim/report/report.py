@@ -7,7 +7,8 @@ else from the sweep's grid with the same rule: the smallest fleet whose 95 % int
 target); the scenario and the layout; throughput and p95 lead time (and every target's KPI)
 against fleet size with 95 % bands and the targets; utilisation by state as stacked bars;
 charging and battery; congestion (blocked time, and a heat map of where AGVs waited on the layout
-drawing); incidents (deadlocks, reroutes, give-way circulations); statistics per design point,
+drawing); AGVs standing Idle while orders waited, by reason, and the runs' settings warnings;
+incidents (deadlocks, reroutes, give-way circulations); statistics per design point,
 wide-interval warnings and paired differences; failed runs.
 
 Decisions, where the issue is silent:
@@ -30,6 +31,10 @@ Decisions, where the issue is silent:
   If the run cannot be reproduced, the timeline is drawn from its events and the lead times
   keep the blocked time inside the drives; the section says so. The PDF gets the same as
   matplotlib figures.
+* Idle with orders waiting (work conservation): a table of the design points where the mean
+  ``idle_with_orders_waiting_pct`` is above zero, with its reasons (the reasons above zero
+  somewhere), and the setup warnings the runs recorded (kpis.json ``setup_warnings``), each
+  once with the number of runs. Where it is zero everywhere, one sentence says so.
 * Charging: the runs' charging KPIs (``state_charging_pct``, ``charges``, the charger queue wait
   and any ``charger_*``/``soc_*`` KPI) against fleet size, and SOC curves of a few AGVs from the
   run's ``soc.parquet``. A run without charging says so instead of drawing empty axes.
@@ -50,12 +55,14 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from fleet_sim.analysis.kpis import BY_REASON
 from fleet_sim.analysis.replay import LEAD_LABELS, LEAD_PARTS, lead_times, load_run, state_spells
 from fleet_sim.analysis.stats import check_targets, kpi_columns, paired_differences, point_stats
 from fleet_sim.config.experiment import FLEET, Target, layout_for
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario, load_scenario
 from fleet_sim.errors import InputError
+from fleet_sim.model.not_dispatched import NotDispatched
 from fleet_sim.model.states import VehicleState
 from fleet_sim.report import figures as figs
 from fleet_sim.study.sweep import read_summary
@@ -138,6 +145,20 @@ class StatesSection(Section):
     title: ClassVar[str] = "Utilisation by state"
     template: ClassVar[str] = "states.html.j2"
     has_states: bool
+
+
+@dataclass(kw_only=True)
+class IdleWaitingSection(Section):
+    title: ClassVar[str] = "Idle AGVs while orders wait"
+    template: ClassVar[str] = "idle_waiting.html.j2"
+    runs: int
+    runs_above_zero: int
+    points: Table | None = None
+    """Design points with AGVs Idle while orders waited: mean share of AGV time, by reason."""
+    reasons: list[tuple[str, str]] = field(default_factory=list)
+    """(reason, meaning) of the reasons in the table."""
+    warnings: list[str] = field(default_factory=list)
+    """The runs' setup warnings, each once, with how many runs recorded it."""
 
 
 @dataclass(kw_only=True)
@@ -433,6 +454,46 @@ def section_states(data: ReportData) -> StatesSection:
         title = "Utilisation by state" + (f" ({name})" if name else "")
         sec.figures.append(_figure(f"states-{len(sec.figures)}", title,
                                    figs.state_bars(means, data.x, title)))
+    return sec
+
+
+IDLE_WAITING = "idle_with_orders_waiting_pct"
+
+
+def section_idle_waiting(data: ReportData) -> IdleWaitingSection:
+    ok = data.ok
+    warnings: dict[str, int] = {}
+    if "setup_warnings" in ok:
+        for text in ok["setup_warnings"].dropna().astype(str):
+            for line in filter(None, text.split("\n")):
+                warnings[line] = warnings.get(line, 0) + 1
+    shown = [f"{line} ({n} of {len(ok)} runs)" for line, n in warnings.items()]
+    if IDLE_WAITING not in ok:
+        sec = IdleWaitingSection(runs=len(ok), runs_above_zero=0, warnings=shown)
+        sec.text += ["Settings warning: " + w for w in shown]
+        return sec
+    above = ok[ok[IDLE_WAITING].fillna(0) > 0]
+    sec = IdleWaitingSection(runs=len(ok), runs_above_zero=len(above), warnings=shown)
+    sec.text += ["Settings warning: " + w for w in shown]
+    if above.empty:
+        sec.text.append("No AGV stood Idle while orders waited in any run.")
+        return sec
+    reasons = [r for r in NotDispatched if f"{BY_REASON}.{r.value}" in ok
+               and float(ok[f"{BY_REASON}.{r.value}"].fillna(0).max()) > 0]
+    columns = [IDLE_WAITING, *(f"{BY_REASON}.{r.value}" for r in reasons)]
+    keys = [*data.others, data.x] if data.x else []
+    means = ok.groupby(keys, sort=True, dropna=False)[columns].mean().reset_index() if keys \
+        else ok[columns].mean().to_frame().T
+    means = means[means[IDLE_WAITING] > 0]
+    rows = [[*(str(r[k]) for k in keys), *(fmt(float(r[c]), 3) for c in columns)]
+            for r in means.to_dict("records")]
+    sec.points = Table([*keys, "Idle with orders waiting [% of AGV time]",
+                        *(r.value for r in reasons)], rows, "stats")
+    sec.reasons = [(r.value, r.meaning) for r in reasons]
+    sec.text.append(f"AGVs stood Idle while orders waited in {len(above)} of {len(ok)} runs "
+                    "(mean % of AGV time; by reason):")
+    sec.text += [", ".join(f"{h} {c}" for h, c in zip(sec.points.header, row, strict=True))
+                 for row in rows]
     return sec
 
 
@@ -737,7 +798,7 @@ def build_report(out_dir: Path) -> Report:
     recommended, statements, estimates = recommendations(data)
     sections: list[Section] = [
         section_scenario(data), section_kpis(data, series, recommended), section_states(data),
-        section_charging(data, series, recommended),
+        section_idle_waiting(data), section_charging(data, series, recommended),
         section_congestion(data, series, recommended), section_detail(data, recommended),
         section_incidents(data, recommended),
         section_statistics(data, stats), section_runs(data)]

@@ -10,7 +10,10 @@ sensor, link, obstacle timing...) and records the transition. The behaviours:
 * Battery: drained per metre (more when loaded), by handling and by idling. An AGV at or below the
   charging threshold (or P_050, Event_Low_Battery) asks the fleet manager for a charger, drives
   there (Moving, purpose to_charger), docks, charges along the charge curve until SOC > 95 %,
-  undocks. Below P_051 it shuts down with E_201.
+  undocks. Below P_051 it shuts down with E_201. With charging off, an AGV at P_050 withdraws
+  from the orders (reason battery_low) and stands until E_201. With no battery model
+  (``fleet.vehicle.battery: off``) SOC stays at 100 %, nothing drains it, the AGV never charges
+  and its SOC is not recorded.
 * Obstacles (4.2.3/4.2.4): met while driving; seen for < 300 ms they only slow the AGV (the
   P_005/P_006 zone), otherwise it pauses until the path has been clear for 2000 ms; E_101 after
   5 minutes paused. Scripted blocks stop AGVs in front of the blocked segment.
@@ -27,13 +30,16 @@ sensor, link, obstacle timing...) and records the transition. The behaviours:
 
 The AGV knows the fleet manager only through `FleetManagerLink` (declared here); the fleet
 manager hands it work by calling `assign`, and a scheduled charging call by `call_to_charge`.
-Both wake the AGV if it waits idle; nothing outside writes its attributes.
+Both wake the AGV if it waits idle; nothing outside writes its attributes. The AGV tells the
+fleet manager of every change of state or FMS link (`status_changed`), which is how the fleet
+manager knows which AGVs stand Idle while orders wait (fleet_sim.model.not_dispatched).
 """
 
 from __future__ import annotations
 
 import math
-from typing import NoReturn, Protocol
+from collections.abc import Generator
+from typing import Any, NoReturn, Protocol
 
 import networkx as nx
 import numpy as np
@@ -41,8 +47,10 @@ import simpy
 
 from fleet_sim.config.layout import MARKER_SPEED_MPS, Place
 from fleet_sim.config.scenario import ChargingConfig, IncidentsConfig, Rules, Scenario
+from fleet_sim.config.vehicle import BatteryProfile, VehicleProfile
 from fleet_sim.model.battery import StateOfCharge, charge_time_s
 from fleet_sim.model.error_codes import describe
+from fleet_sim.model.not_dispatched import NotDispatched
 from fleet_sim.model.records import MoveRecord, Order, Recorder
 from fleet_sim.model.state_machine import transition_for
 from fleet_sim.model.states import VehicleState
@@ -62,7 +70,11 @@ class FleetManagerLink(Protocol):
 
     def vehicle_idle(self, agv: Vehicle) -> None: ...
 
-    def withdraw(self, agv: Vehicle) -> None: ...
+    def withdraw(self, agv: Vehicle, reason: NotDispatched | None = None) -> None: ...
+
+    def status_changed(self, agv: Vehicle) -> None: ...
+
+    def resume(self, agv: Vehicle) -> Generator[simpy.Event, Any, None]: ...
 
     def requeue(self, agv: Vehicle, order: Order) -> None: ...
 
@@ -83,6 +95,11 @@ class FleetManagerLink(Protocol):
     def release_charger(self, place: Place) -> None: ...
 
 
+NO_BATTERY = BatteryProfile(initial_soc_pct=100.0, drive_wh_per_m=0.0, drive_loaded_wh_per_m=0.0,
+                            handling_w=0.0, idle_w=0.0)
+"""The battery of an AGV without a battery model: full, and nothing drains it."""
+
+
 class Failure:
     """The cause of an interrupt that sends an AGV to Error."""
 
@@ -94,15 +111,19 @@ class Failure:
 class Vehicle(Driver):
     def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
                  fleet: FleetManagerLink, recorder: Recorder, scenario: Scenario,
-                 rng: np.random.Generator, incident_rng: np.random.Generator) -> None:
-        super().__init__(agv_id, env, traffic, recorder, scenario.fleet.vehicle,
-                         scenario.traffic, rng)
+                 rng: np.random.Generator, incident_rng: np.random.Generator,
+                 profile: VehicleProfile | None = None) -> None:
+        """`profile`: the AGV's vehicle (mixed fleets); default `scenario.fleet.vehicle`."""
+        profile = profile if profile is not None else scenario.fleet.vehicle
+        super().__init__(agv_id, env, traffic, recorder, profile, scenario.traffic, rng)
         self.fleet = fleet
         self.rules: Rules = scenario.rules
         self.charging: ChargingConfig = scenario.charging
         self.incidents: IncidentsConfig = scenario.incidents
         self.incident_rng = incident_rng
-        self.battery = StateOfCharge(scenario.fleet.vehicle.battery, env.now)
+        self.has_battery = profile.battery is not None
+        """False with ``battery: off``: no drain, no charging, no SOC record."""
+        self.battery = StateOfCharge(profile.battery or NO_BATTERY, env.now)
         self._wake_up: simpy.Event = env.event()
         """Succeeds when an order or a charging call comes for the AGV waiting idle."""
         self.loaded = False
@@ -178,8 +199,10 @@ class Vehicle(Driver):
         now = self.env.now
         self.recorder.event(now, self.id, event, self.state.value, transition.target.value,
                             self.node, detail)
-        self.recorder.soc_samples.append((now, self.id, self.soc_pct))
+        if self.has_battery:
+            self.recorder.soc_samples.append((now, self.id, self.soc_pct))
         self.state = transition.target
+        self.fleet.status_changed(self)
         return True
 
     def start(self) -> None:
@@ -228,7 +251,7 @@ class Vehicle(Driver):
                 yield from self._recover(interrupt.cause)
 
     def needs_charge(self) -> bool:
-        if not self.charging.enabled:
+        if not self.charging.enabled or not self.has_battery:
             return False
         soc = self.soc_pct
         if soc <= max(self.charging.threshold_pct, self.rules.bat_low_pct):
@@ -245,6 +268,7 @@ class Vehicle(Driver):
             return
         if self.soc_pct <= self.rules.bat_low_pct:
             # may not start moving (P_050) and may not charge: stand until the battery dies
+            self.fleet.withdraw(self, NotDispatched.BATTERY_LOW)
             yield self.env.timeout(
                 self.battery.seconds_until(self.env.now, self.rules.bat_critical_pct) + 1e-6)
             self.fail_now("E_201")
@@ -274,9 +298,10 @@ class Vehicle(Driver):
                         return
                 if self.order is not None:
                     return
-        # wait for work, a charging call, the battery running down, or (no link) 10 minutes
+        # wait for work, a charging call, the battery running down (to the charging threshold, or
+        # with charging off to P_050, below which it may not move), or (no link) 10 minutes
         threshold = max(self.charging.threshold_pct, self.rules.bat_low_pct) \
-            if self.charging.enabled else self.rules.bat_critical_pct
+            if self.charging.enabled else self.rules.bat_low_pct
         until_low = self.battery.seconds_until(self.env.now, threshold)
         events = [self._wake_up]
         if math.isfinite(until_low):
@@ -332,7 +357,7 @@ class Vehicle(Driver):
         """The four sub-states of Loading (4.3) or Unloading: approach, handshake, transfer,
         verify. A failed transfer raises E_102."""
         profile = self.profile
-        self.battery.draw(self.env.now, profile.battery.handling_w)
+        self.battery.draw(self.env.now, self.battery.profile.handling_w)
         for name, seconds in (("Approach", profile.approach_s),
                               ("Handshake", profile.handshake_s),
                               ("Transfer", transfer_s), ("Verify", profile.verify_s)):
@@ -340,9 +365,9 @@ class Vehicle(Driver):
             yield self.env.timeout(seconds)
             if name == "Transfer" and self.incidents.transfer_failure_prob > 0 \
                     and self.incident_rng.random() < self.incidents.transfer_failure_prob:
-                self.battery.draw(self.env.now, profile.battery.idle_w)
+                self.battery.draw(self.env.now, self.battery.profile.idle_w)
                 self.fail_now("E_102")
-        self.battery.draw(self.env.now, profile.battery.idle_w)
+        self.battery.draw(self.env.now, self.battery.profile.idle_w)
 
     def _unpark(self) -> Proc:
         place = self.parked_in
@@ -390,7 +415,7 @@ class Vehicle(Driver):
         self.battery.set_soc(self.env.now, max(start, target))
         yield self.env.timeout(place.docking_s)  # undocking
         self.docked = False
-        self.battery.draw(self.env.now, self.profile.battery.idle_w)
+        self.battery.draw(self.env.now, self.battery.profile.idle_w)
         self.fire("Event_Charge_Complete", f"{place.id} soc {self.soc_pct:.1f}")
         self.charger = None
         self.fleet.release_charger(place)
@@ -433,7 +458,7 @@ class Vehicle(Driver):
             if left <= 0:
                 self.fail_now("E_301")
             yield self.link_changed | self.env.timeout(left)
-        yield from self.fleet.commands.wait("resume")
+        yield from self.fleet.resume(self)
         if not self.fire("Event_Heartbeat_Restored", "link back"):
             # may not move on (SOC at or below P_050): charge first, then resume the trip
             yield from self._charge()
@@ -443,6 +468,7 @@ class Vehicle(Driver):
         """An FMS link loss starts (+1) or ends (-1); wakes an AGV waiting for the link."""
         self.links_down += down_delta
         self._link_changed()
+        self.fleet.status_changed(self)
 
     def _link_changed(self) -> None:
         if not self.link_changed.triggered:
@@ -500,7 +526,7 @@ class Vehicle(Driver):
         paused for 5 minutes, it raises E_101.
         """
         rules = self.rules
-        motion = self.traffic.motion
+        motion = self.routes.motion
         v = max(self.speed_mps, min(self.profile.max_speed_mps, 1.0))
         self._obstacle_near_s = seen_s
         if self.traffic.motion_backend is not None:
@@ -575,7 +601,7 @@ class Vehicle(Driver):
 
         if has_link(self.node):
             return self.node
-        times = nx.single_source_dijkstra_path_length(graph, self.node, weight="free_time_s")
+        times = nx.single_source_dijkstra_path_length(graph, self.node, weight=self.routes.weight)
         good = [n for n in sorted(times, key=lambda n: (times[n], n)) if has_link(n)]
         return good[0] if good else self.node
 
