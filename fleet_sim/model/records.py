@@ -50,12 +50,12 @@ class MoveRecord(NamedTuple):
     `driven_s` seconds into the hop's closed-form profile on (pieces: a curve of `curve_m` at
     `curve_mps` if it turns, then the rest of the segment at `limit_mps`; entered at
     `v_in_mps`, left at `v_out_mps`, with the AGV's own `accel_mps2` and `decel_mps2`;
-    `hop_s` in all). An obstacle pause splits a hop into two
-    rows; a fault ends one early. "wait": it stood at u waiting for lock v (a node, or
-    "corridor 3") that AGV `other` held when the wait began (-1: none). "track": set on the
-    track at u (at the start, back from parking or repair); "parking": into the parking area
-    reached through u; "off": taken off the track where it stood. "charger_wait": asked at u
-    for a charger at start_s and got charger v at end_s.
+    `hop_s` in all). An obstacle pause splits a hop into two rows; a fault ends one early.
+    "wait": it stood at u waiting for lock v (a node, "corridor 3" or "zone Z") that AGV
+    `other` held when the wait began (-1: none). "track": set on the track at u (at the
+    start, back from parking or repair); "parking": into the parking area reached through u;
+    "off": taken off the track where it stood. "charger_wait": asked at u for a charger at
+    start_s and got charger v at end_s ("": none, it failed first).
     """
 
     agv: int
