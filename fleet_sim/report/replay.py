@@ -243,7 +243,7 @@ def lead_summary(leads: pd.DataFrame) -> list[dict[str, str]]:
     rows = []
     for part in (*LEAD_PARTS, "lead_time_s"):
         values = leads[part].dropna().to_numpy(dtype=float)
-        label = LEAD_LABELS.get(part, "lead time (sum)")
+        label = LEAD_LABELS.get(part, "lead time (all parts)")
         if len(values) == 0:
             rows.append({"part": label, "mean": "n/a", "median": "n/a", "p95": "n/a"})
             continue
