@@ -166,10 +166,51 @@ def test_chargers_nearest_free_first_then_first_come_first_served(spurs_layout: 
     assert not wait_2.triggered and not wait_3.triggered
     fm.release_charger(spurs_layout.places["CHG_S"])
     assert wait_2.triggered and wait_2.value.id == "CHG_S" and not wait_3.triggered
-    fm.cancel_charger_request(third)
+    fm.cancel_charger_request(third, wait_3)
     fm.release_charger(spurs_layout.places["CHG_N"])
     assert not wait_3.triggered
     assert fm.charger_available() and [c.id for c in fm.chargers_free] == ["CHG_N"]
+
+
+def test_a_charger_given_to_an_agv_that_gave_up_goes_back(spurs_layout: Layout) -> None:
+    """An AGV that fails while its charger is given to it (or on its way to it over a slow
+    command link) never comes: the charger goes back to the free ones."""
+    fm = fleet_manager(spurs_layout)
+    agv = StubAgv(0, "D")
+    granted = fm.request_charger(agv)
+    assert granted.triggered and [c.id for c in fm.chargers_free] == ["CHG_S"]
+    fm.cancel_charger_request(agv, granted)
+    assert sorted(c.id for c in fm.chargers_free) == ["CHG_N", "CHG_S"]
+
+    env = simpy.Environment()  # the assign command takes its time on the CarriRo link
+    recorder = Recorder(0.0, 3600.0)
+    traffic = Traffic(env, spurs_layout, Motion(1.0, 0.5, 0.5, 0.3), recorder)
+    commands = CommandPath(env, "carriro-ad-plus", 0.0, np.random.default_rng(0), recorder)
+    fm = FleetManager(env, spurs_layout, traffic, DispatchConfig(), recorder, commands)
+    on_its_way = fm.request_charger(agv)
+    assert [c.id for c in fm.chargers_free] == ["CHG_S"] and not on_its_way.triggered
+    fm.cancel_charger_request(agv, on_its_way)
+    env.run(until=10.0)
+    assert not on_its_way.triggered
+    assert sorted(c.id for c in fm.chargers_free) == ["CHG_N", "CHG_S"]
+    assert not fm.charger_cancelled
+
+
+def test_an_agv_failing_while_it_waits_for_a_charger_gives_it_up(spurs_layout: Layout) -> None:
+    """Three AGVs at the charging threshold, two chargers: the one that waits fails (a
+    scripted fault) while waiting; the chargers are all free again at the end."""
+    scenario = make_scenario(
+        duration_h=3, warmup_h=0, seed=3, dispatch={"park_idle": False},
+        fleet={"size": 3, "vehicle": {"battery": {"initial_soc_pct": 32}}},
+        demand={"rate_per_hour": 60}, incidents={"faults": [
+            {"agv": 2, "at_s": 1000.0, "code": "E_999"}]})
+    model = build_model(scenario, spurs_layout)
+    model.env.run(until=scenario.duration_s)
+    waits = [e for e in model.recorder.events if e.agv == 2 and e.time_s <= 1000.0
+             and e.event == "not_dispatched" and e.detail == "waiting_for_charger"]
+    assert waits, "AGV 2 was not waiting for a charger when it failed"
+    held = [v.charger for v in model.vehicles if v.charger is not None]
+    assert len(model.fleet.chargers_free) + len(held) == 2
 
 
 def test_asking_for_a_charger_withdraws_the_agv_from_orders(spurs_layout: Layout) -> None:

@@ -122,6 +122,8 @@ class FleetManager:
         self.bound_for: Counter[str] = Counter()
         self.chargers_free: list[Place] = list(layout.chargers)
         self.charger_queue: deque[tuple[FleetAgv, simpy.Event]] = deque()
+        self.charger_cancelled: set[simpy.Event] = set()
+        """Charger requests given up while their charger's assign command was on its way."""
         recorder.queue_lengths.append((env.now, 0))
         # work conservation: who stands Idle, and what holds each back
         self.standing: dict[int, FleetAgv] = {}
@@ -272,8 +274,18 @@ class FleetManager:
         self._assign_chargers()
         return event
 
-    def cancel_charger_request(self, agv: FleetAgv) -> None:
-        self.charger_queue = deque((v, e) for v, e in self.charger_queue if v is not agv)
+    def cancel_charger_request(self, agv: FleetAgv, request: simpy.Event) -> None:
+        """`agv` no longer waits for the charger `request` stands for (its battery died, or it
+        failed while waiting): out of the queue if still in it; a charger already given to it
+        goes back at once, one whose assign command is on its way goes back when it arrives.
+        Without this a charger would stay given to an AGV that never comes."""
+        if any(e is request for _, e in self.charger_queue):
+            self.charger_queue = deque((v, e) for v, e in self.charger_queue
+                                       if e is not request)
+        elif request.triggered:
+            self.release_charger(request.value)
+        else:
+            self.charger_cancelled.add(request)
         self.charger_wait.discard(agv.id)
         self._changed()
 
@@ -290,7 +302,12 @@ class FleetManager:
             self.commands.send("assign", partial(self._charger_delivered, agv, event, place))
 
     def _charger_delivered(self, agv: FleetAgv, event: simpy.Event, place: Place) -> None:
-        """The charger's assign command has reached the AGV."""
+        """The charger's assign command has reached the AGV (or, if it gave up meanwhile, the
+        charger goes back)."""
+        if event in self.charger_cancelled:
+            self.charger_cancelled.discard(event)
+            self.release_charger(place)
+            return
         self.charger_wait.discard(agv.id)
         event.succeed(place)
         self._changed()

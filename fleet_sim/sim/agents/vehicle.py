@@ -90,7 +90,7 @@ class FleetManagerLink(Protocol):
 
     def request_charger(self, agv: Vehicle) -> simpy.Event: ...
 
-    def cancel_charger_request(self, agv: Vehicle) -> None: ...
+    def cancel_charger_request(self, agv: Vehicle, request: simpy.Event) -> None: ...
 
     def release_charger(self, place: Place) -> None: ...
 
@@ -390,10 +390,13 @@ class Vehicle(Driver):
             self._charger_asked_s = asked
         try:
             yield self.env.any_of(events)
+        except simpy.Interrupt:  # failed while waiting: the charger must not wait for it
+            self.fleet.cancel_charger_request(self, request)
+            raise
         finally:
             self._close_charger_wait(request)
         if not request.triggered:
-            self.fleet.cancel_charger_request(self)
+            self.fleet.cancel_charger_request(self, request)
             self.fail_now("E_201")
         place = request.value
         assert isinstance(place, Place)
