@@ -283,7 +283,9 @@ class FleetManager:
             self.charger_queue = deque((v, e) for v, e in self.charger_queue
                                        if e is not request)
         elif request.triggered:
-            self.release_charger(request.value)
+            place = request.value
+            assert isinstance(place, Place)
+            self.release_charger(place)
         else:
             self.charger_cancelled.add(request)
         self.charger_wait.discard(agv.id)
