@@ -98,11 +98,12 @@ def _chain(cells: Mapping[str, str | None], layout: Layout, file: str,
     check_chain(stops, layout, file, f"{where}.{STOPS}")
     time_row = validate(TraceRow, {"time_s": cells["time_s"], "pickup": stops[0],
                                    "dropoff": stops[-1]}, file, where)
-    for column, expected in (("pickup", stops[0]), ("dropoff", stops[-1])):
+    for column, which, expected in (("pickup", "first", stops[0]),
+                                    ("dropoff", "last", stops[-1])):
         given = (cells.get(column) or "").strip()
         if given and given != expected:
             raise InputError(file, f"{where}.{column}", given,
-                             f"empty, or the first/last stop of the row's stops ({expected})")
+                             f"empty, or the {which} stop of the row's stops ({expected})")
     return TraceOrder(time_row.time_s, stops[0], stops[-1], stops)
 
 
