@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from fleet_sim.analysis.estimate import Estimate, analytic_estimate
 from fleet_sim.analysis.tables import ORDER_COLUMNS, STOPS_COLUMN, events_table, orders_table
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.scenario import check_against_layout, parse_scenario, resolved
@@ -238,3 +239,20 @@ def test_only_a_type_that_may_serve_every_stop_gets_a_chain(tmp_path: Path) -> N
     with pytest.raises(InputError, match=r"demand.flows\[0\].stops: got 'A -> B -> C -> D'; "
                                          r"expected stops that one vehicle type"):
         check_against_layout(narrow, layout, "s.yaml")
+
+
+def test_the_analytic_estimate_counts_every_leg_and_stop_of_a_chain(
+        tiny_layout: Layout) -> None:
+    """PICK>DROP>PICK>DROP on the tiny loop is two plain orders' work: twice the loaded travel,
+    twice the empty travel (one leg inside the chain, one to the next order), twice the
+    handling; so one AGV carries half as many chains as plain orders."""
+    def estimate(flow: dict[str, object]) -> Estimate:
+        return analytic_estimate(make_scenario(demand={"flows": [flow]}), tiny_layout)
+
+    plain = estimate({"from": "PICK", "to": "DROP"})
+    chain = estimate({"stops": ["PICK", "DROP", "PICK", "DROP"]})
+    assert chain.loaded_travel_s == pytest.approx(2 * plain.loaded_travel_s, abs=1e-9)
+    assert chain.empty_travel_s == pytest.approx(2 * plain.empty_travel_s, abs=1e-9)
+    assert chain.handling_s == pytest.approx(2 * plain.handling_s, abs=1e-9) == 100.0
+    assert chain.capacity_per_agv_per_hour == pytest.approx(
+        plain.capacity_per_agv_per_hour / 2, abs=1e-9)

@@ -6,7 +6,9 @@ sensor, link, obstacle timing...) and records the transition. The behaviours:
 
 * Orders: Idle -> Moving -> Loading (L_Approach, L_Handshake, L_Transfer, L_Verify) -> Moving ->
   Unloading (U_Approach, U_Handshake, U_Transfer, U_Verify) -> Idle. L_Transfer is the station's
-  handling time; the other sub-states take the vehicle profile's times.
+  handling time; the other sub-states take the vehicle profile's times. A multi-stop order
+  (fleet_sim.config.chains) repeats Moving -> Loading -> Moving -> Unloading stop by stop,
+  Unloading -> Moving (Event_Next_Stop) between a drop-off and the next pickup (`_serve_chain`).
 * Battery: drained per metre (more when loaded), by handling and by idling. An AGV at or below the
   charging threshold (or P_050, Event_Low_Battery) asks the fleet manager for a charger, drives
   there (Moving, purpose to_charger), docks, charges along the charge curve until SOC > 95 %,
