@@ -195,6 +195,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     imp.add_argument("--vehicle-type", type=_identifier, metavar="ID",
                      help="which vehicleTypeId's nodes, edges and speeds (needed if the "
                           "layout is for several)")
+    imp.add_argument("--all-types", action="store_true",
+                     help="import every vehicle type: segments and stations open to some "
+                          "types only get allowed_types (--vehicle-type: the type whose "
+                          "speeds and lengths are kept)")
     exp = sub.add_parser("layout-export", prog="fleet-sim layout export",
                          description="Write a fleet_sim layout as a VDMA LIF 1.0.0 file.")
     exp.add_argument("layout", type=Path, metavar="NAME.yaml", help="layout YAML file")
@@ -574,7 +578,7 @@ def _layout_import(args: argparse.Namespace) -> int:
     from fleet_sim.config.layout_lif import import_lif
 
     _check_out_file(args.out, "--out")
-    imported = import_lif(args.lif, args.layout_id, args.vehicle_type)
+    imported = import_lif(args.lif, args.layout_id, args.vehicle_type, args.all_types)
     _write(args.out, layout_yaml(imported.spec, imported.comments()), "--out")
     spec = imported.spec
     print(f"{args.lif}: LIF {imported.lif_version} layout {imported.layout_id!r}, vehicle type "

@@ -252,7 +252,14 @@ def _cases() -> Iterator[Case]:
                                              {"type": "a", "count": 1}]),
                          ("fleet.vehicles", [{"type": "a", "count": 2, "speed": 1}]),
                          ("fleet.vehicles", [{"type": "a", "count": 2.5}]),
-                         ("fleet.vehicles", "many")]:
+                         ("fleet.vehicles", "many"),
+                         ("demand.flows", [{"stops": ["PICK", "DROP", "PICK"]}]),
+                         ("demand.flows", [{"stops": ["PICK", "DROP"] * 11}]),
+                         ("demand.flows", [{"stops": ["PICK", "PICK", "DROP", "DROP"]}]),
+                         ("demand.flows", [{"stops": ["PICK", "DROP", "ZZ", "DROP"]}]),
+                         ("demand.flows", [{"from": "PICK", "stops": ["PICK", "DROP"]}]),
+                         ("demand.flows", [{"from": "PICK"}]),
+                         ("demand.flows", [{"stops": "PICK>DROP"}])]:
         yield Case(f"scenario-{field}-{value!r}", "scenario",
                    lambda _d, f=field, v=value: _yaml(_set(_scenario(), f, v)))
     for field, value in [("nodes.0.x", NAN), ("nodes.0.x", INF), ("nodes.0.y", "north"),
@@ -306,7 +313,17 @@ def _cases() -> Iterator[Case]:
                       ("time_text", header + b"soon,PICK,DROP\n"),
                       ("unknown_station", header + b"1,NOWHERE,DROP\n"),
                       ("short_row", header + b"1,PICK\n"),
-                      ("nul", header + b"1,PI\x00CK,DROP\n")]:
+                      ("nul", header + b"1,PI\x00CK,DROP\n"),
+                      ("stops_odd", b"time_s,stops\n1,PICK>DROP>PICK\n"),
+                      ("stops_wrong_kind", b"time_s,stops\n1,PICK>DROP>DROP>PICK\n"),
+                      ("stops_unknown", b"time_s,stops\n1,PICK>DROP>PICK>NOWHERE\n"),
+                      ("stops_too_many", b"time_s,stops\n1," + b">".join([b"PICK>DROP"] * 11)
+                       + b"\n"),
+                      ("stops_time_nan", b"time_s,stops\nnan,PICK>DROP>PICK>DROP\n"),
+                      ("stops_pickup_differs", header[:-1] + b",stops\n1,DROP,DROP,"
+                       b"PICK>DROP>PICK>DROP\n"),
+                      ("stops_empty_plain_row", b"time_s,stops\n1,\n"),
+                      ("stops_no_time", b"stops\nPICK>DROP\n")]:
         yield Case(f"trace-{name}", "trace", lambda _d, raw=raw: raw)
     for kind in ("lif", "factsheet"):
         for name, raw in RAW_JSON.items():

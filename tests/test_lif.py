@@ -390,3 +390,63 @@ def test_edge_ids_stay_unique_when_node_ids_hold_dashes(tmp_path: Path) -> None:
     assert [(e["edgeId"], e["startNodeId"], e["endNodeId"]) for e in edges[-3:]] == [
         ("S1-P-S3", "S1-P", "S3"), ("S1-P-S3~2", "S1", "P-S3"), ("P-S3-S3", "P-S3", "S3")]
     assert export_import(spec, tmp_path).spec == spec
+
+
+# Every vehicle type: allowed_types (mixed fleets)
+
+def test_all_types_import_keeps_each_types_access_as_allowed_types(tmp_path: Path,
+                                                                   capsys: Any) -> None:
+    """hall3's L0: T1 drives the loop and the spurs, T2 only N1-N2 and its spur to N6. With
+    every type imported, the shared corridor is open to all, the rest to its type only, and
+    the stations whose nodes only T1 may reach are T1's; T2's other maxSpeed is reported."""
+    imported = import_lif(HALL3, "L0", all_types=True)
+    spec = imported.spec
+    assert imported.vehicle_type == "T1" and spec.lif.vehicle_type_id == "T1"
+    assert {(s.from_node, s.to_node): s.allowed_types for s in spec.segments} == {
+        ("N1", "N2"): (), ("N2", "N3"): ("T1",), ("N3", "N4"): ("T1",), ("N4", "N1"): ("T1",),
+        ("N1", "N5"): ("T1",), ("N4", "N7"): ("T1",), ("N2", "N6"): ("T2",)}
+    assert {s.id: s.allowed_types for s in spec.stations} == {"PICK": ("T1",), "DROP": ("T1",)}
+    assert "N6" in [n.id for n in spec.nodes]  # T2's node, left out when importing T1 alone
+    assert "N6" not in [n.id for n in import_lif(HALL3, "L0", "T1").spec.nodes]
+    assert any("maxSpeed of another vehicle type" in n.why for n in imported.notes)
+    assert not any("a fleet_sim layout is for one vehicle type" in n.why
+                   for n in imported.notes)
+    # T2 as the main type: the shared corridor takes T2's speed (2.0 m/s one way)
+    second = import_lif(HALL3, "L0", "T2", all_types=True).spec
+    assert [(s.from_node, s.to_node, s.speed_limit_mps) for s in second.segments][:2] == [
+        ("N1", "N2", 2.0), ("N2", "N1", None)]
+    out = tmp_path / "hall3.yaml"
+    assert main(["layout", "import", str(HALL3), "--out", str(out), "--layout-id", "L0",
+                 "--all-types"]) == 1  # written; no parking yet
+    assert spec_of(out) == spec
+    capsys.readouterr()
+
+
+def test_a_layout_with_allowed_types_exports_per_type_properties_and_comes_back(
+        tmp_path: Path) -> None:
+    """allowed_types on segments and stations are written as LIF's per-vehicle-type entries
+    (an edge only for its types, a station's pick action only on its types' node entries),
+    and `--all-types` reads them back to the same layout. Without allowed_types the export is
+    for one type, as always."""
+    data = read_yaml(LAYOUTS / "tiny_loop.yaml")
+    data["segments"][0]["allowed_types"] = ["narrow"]
+    data["segments"][5]["allowed_types"] = ["narrow", "wide"]
+    data["stations"][0]["allowed_types"] = ["wide"]
+    spec = validate(LayoutSpec, data, "t.yaml", "")
+    lif = layout_to_lif(spec)
+    layout = lif["layouts"][0]
+    assert [p["vehicleTypeId"] for p in layout["edges"][0]["vehicleTypeEdgeProperties"]] == \
+        ["narrow"]
+    assert [p["vehicleTypeId"] for p in layout["edges"][1]["vehicleTypeEdgeProperties"]] == \
+        ["fleet-sim", "narrow", "wide"]
+    pick = next(n for n in layout["nodes"] if n["nodeId"] == "P")
+    assert [(p["vehicleTypeId"], "actions" in p) for p in pick["vehicleTypeNodeProperties"]] \
+        == [("fleet-sim", False), ("narrow", False), ("wide", True)]
+    assert "allowed_types" not in json.dumps(layout["edges"])  # LIF's own fields carry it
+    path = write_json(tmp_path / "t.lif.json", lif)
+    assert import_lif(path, all_types=True).spec == spec
+    with pytest.raises(InputError, match="one vehicle type, or one chosen with --vehicle-type"):
+        import_lif(path)
+    plain = layout_to_lif(load_layout(LAYOUTS / "tiny_loop.yaml").spec)
+    assert {p["vehicleTypeId"] for e in plain["layouts"][0]["edges"]
+            for p in e["vehicleTypeEdgeProperties"]} == {"fleet-sim"}

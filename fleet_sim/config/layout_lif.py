@@ -23,6 +23,15 @@ docs/standards.md; the decisions it rests on are these.
 * fleet_sim layouts describe one vehicle type. Import takes the one the file uses, or the one
   named (`--vehicle-type`); nodes and edges not open to it are left out and reported, as are the
   properties for other types. Of a multi-layout file one layout is taken (`--layout-id`).
+* Mixed fleets: `--all-types` (``all_types=True``) imports every vehicle type of the layout.
+  A node or edge open to any type is kept; a segment open to some types only gets those as its
+  `allowed_types`, and so does a pickup or drop-off station whose interaction nodes are not
+  open to every type (the types open on all of them). A segment has one speed limit and one
+  length: those of the main type (`--vehicle-type`, else the file's first type) where it has
+  an entry, else of the first type that has one; another type's different maxSpeed or
+  trajectory is reported. An opposite pair of edges becomes one two-way segment only if the
+  same types may drive both. Chargers and parking areas have no `allowed_types`: one not open
+  to every type is kept and reported.
 * A foreign station's purpose comes from the actions on its interaction nodes, as LIF 8.3.13.1
   says: pick -> pickup, drop -> drop-off, startCharging -> one charger per node. A station with
   none of them cannot be placed and is reported; so are handling times (fleet_sim's default) and
@@ -83,6 +92,9 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
     layout_id = info.layout_id or spec.name
     map_id = info.map_id or layout_id
     type_id = vehicle_type or info.vehicle_type_id
+    types = export_types(spec, type_id)
+    station_types = {n: st.allowed_types for st in spec.stations if st.allowed_types
+                     for n in st.nodes}
     position = {n.id: (n.x, n.y) for n in spec.nodes}
     place_kind: dict[str, NodeKind] = {}
     actions: dict[str, list[dict[str, Any]]] = {}
@@ -110,12 +122,15 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
 
     nodes = []
     for n in spec.nodes:
-        prop: dict[str, Any] = {"vehicleTypeId": type_id}
-        if actions.get(n.id):
-            prop["actions"] = actions[n.id]
+        props: list[dict[str, Any]] = []
+        for t in types:
+            prop: dict[str, Any] = {"vehicleTypeId": t}
+            if actions.get(n.id) and t in station_types.get(n.id, (t,)):
+                prop["actions"] = actions[n.id]
+            props.append(prop)
         node: dict[str, Any] = {"nodeId": n.id, "mapId": map_id,
                                 "nodePosition": {"x": n.x, "y": n.y},
-                                "vehicleTypeNodeProperties": [prop]}
+                                "vehicleTypeNodeProperties": props}
         extension: dict[str, Any] = {}
         if n.kind != place_kind.get(n.id, "tag"):
             extension["kind"] = n.kind
@@ -128,7 +143,8 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
     edges: list[dict[str, Any]] = []
     edge_ids: set[str] = set()
 
-    def edge(start: str, end: str, limit: float, extension: dict[str, Any]) -> None:
+    def edge(start: str, end: str, limit: float, extension: dict[str, Any],
+             allowed: tuple[str, ...]) -> None:
         edge_id = f"{start}-{end}"
         n = 2
         while edge_id in edge_ids:  # ids that contain "-" can meet: A-B + C and A + B-C
@@ -136,8 +152,8 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
         edge_ids.add(edge_id)
         data: dict[str, Any] = {
             "edgeId": edge_id, "startNodeId": start, "endNodeId": end,
-            "vehicleTypeEdgeProperties": [{"vehicleTypeId": type_id, "rotationAllowed": False,
-                                           "maxSpeed": limit}]}
+            "vehicleTypeEdgeProperties": [{"vehicleTypeId": t, "rotationAllowed": False,
+                                           "maxSpeed": limit} for t in allowed or types]}
         if extension:
             data[EXTENSION_KEY] = extension
         edges.append(data)
@@ -146,11 +162,11 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
         limit = seg.speed_limit_mps if seg.speed_limit_mps is not None \
             else spec.defaults.speed_limit_mps
         extension = seg.model_dump(mode="json", exclude_defaults=True,
-                                   exclude={"from_node", "to_node"})
-        edge(seg.from_node, seg.to_node, limit, extension)
+                                   exclude={"from_node", "to_node", "allowed_types"})
+        edge(seg.from_node, seg.to_node, limit, extension, seg.allowed_types)
         if seg.direction == "two_way":
             edge(seg.to_node, seg.from_node, limit,
-                 {k: v for k, v in extension.items() if k != "branch"})
+                 {k: v for k, v in extension.items() if k != "branch"}, seg.allowed_types)
 
     layout: dict[str, Any] = {"layoutId": layout_id, "layoutName": spec.name,
                               "layoutVersion": info.layout_version}
@@ -170,6 +186,20 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
             "layouts": [layout]}
     LifFile.model_validate(data)  # what fleet-sim writes is LIF as this model reads it
     return data
+
+
+def export_types(spec: LayoutSpec, type_id: str) -> tuple[str, ...]:
+    """The vehicle types an export writes: `type_id`, then every type the layout's segments
+    and stations name in `allowed_types` (first seen first). A segment or station with
+    `allowed_types` is written for those types only (a station: its pick or drop action only
+    on their entries of its nodes); the rest for every type. A layout without allowed_types
+    is written for `type_id` alone, as always."""
+    named: dict[str, None] = {type_id: None}
+    for allowed in [s.allowed_types for s in spec.segments] \
+            + [s.allowed_types for s in spec.stations]:
+        for t in allowed:
+            named.setdefault(t)
+    return tuple(named)
 
 
 def lif_json(data: dict[str, Any]) -> str:
@@ -242,14 +272,15 @@ class Imported:
 
 
 def import_lif(path: Path, layout_id: str | None = None,
-               vehicle_type: str | None = None) -> Imported:
+               vehicle_type: str | None = None, all_types: bool = False) -> Imported:
     """Read a LIF file and turn one of its layouts into a layout spec (not yet checked as a
-    graph: `layout_from_spec` does that)."""
-    return lif_to_layout(read_lif(path), str(path), layout_id, vehicle_type)
+    graph: `layout_from_spec` does that). `all_types`: every vehicle type, as allowed_types
+    (see the module docstring); `vehicle_type` is then the main one."""
+    return lif_to_layout(read_lif(path), str(path), layout_id, vehicle_type, all_types)
 
 
 def lif_to_layout(lif: LifFile, file: str, layout_id: str | None = None,
-                  vehicle_type: str | None = None) -> Imported:
+                  vehicle_type: str | None = None, all_types: bool = False) -> Imported:
     notes = _Notes()
     index = _choose_layout(lif, file, layout_id)
     layout = lif.layouts[index]
@@ -258,16 +289,28 @@ def lif_to_layout(lif: LifFile, file: str, layout_id: str | None = None,
         if i != index:
             notes.add(f"layouts[{i}]", f"layouts[{i}]", f"layout {other.layoutId} not imported "
                       "(one layout per fleet_sim layout file; --layout-id chooses)")
-    type_id = _choose_vehicle_type(layout, file, at, vehicle_type)
+    types: tuple[str, ...] | None = None
+    if all_types:
+        types = _vehicle_types(layout)
+        type_id = _choose_vehicle_type(layout, file, at, vehicle_type) \
+            if vehicle_type is not None else types[0] if types else \
+            _choose_vehicle_type(layout, file, at, None)
+        types = (type_id, *(t for t in types if t != type_id))
+    else:
+        type_id = _choose_vehicle_type(layout, file, at, vehicle_type)
     for what, example in _extra_keys(lif, "", ""):
         notes.add(what, example, "not a LIF 1.0.0 key")
-    kept = _open_nodes(layout, type_id, at, notes)
+    kept = _open_nodes(layout, type_id, at, notes) if types is None \
+        else _open_nodes_any(layout, types, at, notes)
     claimed, places = _places(layout, kept, at, notes)
+    if types is not None:
+        _place_types(layout, places, types, at, notes)
     spec_nodes, map_ids = _node_entries(kept, claimed, at, notes)
     extension = layout.fleetSim
     defaults = extension.defaults if extension is not None and extension.defaults is not None \
         else LayoutDefaults()
-    segments = _segments(layout.edges, kept, type_id, extension is not None, at, notes, defaults)
+    segments = _segments(layout.edges, kept, type_id, extension is not None, at, notes,
+                         defaults, types)
 
     name = layout.layoutName if layout.layoutName is not None else layout.layoutId
     meta = lif.metaInformation
@@ -323,6 +366,82 @@ def _open_nodes(layout: Layout, type_id: str, at: str, notes: _Notes) -> _OpenNo
                       f"{kept[node.nodeId][0]}.theta",
                       "fleet_sim does not model the vehicle's orientation on a node")
     return kept
+
+
+def _vehicle_types(layout: Layout) -> tuple[str, ...]:
+    """The vehicleTypeIds of a layout's nodes and edges, in file order."""
+    types: dict[str, None] = {}
+    for node in layout.nodes:
+        for prop in node.vehicleTypeNodeProperties:
+            types.setdefault(prop.vehicleTypeId)
+    for edge in layout.edges:
+        for eprop in edge.vehicleTypeEdgeProperties:
+            types.setdefault(eprop.vehicleTypeId)
+    return tuple(types)
+
+
+def _main_entry(entries: tuple[Any, ...], types: tuple[str, ...]) -> tuple[int, Any]:
+    """The index and entry of the first of `types` (main type first) that has one."""
+    for type_id in types:
+        for k, entry in enumerate(entries):
+            if entry.vehicleTypeId == type_id:
+                return k, entry
+    return -1, None
+
+
+def _open_nodes_any(layout: Layout, types: tuple[str, ...], at: str,
+                    notes: _Notes) -> _OpenNodes:
+    """The nodes open to any of `types` (all types), with the main type's entry if it has
+    one."""
+    kept: _OpenNodes = {}
+    for j, node in enumerate(layout.nodes):
+        where = f"{at}.nodes[{j}]"
+        k, prop = _main_entry(node.vehicleTypeNodeProperties, types)
+        if prop is None:
+            notes.add(f"{at}.nodes[*]", where, "node open to no vehicle type")
+            continue
+        kept[node.nodeId] = (f"{where}.vehicleTypeNodeProperties[{k}]", node, prop)
+        for key in ("nodeName", "nodeDescription"):
+            if getattr(node, key) is not None:
+                notes.add(f"{at}.nodes[*].{key}", f"{where}.{key}",
+                          "for display only; fleet_sim nodes have only an id")
+        for entry in node.vehicleTypeNodeProperties:
+            if entry.theta is not None:
+                notes.add(f"{at}.nodes[*].vehicleTypeNodeProperties[*].theta",
+                          f"{kept[node.nodeId][0]}.theta",
+                          "fleet_sim does not model the vehicle's orientation on a node")
+    return kept
+
+
+def _place_types(layout: Layout, places: dict[str, list[dict[str, Any]]],
+                 types: tuple[str, ...], at: str, notes: _Notes) -> None:
+    """`allowed_types` of the pickup and drop-off stations whose nodes are not open to every
+    type; chargers and parking areas not open to every type are reported."""
+    node_types = {n.nodeId: {p.vehicleTypeId: {a.actionType for a in p.actions or ()}
+                             for p in n.vehicleTypeNodeProperties} for n in layout.nodes}
+
+    def open_to(nodes: list[str], action: str | None = None) -> list[str]:
+        """Types open on every node; for a station, of those that carry its purpose's action
+        on a node where some type does, only the ones that carry it there."""
+        def serves(t: str, n: str) -> bool:
+            entries = node_types[n]
+            if t not in entries:
+                return False
+            return action is None or action in entries[t] \
+                or not any(action in acts for acts in entries.values())
+        return [t for t in types if all(serves(t, n) for n in nodes)]
+
+    for entry in places["stations"]:
+        allowed = open_to(entry["nodes"], ACTIONS[entry["kind"]][0])
+        if len(allowed) < len(types):
+            entry["allowed_types"] = allowed
+    for kind, what in (("chargers", "charger"), ("parking", "parking area")):
+        for entry in places[kind]:
+            allowed = open_to([entry["node"]])
+            if len(allowed) < len(types):
+                notes.add(f"{at}.stations[*]", entry["id"], f"a {what} open to "
+                          f"{', '.join(allowed)} only: kept for every type (fleet_sim "
+                          "chargers and parking areas have no allowed_types)", kept=True)
 
 
 def _places(layout: Layout, kept: _OpenNodes, at: str, notes: _Notes
@@ -511,19 +630,27 @@ class _Hop:
     ext: EdgeExtension | None
     length_m: float | None
     speed_limit_mps: float | None
+    allowed_types: tuple[str, ...] = ()
+    """With every vehicle type imported: the types that may drive it, if not all."""
 
 
 def _segments(edges: tuple[Edge, ...], kept: _OpenNodes, type_id: str, ours: bool, at: str,
-              notes: _Notes, defaults: LayoutDefaults) -> list[dict[str, Any]]:
+              notes: _Notes, defaults: LayoutDefaults,
+              types: tuple[str, ...] | None = None) -> list[dict[str, Any]]:
+    """The segments; `types`: every vehicle type (main first), kept as allowed_types."""
     pattern = f"{at}.edges[*]"
     hops: list[_Hop] = []
     seen: dict[tuple[str, str], str] = {}
     for j, edge in enumerate(edges):
         where = f"{at}.edges[{j}]"
-        k, prop = _entry(edge.vehicleTypeEdgeProperties, type_id, notes,
-                         f"{pattern}.vehicleTypeEdgeProperties", where)
+        if types is None:
+            k, prop = _entry(edge.vehicleTypeEdgeProperties, type_id, notes,
+                             f"{pattern}.vehicleTypeEdgeProperties", where)
+        else:
+            k, prop = _main_entry(edge.vehicleTypeEdgeProperties, types)
         if prop is None:
-            notes.add(pattern, where, f"edge not open to vehicle type {type_id}")
+            notes.add(pattern, where, f"edge not open to vehicle type {type_id}" if types is None
+                      else "edge open to no vehicle type")
             continue
         if edge.startNodeId not in kept or edge.endNodeId not in kept:
             notes.add(pattern, where, "edge to or from a node not imported (not open to the "
@@ -540,11 +667,15 @@ def _segments(edges: tuple[Edge, ...], kept: _OpenNodes, type_id: str, ours: boo
         seen[pair] = where
         _note_edge_fields(edge, prop, where, f"{where}.vehicleTypeEdgeProperties[{k}]",
                           pattern, notes)
+        allowed: tuple[str, ...] = ()
+        if types is not None:
+            allowed = _edge_types(edge, prop, types, where, pattern, notes)
         hops.append(_Hop(where, edge, prop, edge.fleetSim,
                          _length(edge, prop, kept, f"{where}.vehicleTypeEdgeProperties[{k}]",
                                  pattern, notes),
                          _speed(edge.fleetSim, prop, defaults,
-                                f"{where}.vehicleTypeEdgeProperties[{k}]", pattern, notes)))
+                                f"{where}.vehicleTypeEdgeProperties[{k}]", pattern, notes),
+                         allowed))
     by_pair = {(h.edge.startNodeId, h.edge.endNodeId): h for h in hops}
     merged: set[int] = set()
     segments: list[dict[str, Any]] = []
@@ -555,8 +686,8 @@ def _segments(edges: tuple[Edge, ...], kept: _OpenNodes, type_id: str, ours: boo
         two_way = hop.ext.direction == "two_way" if ours and hop.ext is not None else not ours
         if partner is not None and id(partner) not in merged and two_way and (
                 not ours or (partner.ext is not None and partner.ext.direction == "two_way")):
-            same = (partner.length_m, partner.speed_limit_mps) == (hop.length_m,
-                                                                   hop.speed_limit_mps) \
+            same = (partner.length_m, partner.speed_limit_mps, partner.allowed_types) \
+                == (hop.length_m, hop.speed_limit_mps, hop.allowed_types) \
                 and (partner.ext.rssi_dbm if partner.ext else None) == (
                     hop.ext.rssi_dbm if hop.ext else None)
             if same:
@@ -586,7 +717,31 @@ def _segment(hop: _Hop, direction: str) -> dict[str, Any]:
         data["branch"] = hop.ext.branch
     if hop.ext is not None and hop.ext.rssi_dbm is not None:
         data["rssi_dbm"] = hop.ext.rssi_dbm
+    if hop.allowed_types:
+        data["allowed_types"] = list(hop.allowed_types)
     return data
+
+
+def _edge_types(edge: Edge, prop: VehicleTypeEdgeProperty, types: tuple[str, ...], where: str,
+                pattern: str, notes: _Notes) -> tuple[str, ...]:
+    """The types that may drive an edge, if not every type (else ()); another type's different
+    maxSpeed or trajectory is reported (a segment has one speed limit and one length)."""
+    entries = edge.vehicleTypeEdgeProperties
+    open_to = {e.vehicleTypeId for e in entries}
+    for k, entry in enumerate(entries):
+        if entry is prop:
+            continue
+        at = f"{where}.vehicleTypeEdgeProperties[{k}]"
+        if entry.maxSpeed != prop.maxSpeed:
+            notes.add(f"{pattern}.vehicleTypeEdgeProperties[*].maxSpeed", f"{at}.maxSpeed",
+                      f"maxSpeed of another vehicle type: the segment keeps type "
+                      f"{prop.vehicleTypeId}'s (one speed limit per segment)")
+        if entry.trajectory is not None and entry.trajectory != prop.trajectory:
+            notes.add(f"{pattern}.vehicleTypeEdgeProperties[*].trajectory", f"{at}.trajectory",
+                      f"trajectory of another vehicle type: the segment keeps type "
+                      f"{prop.vehicleTypeId}'s length")
+    allowed = tuple(t for t in types if t in open_to)
+    return () if len(allowed) == len(types) else allowed
 
 
 def _length(edge: Edge, prop: VehicleTypeEdgeProperty, kept: _OpenNodes, prop_at: str,

@@ -68,6 +68,7 @@ from agv_model.inputs import (
     validate,
 )
 from agv_model.profile import load_profile, profile_names, read_profile
+from fleet_sim.config.chains import MAX_STOPS, MIN_STOPS, check_chain
 from fleet_sim.config.distributions import ExponentialTime, TimeDistribution, TriangularTime
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.vehicle import VehicleProfile, vehicle_from_profile
@@ -232,9 +233,37 @@ class FleetConfig(StrictModel):
 
 
 class Flow(StrictModel):
-    from_station: Text = Field(alias="from")
-    to_station: Text = Field(alias="to")
+    """An order flow: plain orders from one pickup to one dropoff (`from`, `to`), or chains of
+    stops (`stops`, fleet_sim.config.chains), one or the other."""
+
+    from_station: Text | None = Field(default=None, alias="from")
+    to_station: Text | None = Field(default=None, alias="to")
     weight: Positive = 1.0
+    stops: Items[Text] = ()
+    """A multi-stop order: stations alternating pickup, dropoff, pickup, dropoff... (an even
+    number, 2 to 20); empty: the plain order `from` -> `to`."""
+
+    @model_validator(mode="after")
+    def _from_to_or_stops(self) -> Flow:
+        if self.stops:
+            if self.from_station is not None or self.to_station is not None:
+                raise Problem("stops", list(self.stops), "either from and to, or stops, not both")
+            if not MIN_STOPS <= len(self.stops) <= MAX_STOPS or len(self.stops) % 2:
+                raise Problem("stops", list(self.stops),
+                              f"an even number of stops from {MIN_STOPS} to {MAX_STOPS} "
+                              "(pickup, dropoff, pickup, dropoff...)")
+        elif self.from_station is None or self.to_station is None:
+            missing = "from" if self.from_station is None else "to"
+            raise Problem(missing, None, "a station (a flow has from and to, or stops)")
+        return self
+
+    @property
+    def chain(self) -> tuple[str, ...]:
+        """The flow's stops: `stops`, or (from, to)."""
+        if self.stops:
+            return self.stops
+        assert self.from_station is not None and self.to_station is not None
+        return (self.from_station, self.to_station)
 
 
 class RatePeriod(StrictModel):
@@ -541,8 +570,12 @@ def load_layout_for(scenario: Scenario, scenario_file: str) -> Layout:
 
 def check_against_layout(scenario: Scenario, layout: Layout, file: str) -> None:
     for i, flow in enumerate(scenario.demand.flows):
+        if flow.stops:
+            check_chain(flow.stops, layout, file, f"demand.flows[{i}].stops")
+            continue
         for key, station, kind in (("from", flow.from_station, "pickup"),
                                    ("to", flow.to_station, "dropoff")):
+            assert station is not None
             place = layout.places.get(station)
             if place is None or place.kind != kind:
                 names = ", ".join(p.id for p in layout.places.values() if p.kind == kind)
@@ -601,6 +634,14 @@ def _check_types(scenario: Scenario, layout: Layout, file: str) -> None:
                                  f"{layout.name}; the segments' allowed_types cut it off")
     names = tuple(fleet.type_profiles)
     for i, flow in enumerate(scenario.demand.flows):
+        if flow.stops:
+            if not chain_serving_types(layout, flow.stops, names):
+                raise InputError(file, f"demand.flows[{i}].stops", " -> ".join(flow.stops),
+                                 "stops that one vehicle type of the fleet "
+                                 f"({', '.join(names)}) may serve all of (stations' "
+                                 "allowed_types)")
+            continue
+        assert flow.from_station is not None and flow.to_station is not None
         if not serving_types(layout, flow.from_station, flow.to_station, names):
             raise InputError(file, f"demand.flows[{i}]", f"{flow.from_station} -> "
                              f"{flow.to_station}", "stations that one vehicle type of the "
@@ -618,6 +659,13 @@ def serving_types(layout: Layout, pickup: str, dropoff: str,
     """The types among `types` that may serve both stations."""
     a, b = layout.places[pickup], layout.places[dropoff]
     return tuple(t for t in types if a.serves(t) and b.serves(t))
+
+
+def chain_serving_types(layout: Layout, stops: tuple[str, ...],
+                        types: tuple[str, ...]) -> tuple[str, ...]:
+    """The types among `types` that may serve every stop of a chain."""
+    places = [layout.places[s] for s in stops]
+    return tuple(t for t in types if all(p.serves(t) for p in places))
 
 
 def agv_start_nodes(scenario: Scenario, layout: Layout) -> list[str]:
@@ -751,6 +799,9 @@ def resolved(scenario: Scenario) -> dict[str, Any]:
     plain["layout"] = str(scenario.path(scenario.layout).resolve())
     if scenario.demand.trace_csv is not None:
         plain["demand"]["trace_csv"] = str(scenario.path(scenario.demand.trace_csv).resolve())
+    for flow in plain["demand"]["flows"]:  # a flow is written as given: from/to, or stops
+        for key in ("from", "to") if flow["stops"] else ("stops",):
+            del flow[key]
     fleet = plain["fleet"]
     if scenario.fleet.vehicles:  # the size is the counts' sum; each type has its vehicle
         del fleet["size"], fleet["vehicle"]

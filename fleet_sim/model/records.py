@@ -111,6 +111,33 @@ class Order:
     """Error code of the fault that lost a loaded order."""
     reassigned: int = 0
     """Times the order went back to the queue because its AGV failed before loading."""
+    stops: tuple[str, ...] = ()
+    """A multi-stop order's chain (fleet_sim.config.chains): `pickup` is its first stop,
+    `dropoff` its last; the timestamps above are those of the first pickup (pickup_arrival_s,
+    picked_s) and the last dropoff (dropoff_arrival_s, delivered_s). Empty: a plain order."""
+    stop_handling_s: tuple[float, ...] = ()
+    """Transfer time at each stop of `stops`."""
+    stop_nodes: list[str | None] = field(default_factory=list)
+    """The docking node of each stop of `stops`, chosen when the order is assigned."""
+    stops_done: int = 0
+    """Stops whose transfer is complete (a chain taken back after a failure resumes here)."""
+
+    @property
+    def chain(self) -> tuple[str, ...]:
+        """The order's stops: `stops`, or (pickup, dropoff) for a plain order."""
+        return self.stops or (self.pickup, self.dropoff)
+
+    def stop_node(self, index: int) -> str | None:
+        """The docking node of stop `index` (plain orders: pickup_node, dropoff_node)."""
+        if self.stops:
+            return self.stop_nodes[index]
+        return self.pickup_node if index == 0 else self.dropoff_node
+
+    def stop_handling(self, index: int) -> float:
+        """The transfer time at stop `index`."""
+        if self.stops:
+            return self.stop_handling_s[index]
+        return self.pickup_handling_s if index == 0 else self.dropoff_handling_s
 
 
 @dataclass

@@ -31,6 +31,13 @@ Idle AGV that may serve none of the waiting orders is recorded as not dispatched
 ``type_not_allowed`` (work conservation). An
 order that no type of the fleet may serve (from a trace; flows are checked when the scenario is
 read) fails when it is created, with failure ``type_not_allowed``.
+
+Multi-stop orders (fleet_sim.config.chains): an order goes only to an AGV whose type may serve
+every stop; the docking node of each stop is chosen when the order is assigned, and the AGV is
+chosen by its travel time to the next stop. An AGV that fails while it carries no load (before
+a pickup, or between a dropoff and the next pickup) gives the order back: it returns to the
+front of the queue with the stops not yet done (a shorter chain, the same order id; stops done
+stay done). One that fails loaded loses the order, as a plain one (`order_failed`).
 """
 
 from __future__ import annotations
@@ -153,6 +160,8 @@ class FleetManager:
         if kind is None:
             return True
         places = self.layout.places
+        if order.stops:
+            return all(places[s].serves(kind) for s in order.stops)
         return places[order.pickup].serves(kind) and places[order.dropoff].serves(kind)
 
     def _travel_of(self, agv: Candidate) -> TravelTime:
@@ -241,7 +250,20 @@ class FleetManager:
         return self.config.park_idle
 
     def requeue(self, agv: FleetAgv, order: Order) -> None:
-        """An order its AGV cannot carry out goes back to the front of the queue."""
+        """An order its AGV cannot carry out goes back to the front of the queue (a chain with
+        the stops not yet done)."""
+        if order.stops:
+            self._undock_chain(order)
+            if order.stops_done == 0:
+                order.pickup_node = None
+            order.dropoff_node = None
+            order.agv = None
+            order.assigned_s = None
+            order.reassigned += 1
+            agv.note("order_reassigned", f"order {order.id} from stop {order.stops_done + 1}")
+            self.waiting.appendleft(order)
+            self._dispatch()
+            return
         for node in (order.pickup_node, order.dropoff_node):
             if node is not None:
                 self.bound_for[node] -= 1
@@ -256,6 +278,9 @@ class FleetManager:
     def order_failed(self, order: Order, code: str) -> None:
         order.failed_s = self.env.now
         order.failure = code
+        if order.stops:
+            self._undock_chain(order)
+            return
         if order.pickup_node is not None and order.picked_s is None:
             self.bound_for[order.pickup_node] -= 1
         if order.dropoff_node is not None:
@@ -319,6 +344,9 @@ class FleetManager:
 
     def _servable(self, order: Order) -> bool:
         places = self.layout.places
+        if order.stops:
+            return any(all(places[s].serves(t) for s in order.stops)
+                       for t in set(self.agv_types.values()))
         return any(places[order.pickup].serves(t) and places[order.dropoff].serves(t)
                    for t in set(self.agv_types.values()))
 
@@ -327,7 +355,7 @@ class FleetManager:
         skipped = 0  # orders at the head that no idle AGV's type may serve (types only)
         while len(self.waiting) > skipped and self.idle:
             order = self.waiting[skipped]
-            pickup = self.layout.places[order.pickup]
+            pickup = self.layout.places[order.chain[order.stops_done]]
             agv = self._choose(min(pickup.nodes, key=lambda n: self.bound_for[n]), order)
             if agv is None:
                 if self.agv_types and any(v.fms_link for v in self.idle):
@@ -335,9 +363,13 @@ class FleetManager:
                     continue
                 break
             del self.waiting[skipped]
-            order.pickup_node = self._docking_node(pickup)
-            self.idle.remove(agv)
-            order.dropoff_node = self._docking_node(self.layout.places[order.dropoff])
+            if order.stops:
+                self.idle.remove(agv)
+                self._dock_chain(order)
+            else:
+                order.pickup_node = self._docking_node(pickup)
+                self.idle.remove(agv)
+                order.dropoff_node = self._docking_node(self.layout.places[order.dropoff])
             order.agv = agv.id
             order.assigned_s = self.env.now
             self.assigning.add(agv.id)
@@ -365,6 +397,22 @@ class FleetManager:
             return self.policy.choose(allowed, pickup_node, self.traffic.travel_time_s,
                                       self._travel_of)
         return self.policy.choose(ready, pickup_node, self.traffic.travel_time_s)
+
+    def _dock_chain(self, order: Order) -> None:
+        """Choose the docking node of every stop of a chain not yet done."""
+        for k in range(order.stops_done, len(order.stops)):
+            order.stop_nodes[k] = self._docking_node(self.layout.places[order.stops[k]])
+        if order.stops_done == 0:
+            order.pickup_node = order.stop_nodes[0]
+        order.dropoff_node = order.stop_nodes[-1]
+
+    def _undock_chain(self, order: Order) -> None:
+        """Let go of the docking nodes of the stops of a chain not yet done."""
+        for k in range(order.stops_done, len(order.stops)):
+            node = order.stop_nodes[k]
+            if node is not None:
+                self.bound_for[node] -= 1
+            order.stop_nodes[k] = None
 
     def _docking_node(self, place: Place) -> str:
         node = min(place.nodes, key=lambda n: self.bound_for[n])

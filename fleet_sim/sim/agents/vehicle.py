@@ -6,7 +6,9 @@ sensor, link, obstacle timing...) and records the transition. The behaviours:
 
 * Orders: Idle -> Moving -> Loading (L_Approach, L_Handshake, L_Transfer, L_Verify) -> Moving ->
   Unloading (U_Approach, U_Handshake, U_Transfer, U_Verify) -> Idle. L_Transfer is the station's
-  handling time; the other sub-states take the vehicle profile's times.
+  handling time; the other sub-states take the vehicle profile's times. A multi-stop order
+  (fleet_sim.config.chains) repeats Moving -> Loading -> Moving -> Unloading stop by stop,
+  Unloading -> Moving (Event_Next_Stop) between a drop-off and the next pickup (`_serve_chain`).
 * Battery: drained per metre (more when loaded), by handling and by idling. An AGV at or below the
   charging threshold (or P_050, Event_Low_Battery) asks the fleet manager for a charger, drives
   there (Moving, purpose to_charger), docks, charges along the charge curve until SOC > 95 %,
@@ -223,7 +225,9 @@ class Vehicle(Driver):
     def assign(self, order: Order) -> None:
         """The assign command with `order` has reached the AGV."""
         self.order = order
-        self.note("order_assigned", f"order {order.id} {order.pickup} -> {order.dropoff}")
+        self.note("order_assigned", f"order {order.id} {order.pickup} -> {order.dropoff}"
+                  if not order.stops else
+                  f"order {order.id} {' -> '.join(order.stops[order.stops_done:])}")
         self._wake()
 
     def call_to_charge(self) -> None:
@@ -328,6 +332,9 @@ class Vehicle(Driver):
         return self.order is not None or self.charge_due or not self.fms_link
 
     def _serve(self, order: Order) -> Proc:
+        if order.stops:
+            yield from self._serve_chain(order)
+            return
         if not self.fire("Event_Transport_Order", f"to_pickup order {order.id}"):
             self.fleet.requeue(self, order)
             self.order = None
@@ -352,6 +359,53 @@ class Vehicle(Driver):
         self.fleet.left_station(order.dropoff_node)
         self.order = None
         self.fire("Event_Unload_Complete", f"order {order.id}")
+
+    def _serve_chain(self, order: Order) -> Proc:
+        """A multi-stop order, from the first stop not yet done: at each pickup the Loading
+        sub-states, at each dropoff the Unloading ones; after a dropoff that is not the last,
+        Unloading -> Moving on to the next pickup (Event_Next_Stop). The details of the arrival
+        and completion events name the stop: ``order 7 stop 2/4 DROP_B``."""
+        stops, n = order.stops, len(order.stops)
+
+        def tag(k: int) -> str:
+            return f"order {order.id} stop {k + 1}/{n} {stops[k]}"
+
+        if not self.fire("Event_Transport_Order", f"to_pickup {tag(order.stops_done)}"):
+            self.fleet.requeue(self, order)
+            self.order = None
+            return
+        if self.parked_in is not None:
+            yield from self._unpark()
+        for k in range(order.stops_done, n):
+            node = order.stop_nodes[k]
+            assert node is not None
+            yield from self._drive_to(node)
+            if k % 2 == 0:  # a pickup
+                if k == 0:
+                    order.pickup_arrival_s = self.env.now
+                self.fire("Event_Arrived_Pickup", tag(k))
+                yield from self._handle("L", order.stop_handling_s[k], order)
+                self.loaded = True
+                if k == 0:
+                    order.picked_s = self.env.now
+                order.stops_done = k + 1
+                self.fleet.left_station(node)
+                self.fire("Event_Load_Complete", f"to_dropoff {tag(k + 1)}")
+                continue
+            last = k == n - 1
+            if last:
+                order.dropoff_arrival_s = self.env.now
+            self.fire("Event_Arrived_Dropoff", tag(k))
+            yield from self._handle("U", order.stop_handling_s[k], order)
+            self.loaded = False
+            order.stops_done = k + 1
+            self.fleet.left_station(node)
+            if last:
+                order.delivered_s = self.env.now
+                self.order = None
+                self.fire("Event_Unload_Complete", tag(k))
+            else:
+                self.fire("Event_Next_Stop", f"to_pickup {tag(k + 1)}")
 
     def _handle(self, prefix: str, transfer_s: float, order: Order) -> Proc:
         """The four sub-states of Loading (4.3) or Unloading: approach, handshake, transfer,
