@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: run shift test bench clean
+.PHONY: run sweep shift test bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -15,13 +15,28 @@ $(STAMP): pyproject.toml
 STUDY := experiments/warehouse_sizing.yaml
 STUDY_OUT := results/warehouse_sizing
 
-# Main job: how many AGVs does the bundled warehouse need? Sweep the fleet-size grid, search the
-# smallest fleet that meets the targets with 95 % confidence, write the report. Resumable: run
-# it again after an interruption and finished runs are kept.
+# Main job: how many AGVs does the bundled warehouse need? Search the smallest fleet that meets
+# the targets with 95 % confidence, from the analytic estimate, replicating each fleet size
+# only until it is decided (sequential stopping), warm-up by MSER-5; write the report; print
+# the wall time. Resumable: run it again after an interruption and finished runs are kept.
 run: $(STAMP)
-	$(VENV)/bin/fleet-sim sweep $(STUDY) --out $(STUDY_OUT)
-	$(VENV)/bin/fleet-sim size $(STUDY) --out $(STUDY_OUT)
-	$(VENV)/bin/fleet-sim report $(STUDY_OUT)
+	@start=$$(date +%s); status=0; \
+	$(VENV)/bin/fleet-sim size $(STUDY) --out $(STUDY_OUT) \
+	  && $(VENV)/bin/fleet-sim report $(STUDY_OUT) || status=$$?; \
+	t=$$(( $$(date +%s) - start )); \
+	echo "make run: wall time $$((t / 60)) min $$((t % 60)) s on $$(nproc) cores"; \
+	exit $$status
+
+# The same, after sweeping the study's whole grid (every fleet size and demand level, 3
+# replications each) for the report's curves; several minutes more.
+sweep: $(STAMP)
+	@start=$$(date +%s); status=0; \
+	$(VENV)/bin/fleet-sim sweep $(STUDY) --out $(STUDY_OUT) \
+	  && $(VENV)/bin/fleet-sim size $(STUDY) --out $(STUDY_OUT) \
+	  && $(VENV)/bin/fleet-sim report $(STUDY_OUT) || status=$$?; \
+	t=$$(( $$(date +%s) - start )); \
+	echo "make sweep: wall time $$((t / 60)) min $$((t % 60)) s on $$(nproc) cores"; \
+	exit $$status
 
 # One 8-hour shift of the warehouse with 12 AGVs, KPIs printed.
 shift: $(STAMP)
@@ -33,6 +48,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(VENV)/bin/python bench/engine_scaling.py
+	$(VENV)/bin/python bench/admission.py
 	$(VENV)/bin/python bench/sweep_scaling.py
 
 clean:

@@ -1,33 +1,47 @@
-"""How fast is the engine? The realistic warehouse over an 8-hour shift with 10, 25, 50 and 100
-AGVs, against a bare SimPy ring (400 nodes, 50 AGVs, node locks, 8 h) run in the same process.
+"""How fast is the engine? Three sections, each printing a table; these machines are noisy, so
+compare figures within one run of this script only (the load average is printed).
 
-Two regimes: a fleet-sizing sweep (demand fixed at 150 orders/h, about what the layout can
-carry; idle AGVs park), and every AGV busy (demand 7.5 orders/h per AGV, the load of the bundled
-shift scenario). Prints medians of --repeats runs; these machines are noisy, so compare figures
-within one run of this script only.
+* `ring`: the full model against a bare SimPy ring (400 nodes, 50 AGVs, node locks, 8 h) in the
+  same process, interleaved (ring, model, ring, model, ...), medians of --repeats. The model
+  runs the 50-AGV 8-hour shift of the warehouse: demand fixed at 150 orders/h (what the layout
+  carries); every AGV busy (7.5 orders/h per AGV); and with everything on (the warehouse_wifi
+  layout with every incident of experiments/warehouse_incidents.yaml, charging, admission of 20
+  AGVs, congestion- and Wi-Fi-aware routes).
+* `warehouse`: 8-hour shifts of the warehouse at --fleets AGVs, demand fixed at 150 orders/h
+  (a fleet-sizing sweep; idle AGVs park) and every AGV busy.
+* `dc`: the 627-node distribution centre at --dc-fleets AGVs with demand that keeps them about
+  70 % busy by the analytic estimate (0.7 x AGVs x 3600 / cycle time), without admission and
+  with --dc-max-active AGVs admitted: wall time per simulated AGV-hour against the 50-AGV
+  figure. The layout carries ~200 orders/h, so beyond ~40 AGVs the demand exceeds it.
 
-    .venv/bin/python bench/engine_scaling.py [--repeats 3] [--fleets 10 25 50 100]
+    .venv/bin/python bench/engine_scaling.py [--sections ring warehouse dc] [--repeats 3]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import simpy
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from fleet_sim.analysis.estimate import analytic_estimate  # noqa: E402
+from fleet_sim.analysis.kpis import run_kpis  # noqa: E402
 from fleet_sim.config.scenario import load_layout_for, load_scenario  # noqa: E402
-from fleet_sim.sim.engine import simulate  # noqa: E402
+from fleet_sim.sim.engine import RunOutput, simulate  # noqa: E402
 
 SHIFT_H = 8.0
 ORDERS_PER_AGV_HOUR = 7.5
 FIXED_ORDERS_PER_HOUR = 150.0
+BUSY_SHARE = 0.7
+EXPERIMENTS = ROOT / "experiments"
 
 
 def bare_ring(nodes: int = 400, agvs: int = 50, hours: float = SHIFT_H,
@@ -55,53 +69,142 @@ def bare_ring(nodes: int = 400, agvs: int = 50, hours: float = SHIFT_H,
     return time.perf_counter() - start, next(env._eid)
 
 
-def warehouse(agvs: int, rate_per_hour: float) -> tuple[float, int, float]:
-    path = ROOT / "experiments" / "warehouse_shift.yaml"
-    scenario = load_scenario(path, {"fleet.size": agvs, "duration_h": SHIFT_H,
-                                    "demand.rate_per_hour": rate_per_hour,
-                                    "demand.profile": []})
+def model_run(scenario_file: str, overrides: dict[str, Any]) -> tuple[float, RunOutput]:
+    path = EXPERIMENTS / scenario_file
+    scenario = load_scenario(path, overrides)
     layout = load_layout_for(scenario, str(path))
     start = time.perf_counter()
     run = simulate(scenario, layout)
-    wall = time.perf_counter() - start
-    delivered = sum(1 for o in run.recorder.orders if o.delivered_s is not None)
-    return wall, run.sim_events, delivered / SHIFT_H
+    return time.perf_counter() - start, run
+
+
+def delivered_per_hour(run: RunOutput) -> float:
+    return sum(1 for o in run.recorder.orders if o.delivered_s is not None) \
+        / run.scenario.duration_h
+
+
+SHIFTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "150 orders/h": ("warehouse_shift.yaml", {
+        "fleet.size": 50, "duration_h": SHIFT_H, "demand.rate_per_hour": FIXED_ORDERS_PER_HOUR,
+        "demand.profile": []}),
+    "every AGV busy": ("warehouse_shift.yaml", {
+        "fleet.size": 50, "duration_h": SHIFT_H,
+        "demand.rate_per_hour": ORDERS_PER_AGV_HOUR * 50, "demand.profile": []}),
+    "everything on": ("warehouse_incidents.yaml", {
+        "fleet.size": 50, "duration_h": SHIFT_H, "demand.rate_per_hour": FIXED_ORDERS_PER_HOUR,
+        "dispatch.max_active_agvs": 20, "traffic.congestion_cost_s": 10.0,
+        "traffic.weak_wifi_cost_s": 30.0}),
+}
+
+
+def ring_section(repeats: int) -> None:
+    print("## 50 AGVs, 8-hour shift, against a bare SimPy ring (400 nodes, 50 AGVs, 8 h), "
+          f"interleaved, medians of {repeats}")
+    print()
+    header = ("warehouse shift", "ring s", "model s", "model / ring", "SimPy events/s",
+              "delivered/h")
+    print("| " + " | ".join(header) + " |")
+    print("|---|" + "|".join("---:" for _ in header[1:]) + "|")
+    for title, (scenario_file, overrides) in SHIFTS.items():
+        rings: list[float] = []
+        models: list[float] = []
+        run: RunOutput | None = None
+        for _ in range(repeats):
+            rings.append(bare_ring()[0])
+            wall, run = model_run(scenario_file, overrides)
+            models.append(wall)
+        assert run is not None
+        ring_s, model_s = statistics.median(rings), statistics.median(models)
+        print(f"| {title} | {ring_s:.2f} | {model_s:.2f} | {model_s / ring_s:.2f} | "
+              f"{run.sim_events / model_s:,.0f} | {delivered_per_hour(run):.0f} |", flush=True)
+    print()
+
+
+def warehouse_section(fleets: list[int], repeats: int) -> None:
+    ring_wall = statistics.median(bare_ring()[0] for _ in range(repeats))
+    print(f"bare SimPy ring, 400 nodes, 50 AGVs, {SHIFT_H:.0f} h: {ring_wall:.2f} s wall "
+          f"(median of {repeats})")
+    print()
+    for title, per_agv in (("fleet-sizing sweep: demand fixed at 150 orders/h", None),
+                           ("every AGV busy: demand 7.5 orders/h per AGV", ORDERS_PER_AGV_HOUR)):
+        print(f"## realistic warehouse, {SHIFT_H:.0f} h shift, {title}")
+        print()
+        header = ("AGVs", "wall s", "sim h / wall s", "events/s", "ms per sim h per AGV",
+                  "x ring", "delivered/h")
+        print("| " + " | ".join(header) + " |")
+        print("|" + "|".join("---:" for _ in header) + "|")
+        for agvs in fleets:
+            rate = FIXED_ORDERS_PER_HOUR if per_agv is None else per_agv * agvs
+            runs = [model_run("warehouse_shift.yaml", {
+                "fleet.size": agvs, "duration_h": SHIFT_H, "demand.rate_per_hour": rate,
+                "demand.profile": []}) for _ in range(repeats)]
+            wall = statistics.median(r[0] for r in runs)
+            first = runs[0][1]
+            print(f"| {agvs} | {wall:.2f} | {SHIFT_H / wall:.1f} | "
+                  f"{first.sim_events / wall:,.0f} | {wall / SHIFT_H / agvs * 1000:.1f} | "
+                  f"{wall / ring_wall:.2f} | {delivered_per_hour(first):.0f} |", flush=True)
+        print()
+
+
+def dc_section(fleets: list[int], hours: float, max_active: int, repeats: int) -> None:
+    path = EXPERIMENTS / "warehouse_shift.yaml"
+    base = {"layout": "../layouts/distribution_centre.yaml", "duration_h": hours,
+            "warmup_h": 0.5, "demand.profile": []}
+    scenario = load_scenario(path, base)
+    estimate = analytic_estimate(scenario, load_layout_for(scenario, str(path)))
+    per_agv = BUSY_SHARE * 3600.0 / estimate.cycle_s
+    print(f"## distribution centre (627 nodes), {hours:g} h, demand {per_agv:.2f} orders/h "
+          f"per AGV ({BUSY_SHARE:.0%} busy by the analytic estimate, {estimate.cycle_s:.0f} s "
+          f"per order), medians of {repeats}")
+    for rule in (None, max_active):
+        print()
+        print("without admission" if rule is None
+              else f"with admission: at most {rule} AGVs on the track")
+        print()
+        header = ("AGVs", "demand/h", "wall s", "ms per sim AGV-h", "x 50 AGVs", "events/s",
+                  "delivered/h", "busy %", "deadlocks")
+        print("| " + " | ".join(header) + " |")
+        print("|" + "|".join("---:" for _ in header) + "|")
+        at_50: float | None = None
+        for agvs in fleets:
+            overrides = {**base, "fleet.size": agvs, "demand.rate_per_hour": per_agv * agvs}
+            if rule is not None and agvs > rule:
+                overrides["dispatch.max_active_agvs"] = rule
+            runs = [model_run("warehouse_shift.yaml", overrides) for _ in range(repeats)]
+            wall = statistics.median(r[0] for r in runs)
+            run = runs[0][1]
+            cost = wall / hours / agvs * 1000
+            if agvs == 50:
+                at_50 = cost
+            ratio = f"{cost / at_50:.2f}" if at_50 else ""
+            figures = run_kpis(run)
+            print(f"| {agvs} | {per_agv * agvs:.0f} | {wall:.1f} | {cost:.1f} | {ratio} | "
+                  f"{run.sim_events / wall:,.0f} | {figures['throughput_per_hour']:.0f} | "
+                  f"{figures['agv_utilisation_pct']:.0f} | {run.recorder.deadlocks} |",
+                  flush=True)
+    print()
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sections", nargs="+", default=["ring", "warehouse", "dc"],
+                        choices=["ring", "warehouse", "dc"])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--fleets", type=int, nargs="+", default=[10, 25, 50, 100])
+    parser.add_argument("--dc-fleets", type=int, nargs="+", default=[10, 25, 50, 100, 200, 500])
+    parser.add_argument("--dc-hours", type=float, default=4.0)
+    parser.add_argument("--dc-max-active", type=int, default=40)
+    parser.add_argument("--dc-repeats", type=int, default=1)
     args = parser.parse_args()
-
-    ring = [bare_ring() for _ in range(args.repeats)]
-    ring_wall = statistics.median(w for w, _ in ring)
-    ring_events = ring[0][1]
-    print(f"bare SimPy ring, 400 nodes, 50 AGVs, {SHIFT_H:.0f} h: "
-          f"{ring_wall:.2f} s wall, {SHIFT_H / ring_wall:.1f} sim h/s, "
-          f"{ring_events / ring_wall:,.0f} events/s (median of {args.repeats})")
+    print(f"load average at start: {os.getloadavg()[0]:.2f} ({os.cpu_count()} cores)")
     print()
-    for title, rate in (("fleet-sizing sweep: demand fixed at 150 orders/h", None),
-                        ("every AGV busy: demand 7.5 orders/h per AGV", ORDERS_PER_AGV_HOUR)):
-        print(f"realistic warehouse, {SHIFT_H:.0f} h shift, {title}")
-        print()
-        table(args.fleets, args.repeats, rate, ring_wall)
-        print()
-
-
-def table(fleets: list[int], repeats: int, per_agv: float | None, ring_wall: float) -> None:
-    header = ("AGVs", "wall s", "sim h / wall s", "events/s", "ms per sim h per AGV",
-              "x ring", "delivered/h")
-    print("| " + " | ".join(header) + " |")
-    print("|" + "|".join("---:" for _ in header) + "|")
-    for agvs in fleets:
-        rate = FIXED_ORDERS_PER_HOUR if per_agv is None else per_agv * agvs
-        runs = [warehouse(agvs, rate) for _ in range(repeats)]
-        wall = statistics.median(r[0] for r in runs)
-        events = runs[0][1]
-        print(f"| {agvs} | {wall:.2f} | {SHIFT_H / wall:.1f} | {events / wall:,.0f} | "
-              f"{wall / SHIFT_H / agvs * 1000:.1f} | {wall / ring_wall:.2f} | "
-              f"{runs[0][2]:.0f} |", flush=True)
+    if "ring" in args.sections:
+        ring_section(args.repeats)
+    if "warehouse" in args.sections:
+        warehouse_section(args.fleets, args.repeats)
+    if "dc" in args.sections:
+        dc_section(args.dc_fleets, args.dc_hours, args.dc_max_active, args.dc_repeats)
+    print(f"load average at end: {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

@@ -1,12 +1,14 @@
 """The fleet manager (fleet_sim.sim.agents.fleet_manager): assigning orders, putting back the
-order of an AGV that cannot carry it out, the charger queue, parking; and, in whole runs, idle
-AGVs parked, no order lost, Little's law on the order queue; work conservation: every reason
+order of an AGV that cannot carry it out, the charger queue, parking, admission; and, in whole
+runs, idle AGVs parked, no order lost, Little's law on the order queue, admission never beyond
+its limit and a large fleet that keeps delivering under it; work conservation: every reason
 for not dispatching provoked and recorded, and over long runs with every incident on, no moment
 at which an AGV stands Idle while an order waits without a recorded reason."""
 
 from __future__ import annotations
 
 import copy
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,7 +30,7 @@ from fleet_sim.model.records import EventRecord, Order, Recorder
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.commands import CommandPath
-from fleet_sim.sim.engine import build_model, simulate
+from fleet_sim.sim.engine import RunOutput, build_model, simulate
 from fleet_sim.sim.traffic.control import Traffic
 
 from .conftest import LAYOUTS, make_scenario, write_yaml
@@ -42,6 +44,7 @@ class StubAgv:
     node: str
     fms_link: bool = True
     state: VehicleState = VehicleState.IDLE
+    in_parking: bool = False
     notes: list[tuple[str, str]] = field(default_factory=list)
     orders: list[Order] = field(default_factory=list)
 
@@ -56,12 +59,12 @@ class StubAgv:
         self.orders.append(order)
 
 
-def fleet_manager(layout: Layout) -> FleetManager:
+def fleet_manager(layout: Layout, config: DispatchConfig | None = None) -> FleetManager:
     env = simpy.Environment()
     recorder = Recorder(0.0, 3600.0)
     traffic = Traffic(env, layout, Motion(1.0, 0.5, 0.5, 0.3), recorder)
     commands = CommandPath(env, None, 0.0, np.random.default_rng(0), recorder)
-    return FleetManager(env, layout, traffic, DispatchConfig(), recorder, commands)
+    return FleetManager(env, layout, traffic, config or DispatchConfig(), recorder, commands)
 
 
 def spurs_data() -> dict[str, Any]:
@@ -379,6 +382,10 @@ REASON_RUNS: dict[NotDispatched, dict[str, Any]] = {
         "duration_h": 1, "fleet": {"size": 2, "vehicle": BATTERY_OFF,
                                    "command_profile": "carriro-ad-plus"},
         "dispatch": {"park_idle": False}, "demand": {"rate_per_hour": 90}},
+    # admission: one AGV on the track at a time, the other two stand Idle in parking
+    NotDispatched.ADMISSION_FULL: {
+        "duration_h": 1, "fleet": {"size": 3, "vehicle": BATTERY_OFF},
+        "dispatch": {"max_active_agvs": 1}, "demand": {"rate_per_hour": 90}},
     # two types, the pickup open to type a only (closed_pick_layout): b stands Idle
     NotDispatched.TYPE_NOT_ALLOWED: {
         "duration_h": 1, "fleet": {"vehicles": [
@@ -437,3 +444,99 @@ def test_work_conservation_over_a_long_run_with_every_incident(spurs_layout: Lay
     assert figures["idle_with_orders_waiting_pct"] > 0
     assert sum(by_reason.values()) == pytest.approx(figures["idle_with_orders_waiting_pct"],
                                                     abs=1e-4)
+
+
+# ---- admission (dispatch.max_active_agvs) ----------------------------------------------------
+
+
+def test_admission_gives_parked_agvs_work_only_while_there_is_room(spurs_layout: Layout) -> None:
+    fm = fleet_manager(spurs_layout, DispatchConfig(max_active_agvs=1))
+    out, parked = StubAgv(0, "K", in_parking=True), StubAgv(1, "K", in_parking=True)
+    fm.vehicle_idle(out)
+    fm.vehicle_idle(parked)
+    first, second = Order(0, 0.0, "PICK", "DROP"), Order(1, 0.0, "PICK", "DROP")
+    fm.submit(first)
+    fm.submit(second)
+    assert out.orders == [first] and parked.orders == []  # one admission, taken by AGV 0
+    assert fm.admitted == {0} and list(fm.waiting) == [second]
+    assert out.notes == [("admitted", "1 of 1 on the track")]
+    out.in_parking = False  # AGV 0 drives off, delivers, and offers itself on the track
+    fm.vehicle_idle(out)
+    assert out.orders == [first, second]  # on the track already: no admission needed
+    out.in_parking = True
+    fm.parked(out)  # AGV 0 is back in parking: its admission is free
+    assert fm.admitted == set()
+    fm.submit(third := Order(2, 0.0, "PICK", "DROP"))
+    assert parked.orders == [third] and fm.admitted == {1}
+
+
+def test_a_freed_admission_goes_to_a_charger_before_an_order(spurs_layout: Layout) -> None:
+    fm = fleet_manager(spurs_layout, DispatchConfig(max_active_agvs=1))
+    busy = StubAgv(0, "D")
+    fm.on_track_at_start(busy)
+    waiting_idle, low = StubAgv(1, "K", in_parking=True), StubAgv(2, "K", in_parking=True)
+    fm.vehicle_idle(waiting_idle)
+    fm.submit(order := Order(0, 0.0, "PICK", "DROP"))
+    charger = fm.request_charger(low)
+    assert not charger.triggered and waiting_idle.orders == []  # AGV 0 holds the admission
+    busy.in_parking = True
+    fm.parked(busy)
+    assert charger.triggered and fm.admitted == {2}  # the battery first
+    assert waiting_idle.orders == [] and list(fm.waiting) == [order]
+
+
+def on_track_at_most(run: RunOutput) -> int:
+    """The most AGVs on the track at once, from the node holds the run recorded (an AGV on the
+    track always holds its node; in parking, none): independent of the admission bookkeeping."""
+    spans: dict[int, list[tuple[float, float]]] = {}
+    for spell in run.recorder.occupancy:
+        if spell.kind == "node":
+            spans.setdefault(spell.agv, []).append((spell.start_s, spell.end_s))
+    for vehicle in run.vehicles:  # holds still open at the end
+        for held in vehicle.held + vehicle.ahead:
+            spans.setdefault(vehicle.id, []).append((held.since_s, run.scenario.duration_s))
+    changes: list[tuple[float, int]] = []
+    for agv_spans in spans.values():  # each AGV's union of holds: +1 when it starts, -1 at end
+        agv_spans.sort()
+        start, end = agv_spans[0]
+        for a, b in agv_spans[1:]:
+            if a > end:
+                changes += [(start, 1), (end, -1)]
+                start = a
+            end = max(end, b)
+        changes += [(start, 1), (end, -1)]
+    most = now = 0
+    for _, step in sorted(changes):  # at one instant, leaving (-1) before entering (+1)
+        now += step
+        most = max(most, now)
+    return most
+
+
+def test_admission_never_admits_beyond_its_limit(warehouse_layout: Layout) -> None:
+    lulls = [{"from_h": h / 2, "multiplier": 0.05 if h % 2 else 1.0} for h in range(6)]
+    scenario = make_scenario("warehouse.yaml", duration_h=3, warmup_h=0.5, seed=5,
+                             fleet={"size": 40},  # busy half-hours and lulls: AGVs come and go
+                             demand={"rate_per_hour": 150, "profile": lulls},
+                             dispatch={"max_active_agvs": 12},
+                             charging={"threshold_pct": 60})  # charging trips too
+    run = simulate(scenario, warehouse_layout, record_occupancy=True)
+    assert on_track_at_most(run) == 12  # the limit binds, and is never passed
+    admitted = Counter(e.agv for e in run.recorder.events if e.event == "admitted")
+    assert sum(admitted.values()) > 12  # admissions freed in parking were handed out again
+    assert any(e.event == "Event_Go_Charge" for e in run.recorder.events)
+    unlimited = simulate(scenario.model_copy(update={"dispatch": DispatchConfig()}),
+                         warehouse_layout, record_occupancy=True)
+    assert on_track_at_most(unlimited) > 12  # without the rule, more AGVs go out
+
+
+def test_150_agvs_on_the_warehouse_deliver_in_every_hour_under_admission(
+        warehouse_layout: Layout) -> None:
+    """Without admission, 100 busy AGVs lock the warehouse's loop solid in the first hour
+    (bench/admission.py); with the loop's working load admitted, 150 keep delivering."""
+    scenario = make_scenario("warehouse.yaml", duration_h=3.5, warmup_h=0.5, seed=3,
+                             fleet={"size": 150}, demand={"rate_per_hour": 300},
+                             dispatch={"max_active_agvs": 20})
+    run = simulate(scenario, warehouse_layout)
+    per_hour = Counter(int((o.delivered_s - 1800.0) // 3600) for o in run.recorder.orders
+                       if o.delivered_s is not None and o.delivered_s >= 1800.0)
+    assert all(per_hour[h] >= 120 for h in range(3)), per_hour  # the plateau is ~170/h

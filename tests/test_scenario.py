@@ -59,6 +59,7 @@ def test_resolved_config_writes_every_default_and_reloads(tmp_path: Path) -> Non
     assert plain["fleet"]["vehicle"]["turn_speed_mps"] == 0.3
     assert plain["dispatch"]["policy"] == "nearest_idle"
     assert plain["traffic"]["replan_after_s"] == 30.0
+    assert plain["dispatch"]["max_active_agvs"] is None  # admission off: the spec's behaviour
     assert "_base_dir" not in plain
     assert plain["layout"] == str((LAYOUTS / "tiny_loop.yaml").resolve())  # runs from anywhere
     again = load_scenario(write_yaml(tmp_path / "again.yaml", plain))
@@ -93,6 +94,17 @@ def test_overrides_by_dotted_key() -> None:
     ({"layout": "x.yaml", "fleet": {"vehicle": {"accel_mps2": -1}}},
      "fleet.vehicle.accel_mps2", "a number > 0"),
     ({"fleet": {"size": 2}}, "layout", "required key"),
+    ({"layout": "x.yaml", "traffic": {"congestion_cost_s": -1}}, "traffic.congestion_cost_s",
+     "a number in [0, 3600]"),
+    ({"layout": "x.yaml", "traffic": {"weak_wifi_cost_s": 1e9}}, "traffic.weak_wifi_cost_s",
+     "a number in [0, 3600]"),
+    ({"layout": "x.yaml", "dispatch": {"max_active_agvs": 0}}, "dispatch.max_active_agvs",
+     "an integer in [1, 2000]"),
+    ({"layout": "x.yaml", "dispatch": {"max_active_agvs": 2.5}}, "dispatch.max_active_agvs",
+     "an integer"),
+    ({"layout": "x.yaml", "fleet": {"size": 3, "start_nodes": ["A", "B", "C"]},
+      "dispatch": {"max_active_agvs": 2}}, "dispatch.max_active_agvs",
+     "at least fleet.size (3) when the AGVs start on the track"),
 ])
 def test_bad_scenarios(tmp_path: Path, data: dict[str, object], element: str,
                        expected: str) -> None:

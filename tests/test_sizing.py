@@ -6,13 +6,15 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import pytest
+import yaml
 
 from fleet_sim.config.experiment import load_experiment
 from fleet_sim.study.sizing import size_fleet
 
-from .conftest import ROOT
+from .conftest import ROOT, write_yaml
 
 EXPERIMENT = ROOT / "experiments" / "tiny_loop_sizing.yaml"
 
@@ -25,7 +27,8 @@ def test_size_search_finds_the_known_answer(tmp_path: Path) -> None:
     assert result.evaluations[2].verdict == "meets"
     assert result.evaluations[1].verdict == "fails"  # and one AGV is shown to fail
     assert set(result.evaluations) == {1, 2}  # started at the estimate: no blind grid
-    assert result.evaluations[1].replications == experiment.spec.replications  # clear: no more
+    # sequential stopping: a clear case takes the minimum, two replications
+    assert result.evaluations[1].replications == experiment.spec.sizing.min_replications
     through = result.evaluations[1].checks[0]
     assert through.interval.high < 98 * 31.3 / 45  # one AGV carries ~31 of 45 orders/h
     document = json.loads((out / "sizing.json").read_text())
@@ -34,5 +37,41 @@ def test_size_search_finds_the_known_answer(tmp_path: Path) -> None:
     assert group["estimate"]["cycle_s"] == pytest.approx(115.2533, abs=1e-4)
     assert group["statement"].startswith("2 AGVs meet every target with 95 % confidence")
     runs = {p.name for p in (out / "runs").iterdir()}
-    assert {f"fleet.size=1__r{r:02d}" for r in range(3)} <= runs
+    assert {f"fleet.size=1__r{r:02d}" for r in range(2)} <= runs
+    assert "fleet.size=1__r02" not in runs
     assert not any(name.startswith("fleet.size=3") for name in runs)
+
+
+def variant(tmp_path: Path, source: Path, name: str, **changes: Any) -> Path:
+    """The experiment file `source` with `changes` to its top-level keys (sizing merged)."""
+    data = yaml.safe_load(source.read_text(encoding="utf-8"))
+    data["scenario"] = str((source.parent / data["scenario"]).resolve())
+    sizing = {**data.get("sizing", {}), **changes.pop("sizing", {})}
+    data.update({**changes, "sizing": sizing})
+    return write_yaml(tmp_path / f"{name}.yaml", data)
+
+
+@pytest.mark.parametrize("source,changes,cap", [
+    (EXPERIMENT, {}, 8),
+    (ROOT / "experiments" / "warehouse_sizing.yaml",  # shortened: 2-hour shifts, one demand
+     {"overrides": {"warmup_h": 0.25, "duration_h": 2.0}, "warmup": {"method": "fixed"},
+      "factors": {"fleet.size": list(range(6, 15)), "demand.rate_per_hour": [90]}}, 6),
+])
+def test_sequential_stopping_recommends_what_fixed_replications_do(
+        tmp_path: Path, source: Path, changes: dict[str, Any], cap: int) -> None:
+    """The same seeds, the same searches: `cap` replications at every fleet size looked at,
+    against as few as decide it (2, then 2 more at a time, up to `cap`)."""
+    out = tmp_path / "out"  # shared: the sequential search reuses the fixed one's runs
+    fixed_file = variant(tmp_path, source, "fixed", replications=cap,
+                         sizing={"stopping": "fixed", "max_replications": cap}, **changes)
+    sequential_file = variant(tmp_path, source, "sequential", replications=cap,
+                              sizing={"stopping": "sequential", "max_replications": cap},
+                              **changes)
+    fixed = size_fleet(load_experiment(fixed_file), out, workers=2, quiet=True)
+    sequential = size_fleet(load_experiment(sequential_file), out, workers=2, quiet=True)
+    assert [g.recommended for g in sequential] == [g.recommended for g in fixed]
+    assert all(g.recommended is not None for g in fixed)
+    assert sum(g.runs() for g in sequential) < sum(g.runs() for g in fixed)
+    document = json.loads((out / "sizing.json").read_text())
+    assert document["stopping"] == "sequential" and document["runs"] == \
+        sum(g.runs() for g in sequential)

@@ -12,6 +12,7 @@ from fleet_sim.analysis.stats import (
     check_targets,
     decide,
     mean_ci,
+    mser5_truncation,
     paired_differences,
     point_stats,
     replications_needed,
@@ -112,3 +113,20 @@ def test_a_code_no_run_raised_counts_zero_times() -> None:
         Target(kpi="errors_by_code.E_999", at_most=0.0),  # never raised, no column: zero, meets
         Target(kpi="lead_time_p95_s", at_most=600.0)])  # no value at all: fails
     assert [c.decision for c in checks] == ["undecided", "meets", "fails"]
+
+
+def test_mser5_cuts_the_initial_transient_and_nothing_of_a_stationary_series() -> None:
+    rng = np.random.default_rng(3)
+    noise = rng.normal(0.0, 1.0, 1000)
+    transient = np.where(np.arange(1000) < 200, 20.0 * (1 - np.arange(1000) / 200), 0.0)
+    cut = mser5_truncation(noise + transient)
+    assert cut % 5 == 0 and 150 <= cut <= 250  # the ramp ends at observation 200
+    assert mser5_truncation(noise) <= 25  # no transient: little or nothing deleted
+    assert mser5_truncation([1.0, 2.0, 3.0]) == 0  # shorter than two batches
+
+
+def test_mser5_by_hand() -> None:
+    """Batch means 10, 0, 0, 0 (k = 4, d up to 2): MSER(0) = 75 / 16, MSER(1) = 0: cut 5."""
+    series = [10.0] * 5 + [0.0] * 15
+    assert mser5_truncation(series) == 5
+    assert mser5_truncation([0.0] * 20) == 0  # all equal: ties go to the shorter warm-up

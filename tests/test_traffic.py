@@ -5,19 +5,21 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import pytest
 import simpy
+import yaml
 
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.errors import SimulationError
 from fleet_sim.model.kinematics import Motion
 from fleet_sim.model.records import Recorder
-from fleet_sim.sim.traffic.control import Traffic
+from fleet_sim.sim.traffic.control import RouteCosts, Traffic
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim, Escape, GentlestEscapeFirst
 from fleet_sim.sim.traffic.locks import Claim, CorridorLock, NodeLock
 
-from .conftest import DATA
+from .conftest import DATA, write_yaml
 
 
 @dataclass
@@ -194,3 +196,30 @@ def test_routes_go_round_what_they_must_avoid(ring: Layout) -> None:
     traffic.block("N0", "N1", 0.0, 100.0)
     assert traffic.blocked_until("N0", "N1", 50.0) == 100.0
     assert traffic.route("N0", "N2") == ["N0", "B0", "N2"]  # reported blocks are avoided
+
+
+def test_route_costs_go_round_congestion_only_when_asked(ring: Layout) -> None:
+    """N0 -> N2: through N1 (16 m), or round by B0 (about 26 m, ~10 s longer)."""
+    plain = make_traffic(ring, clients=2)
+    plain.request(1, plain.node_locks["N1"])  # an AGV stands on N1
+    assert plain.route("N0", "N2") == ["N0", "N1", "N2"]  # default: free-flow routes
+    mild = make_traffic(ring, clients=2, costs=RouteCosts(congestion_s=5.0))
+    mild.request(1, mild.node_locks["N1"])
+    assert mild.route("N0", "N2") == ["N0", "N1", "N2"]  # 5 s less than the detour costs
+    costly = make_traffic(ring, clients=3, costs=RouteCosts(congestion_s=20.0))
+    assert costly.route("N0", "N2") == ["N0", "N1", "N2"]  # nobody there yet
+    held = costly.request(1, costly.node_locks["N1"])
+    assert costly.route("N0", "N2") == ["N0", "B0", "N2"]
+    costly.free(1, held)
+    costly.env.run()
+    assert costly.route("N0", "N2") == ["N0", "N1", "N2"]  # gone again
+
+
+def test_route_costs_keep_off_weak_wifi_when_asked(ring: Layout, tmp_path: Path) -> None:
+    data = yaml.safe_load((DATA / "deadlock_ring.yaml").read_text(encoding="utf-8"))
+    data["segments"][0]["rssi_dbm"] = -75.0  # N0 -> N1: weak (E_002 below -70 dBm)
+    weak = load_layout(write_yaml(tmp_path / "weak.yaml", data))
+    assert make_traffic(weak).route("N0", "N2") == ["N0", "N1", "N2"]
+    avoiding = make_traffic(weak, costs=RouteCosts(weak_wifi_s=30.0, weak_rssi_dbm=-70.0))
+    assert avoiding.route("N0", "N2") == ["N0", "B0", "N2"]
+    assert avoiding.route("N1", "N3") == ["N1", "N2", "N3"]  # elsewhere: unchanged

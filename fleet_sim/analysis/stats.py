@@ -14,6 +14,11 @@ Decisions, where the issue is silent:
   the sample standard deviation s as it stands; none when the mean sits on the bound.
 * Paired differences compare adjacent levels of one factor with every other factor held fixed,
   replication by replication (the same seed, so common random numbers cancel shared noise).
+* Warm-up from the data: MSER-5 (White 1997; Hoad, Robinson & Davies 2010). The output series
+  is cut into batches of 5 and their means Z_1..Z_k; deleting the first d batches leaves the
+  marginal standard error statistic MSER(d) = sum_{j>d} (Z_j - mean_{j>d} Z)^2 / (k - d)^2,
+  and the warm-up is the d that minimises it, searched over the first half of the series only
+  (beyond it the statistic rewards deleting nearly everything); ties go to the shorter warm-up.
 """
 
 from __future__ import annotations
@@ -71,14 +76,16 @@ def mean_ci(values: Sequence[float] | np.ndarray, confidence: float = CONFIDENCE
     return Interval(n, mean, sd, t_quantile(n, confidence) * sd / math.sqrt(n))
 
 
-def decide(values: Sequence[float] | np.ndarray, target: Target) -> str:
-    """'meets', 'fails' or 'undecided': where the 95 % interval lies against the bound."""
+def decide(values: Sequence[float] | np.ndarray, target: Target,
+           confidence: float = CONFIDENCE) -> str:
+    """'meets', 'fails' or 'undecided': where the interval (95 % unless said) lies against the
+    bound."""
     x = np.asarray(values, dtype=float)
     if len(x) == 0:
         return "undecided"
     if np.isnan(x).any():
         return "fails"  # a replication without a value (nothing delivered) cannot meet it
-    ci = mean_ci(x)
+    ci = mean_ci(x, confidence)
     if ci.n < 2:
         return "undecided"
     good_low, good_high = (ci.low, ci.high) if target.higher_is_better else (-ci.high, -ci.low)
@@ -103,6 +110,22 @@ def replications_needed(sd: float, distance: float, n_now: int = 2,
             return n
         n += 1
     return None
+
+
+MSER_BATCH = 5
+
+
+def mser5_truncation(values: Sequence[float] | np.ndarray) -> int:
+    """How many leading observations of `values` to delete as warm-up (a multiple of 5),
+    by MSER-5; 0 for a series shorter than two batches."""
+    x = np.asarray(values, dtype=float)
+    k = len(x) // MSER_BATCH
+    if k < 2:
+        return 0
+    z = x[:k * MSER_BATCH].reshape(k, MSER_BATCH).mean(axis=1)
+    scores = [float(((z[d:] - z[d:].mean()) ** 2).sum()) / (k - d) ** 2
+              for d in range(k // 2 + 1)]
+    return int(np.argmin(scores)) * MSER_BATCH  # argmin: the first of equal minima
 
 
 def kpi_columns(summary: pd.DataFrame, factor_names: Sequence[str]) -> list[str]:
@@ -213,10 +236,13 @@ def check_targets(summary: pd.DataFrame, factor_names: Sequence[str],
     return checks
 
 
-def target_check(point: dict[str, Any], target: Target, values: np.ndarray) -> TargetCheck:
-    decision = decide(values, target)
-    ci = mean_ci(values)
+def target_check(point: dict[str, Any], target: Target, values: np.ndarray,
+                 confidence: float = CONFIDENCE) -> TargetCheck:
+    """The point against the target at `confidence` (decision, interval and replications
+    needed all at that level)."""
+    decision = decide(values, target, confidence)
+    ci = mean_ci(values, confidence)
     needed = None
     if decision == "undecided" and ci.n >= 2:
-        needed = replications_needed(ci.sd, ci.mean - target.bound, ci.n + 1)
+        needed = replications_needed(ci.sd, ci.mean - target.bound, ci.n + 1, confidence)
     return TargetCheck(point, target, decision, ci, needed)

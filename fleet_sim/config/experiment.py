@@ -129,13 +129,21 @@ class Target(StrictModel):
 class SizingConfig(StrictModel):
     """The fleet-size search of `fleet-sim size`."""
 
+    stopping: Literal["sequential", "fixed"] = "sequential"
+    """sequential: each fleet size starts with min_replications and adds replications (as many
+    at a time as there are workers) only until every target is decided (its 95 % interval
+    clear of the bound: met, or one target failed) or max_replications is reached. fixed:
+    every fleet size runs the experiment's `replications`, no more and no fewer."""
+    min_replications: int = Field(default=2, ge=2, le=MAX_REPLICATIONS)
+    """Replications a fleet size starts with under sequential stopping (a confidence interval
+    needs two)."""
     min_agvs: Annotated[int, Field(ge=1, le=MAX_FLEET_SIZE)] | None = None
     """Smallest fleet to consider; default: the lowest fleet.size level, else 1."""
     max_agvs: Annotated[int, Field(ge=1, le=MAX_FLEET_SIZE)] | None = None
     """Largest fleet to consider; default: the highest fleet.size level, else 50."""
     max_replications: int = Field(default=12, ge=2, le=MAX_REPLICATIONS)
-    """Replications a close decision may grow to, from the experiment's `replications` (at
-    least two: a confidence interval needs two)."""
+    """Replications a close decision may grow to under sequential stopping (a size still
+    undecided there counts as not meeting the targets)."""
     agv_availability: float = Field(default=1.0, gt=0, le=1)
     """Share of each AGV-hour available for orders, for the analytic estimate (charging,
     breaks); 1.0 while the runs model no charging."""
@@ -145,7 +153,21 @@ class SizingConfig(StrictModel):
         if (self.min_agvs is not None and self.max_agvs is not None
                 and self.max_agvs < self.min_agvs):
             raise Problem("max_agvs", self.max_agvs, f"an integer >= min_agvs ({self.min_agvs})")
+        if self.max_replications < self.min_replications:
+            raise Problem("max_replications", self.max_replications,
+                          f"an integer >= min_replications ({self.min_replications})")
         return self
+
+
+class WarmupConfig(StrictModel):
+    """How long the warm-up of every run of the experiment is."""
+
+    method: Literal["fixed", "mser5"] = "fixed"
+    """fixed: the scenario's warmup_h. mser5: estimated from the data before the runs start
+    (fleet_sim.study.warmup): pilot runs without warm-up, MSER-5 on their lead times, the
+    longest estimate rounded up to 0.05 h becomes every run's warmup_h."""
+    pilot_replications: int = Field(default=2, ge=1, le=MAX_REPLICATIONS)
+    """Pilot runs per combination of the other factors' levels (mser5)."""
 
 
 class ExperimentSpec(StrictModel):
@@ -167,6 +189,7 @@ class ExperimentSpec(StrictModel):
     master_seed: int = Field(default=1, ge=0)
     targets: Items[Target] = ()
     sizing: SizingConfig = SizingConfig()
+    warmup: WarmupConfig = WarmupConfig()
 
     @field_validator("name")
     @classmethod
@@ -174,6 +197,14 @@ class ExperimentSpec(StrictModel):
         if not is_folder_name(name):
             raise Problem("", name, FOLDER_NAME)
         return name
+
+    @model_validator(mode="after")
+    def _warmup_not_set_twice(self) -> ExperimentSpec:
+        if self.warmup.method == "mser5" and ("warmup_h" in self.overrides
+                                              or "warmup_h" in self.factors):
+            raise Problem("warmup.method", self.warmup.method,
+                          "fixed when warmup_h is an override or a factor (mser5 sets it)")
+        return self
 
     @model_validator(mode="after")
     def _samples_fit_design(self) -> ExperimentSpec:
@@ -249,6 +280,11 @@ class Experiment:
     def scenario(self, factors: Mapping[str, Any] | None = None) -> Scenario:
         """The base scenario with the experiment's overrides (and `factors`) applied."""
         return load_scenario(self.scenario_file, {**self.spec.overrides, **(factors or {})})
+
+    def with_overrides(self, extra: Mapping[str, Any]) -> Experiment:
+        """The same experiment with `extra` set in every run (an estimated warm-up)."""
+        spec = self.spec.model_copy(update={"overrides": {**self.spec.overrides, **extra}})
+        return Experiment(spec, self.file, self.points)
 
     def resolved(self) -> dict[str, Any]:
         """The experiment with every default written out and paths made absolute."""

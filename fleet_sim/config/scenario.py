@@ -311,6 +311,10 @@ class DispatchConfig(StrictModel):
     its pickup. fcfs: each order, oldest first, to the AGV that has been idle longest."""
     park_idle: bool = True
     """Send AGVs with nothing to do to the nearest parking area with room."""
+    max_active_agvs: int | None = Field(default=None, ge=1, le=MAX_FLEET_SIZE)
+    """Admission: at most this many AGVs on the track at once (driving, handling, charging,
+    or standing outside parking); the others wait in parking until one parks. None: no limit
+    (RSS-AGV-001 has no such rule). See fleet_sim.sim.agents.fleet_manager."""
 
 
 class TrafficConfig(StrictModel):
@@ -323,6 +327,14 @@ class TrafficConfig(StrictModel):
     round rather than block the way (assumed; see fleet_sim.sim.traffic.control)."""
     backoff_s: Positive = 5.0
     """Mean wait before a deadlocked AGV that cannot move tries again."""
+    congestion_cost_s: float = Field(default=0.0, ge=0, le=3600)
+    """Route cost (seconds) added per AGV standing on or queued for the node a segment leads
+    to, when the route is planned: routes go round congested segments. 0 (default): shortest
+    free-flow routes, as the spec has them."""
+    weak_wifi_cost_s: float = Field(default=0.0, ge=0, le=3600)
+    """Route cost (seconds) added per segment whose Wi-Fi signal is below
+    rules.weak_rssi_dbm: routes keep off weak-Wi-Fi segments where there is another way. 0
+    (default): off."""
 
 
 class Rules(StrictModel):
@@ -503,6 +515,12 @@ class Scenario(StrictModel):
         if self.warmup_h >= self.duration_h:
             raise Problem("warmup_h", self.warmup_h,
                           f"a warm-up >= 0 h and shorter than duration_h ({self.duration_h})")
+        cap = self.dispatch.max_active_agvs
+        if cap is not None and self.fleet.start_nodes and cap < self.fleet.size:
+            raise Problem("dispatch.max_active_agvs", cap,
+                          f"at least fleet.size ({self.fleet.size}) when the AGVs start on "
+                          "the track (fleet.start_nodes); leave start_nodes out to start them "
+                          "in parking")
         if info.context and "base_dir" in info.context:
             self._base_dir = str(info.context["base_dir"])
         return self

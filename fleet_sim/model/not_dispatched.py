@@ -39,6 +39,7 @@ class NotDispatched(StrEnum):
     STATUS_POLL = "status_poll"
     COMMAND_IN_TRANSIT = "command_in_transit"
     TYPE_NOT_ALLOWED = "type_not_allowed"
+    ADMISSION_FULL = "admission_full"
 
     @property
     def meaning(self) -> str:
@@ -63,4 +64,7 @@ MEANINGS: Final[dict[NotDispatched, str]] = {
     NotDispatched.TYPE_NOT_ALLOWED:
         "its vehicle type may not serve the stations of any waiting order (mixed fleets, "
         "`allowed_types` in the layout)",
+    NotDispatched.ADMISSION_FULL:
+        "it stands in parking and the track already holds dispatch.max_active_agvs AGVs "
+        "(admission control)",
 }

@@ -30,7 +30,7 @@ from fleet_sim.sim.agents.vehicle import Vehicle
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.demand import Demand
 from fleet_sim.sim.incidents import start_incidents
-from fleet_sim.sim.traffic.control import Traffic
+from fleet_sim.sim.traffic.control import RouteCosts, Traffic
 
 ProgressCallback = Callable[[float, float], None]
 """Called with (simulated seconds so far, simulated seconds in all) during a run."""
@@ -72,7 +72,9 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
                     profile.turn_speed_mps)
     recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy,
                         record_moves=record_moves)
-    traffic = Traffic(env, layout, motion, recorder)
+    costs = RouteCosts(scenario.traffic.congestion_cost_s, scenario.traffic.weak_wifi_cost_s,
+                       scenario.rules.weak_rssi_dbm)
+    traffic = Traffic(env, layout, motion, recorder, costs=costs)
     recorder.zone_wait_s = {z: 0.0 for z in traffic.zone_locks}
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
         from fleet_sim.sim.motion.sumo import SumoMotion
@@ -121,6 +123,7 @@ def _place(vehicles: list[Vehicle], scenario: Scenario, layout: Layout,
     if scenario.fleet.start_nodes:
         for vehicle, node in zip(vehicles, scenario.fleet.start_nodes, strict=False):
             vehicle.place_at(node)
+            fleet.on_track_at_start(vehicle)
         return
     slots = [p for p in layout.parking for _ in range(p.capacity)]
     for vehicle, place in zip(vehicles, slots, strict=False):

@@ -4,14 +4,42 @@ Two answers side by side:
 
 * The analytic estimate (fleet_sim.analysis.estimate): travel and handling per order x demand /
   AGV time; no waiting, no traffic: a lower bound on the fleet, and the search starts there.
-* The search: evaluate a fleet size with the experiment's replications; where the 95 % interval
-  of a target KPI straddles the bound, add replications (up to ``sizing.max_replications``,
-  growing towards the number fleet_sim.analysis.stats estimates would decide it); step away
-  from the start
-  (1, 2, 4 ... AGVs) until one size meets every target and a smaller one does not, then bisect.
-  A size still undecided at the replication limit counts as not shown to meet the targets (the
-  recommendation errs towards more AGVs). The search assumes more AGVs never make a target
-  worse; the report's grid (from a sweep) shows whether that held.
+* The search: evaluate a fleet size, step away from the start (1, 2, 4 ... AGVs) until one size
+  meets every target and a smaller one does not, then bisect. A size still undecided at the
+  replication limit counts as not shown to meet the targets (the recommendation errs towards
+  more AGVs). The search assumes more AGVs never make a target worse; the report's grid (from
+  a sweep) shows whether that held.
+
+How many replications a fleet size gets (`sizing.stopping`):
+
+* ``sequential`` (default): start with ``sizing.min_replications`` (2) and look again after
+  doubling the replications (at least as many more as there are workers, so every core is
+  busy; 2, 4, 8, 12 with the defaults) until the size is decided, or at
+  ``sizing.max_replications``. It *fails* as soon as one target's 95 % interval lies wholly on
+  the bad side of its bound (whatever the others say); it *meets* once every target's interval
+  lies on the good side, at 99.5 % confidence at an early look and at the level left over at
+  the last one (96.5 % with four looks: 0.05 - 3 x 0.005). Why: stopping at the first interval
+  that clears the bound gives a size several chances to be declared good; spending the 5 %
+  over the looks (Bonferroni, most of it kept for the last look, as in O'Brien-Fleming
+  designs) keeps the chance of calling a size good that is not at most what one 95 % interval
+  allows. Failing early errs towards more AGVs, so it keeps the nominal level. From four
+  replications on, a hopeless size is given up (futility): one whose mean misses a bound, or
+  sits so close to it that, with the spread seen so far, clearing it at the last look's level
+  would take more than twice ``max_replications``. A size not shown to meet counts as not
+  meeting whether it stops now or at the limit; giving up early can only err towards more
+  AGVs. A clear case costs two or four runs instead of a fixed number; the tests check
+  the answer against fixed replications.
+* ``fixed``: every size runs the experiment's ``replications``; undecided counts as not meeting.
+
+Common random numbers: replication r runs with the same seed at every fleet size
+(fleet_sim.config.experiment), and the engine draws orders from streams spawned before any
+AGV's, so fleet sizes face the same orders. The recommendation reports the paired difference
+of each target's KPI between the recommended size and the one below, replication by
+replication, beside the interval the same runs would give unpaired: the pairing cancels the
+demand's noise, which both sizes share.
+
+The warm-up is the scenario's, or estimated from pilot runs by MSER-5 (experiment
+``warmup.method: mser5``, fleet_sim.study.warmup) before the search starts.
 
 Every run goes through fleet_sim.study.sweep with the experiment's seeds, so a sizing search over a
 folder that already holds a sweep reuses its runs, and an interrupted search resumes.
@@ -32,13 +60,26 @@ import numpy as np
 
 from fleet_sim.analysis.estimate import Estimate, analytic_estimate
 from fleet_sim.analysis.kpis import kpi_value
-from fleet_sim.analysis.stats import TargetCheck, target_check
+from fleet_sim.analysis.stats import (
+    CONFIDENCE,
+    TargetCheck,
+    mean_ci,
+    replications_needed,
+    target_check,
+)
 from fleet_sim.config.experiment import FLEET, Experiment, Target, layout_for, load_trace_for
 from fleet_sim.errors import InputError
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.sweep import DaskPool, LocalPool, execute, folder_lock, prepare, tables_written
+from fleet_sim.study.warmup import largest_fleet, settle_warmup
 
 DEFAULT_MAX_AGVS = 50
+EARLY_ALPHA = 0.005
+FUTILE_FROM = 4
+"""Sequential stopping may give up on a hopeless size from this many replications on."""
+FUTILE_MARGIN = 2
+"""... when a decision would need more than this many times max_replications."""
+"""Two-sided error spent at each early look of sequential stopping (99.5 % intervals)."""
 
 
 # ---- the search ----------------------------------------------------------------------------
@@ -50,19 +91,27 @@ class Evaluation:
     replications: int
     checks: list[TargetCheck]
     failed_runs: int = 0
+    values: dict[str, dict[int, float]] = field(default_factory=dict)
+    """Per target KPI: replication -> value (runs that finished)."""
+    futile: bool = False
+    """Stopped undecided with a target's mean on the wrong side of its bound."""
+    strict: list[TargetCheck] | None = None
+    """The checks at `meets_at`, the level a size must meet at (None: the 95 % checks)."""
+    meets_at: float = CONFIDENCE
 
     @property
     def verdict(self) -> str:
-        decisions = [c.decision for c in self.checks]
-        if any(d == "fails" for d in decisions):
+        if any(c.decision == "fails" for c in self.checks):
             return "fails"
-        if decisions and all(d == "meets" for d in decisions):
+        strict = self.checks if self.strict is None else self.strict
+        if strict and all(c.decision == "meets" for c in strict):
             return "meets"
         return "undecided"
 
     def as_dict(self) -> dict[str, Any]:
         return {
             "agvs": self.agvs, "replications": self.replications, "verdict": self.verdict,
+            "meets_at_confidence": self.meets_at, "futile": self.futile,
             "failed_runs": self.failed_runs,
             "targets": [{"target": c.target.describe(), "kpi": c.target.kpi,
                          "bound": c.target.bound, "at_least": c.target.higher_is_better,
@@ -95,19 +144,56 @@ class GroupResult:
         parts = [f"{c.target.kpi} {c.interval.mean:.4g} (95 % CI {c.interval.low:.4g} to "
                  f"{c.interval.high:.4g}; target {c.target.describe().split(' ', 1)[1]})"
                  for c in ev.checks]
+        level = "" if ev.meets_at == CONFIDENCE else \
+            f" (each interval clear of its bound at {100 * ev.meets_at:.4g} %: the 5 % spent " \
+            "over the looks of sequential stopping)"
         text = (f"{head}{self.recommended} AGVs meet every target with 95 % confidence over "
-                f"{ev.replications} replications: " + "; ".join(parts) + ".")
+                f"{ev.replications} replications{level}: " + "; ".join(parts) + ".")
         below = self.evaluations.get(self.recommended - 1)
         if below is not None:
             text += f" {below.agvs} AGVs: {below.verdict}{_why_not(below)}."
+            for diff in self.paired():
+                text += (f" {diff['kpi']} from {diff['from_agvs']} to {diff['to_agvs']} AGVs: "
+                         f"{diff['mean_diff']:+.4g} (paired 95 % CI +/- "
+                         f"{diff['half_width']:.3g} over {diff['pairs']} common replications;"
+                         f" unpaired +/- {diff['unpaired_half_width']:.3g}).")
         elif self.recommended == self.min_agvs:
             text += f" ({self.min_agvs} is the smallest fleet searched.)"
         return text
+
+    def paired(self) -> list[dict[str, Any]]:
+        """Per target KPI: the recommended size minus the one below, replication by
+        replication (common random numbers), and the unpaired interval of the same runs."""
+        if self.recommended is None:
+            return []
+        top = self.evaluations.get(self.recommended)
+        below = self.evaluations.get(self.recommended - 1)
+        if top is None or below is None:
+            return []
+        out = []
+        for kpi, upper in top.values.items():
+            lower = below.values.get(kpi, {})
+            common = sorted(set(upper) & set(lower))
+            if len(common) < 2:
+                continue
+            diff = mean_ci([upper[r] - lower[r] for r in common])
+            a, b = mean_ci([upper[r] for r in common]), mean_ci([lower[r] for r in common])
+            unpaired = diff.half_width if math.isnan(a.sd) or math.isnan(b.sd) else \
+                float(np.hypot(a.half_width, b.half_width))
+            out.append({"kpi": kpi, "from_agvs": below.agvs, "to_agvs": top.agvs,
+                        "pairs": diff.n, "mean_diff": diff.mean, "half_width": diff.half_width,
+                        "unpaired_half_width": unpaired})
+        return out
+
+    def runs(self) -> int:
+        """Replications run over all the fleet sizes evaluated."""
+        return sum(e.replications for e in self.evaluations.values())
 
     def as_dict(self) -> dict[str, Any]:
         return {"fixed": self.fixed, "estimate": self.estimate.as_dict(),
                 "recommended": self.recommended, "min_agvs": self.min_agvs,
                 "max_agvs": self.max_agvs, "statement": self.statement(),
+                "runs": self.runs(), "paired": self.paired(),
                 "evaluations": [self.evaluations[n].as_dict() for n in sorted(self.evaluations)]}
 
 
@@ -119,6 +205,19 @@ def _why_not(ev: Evaluation) -> str:
         f"{c.target.kpi} {c.interval.mean:.4g}, 95 % CI {c.interval.low:.4g} to "
         f"{c.interval.high:.4g}, {c.decision} {c.target.describe().split(' ', 1)[1]}"
         for c in bad) + ")"
+
+
+def _futile(check: TargetCheck, cap: int, confidence: float) -> bool:
+    """No use replicating further for this target: its mean lies on the wrong side of the
+    bound, or so close to it that, with the spread seen so far, an interval at `confidence`
+    would need more than FUTILE_MARGIN x `cap` replications to clear it."""
+    if check.decision != "undecided":
+        return False
+    ci = check.interval
+    if math.isnan(ci.mean) or not check.target.met_by(ci.mean):
+        return True
+    needed = replications_needed(ci.sd, ci.mean - check.target.bound, ci.n, confidence)
+    return needed is None or needed > FUTILE_MARGIN * cap
 
 
 def _num(value: float) -> float | None:
@@ -137,31 +236,53 @@ class Sizer:
         self.progress = progress
         self.targets: Sequence[Target] = experiment.spec.targets
 
-    def evaluate(self, agvs: int, result: GroupResult) -> Evaluation:
+    def looks(self) -> list[int]:
+        """The replication counts at which a fleet size is looked at."""
         spec = self.experiment.spec
-        reps = spec.replications
-        cap = max(spec.sizing.max_replications, reps)
-        while True:
-            factors = {**self.fixed, FLEET: agvs}
+        if spec.sizing.stopping == "fixed":
+            return [spec.replications]
+        n, cap = spec.sizing.min_replications, spec.sizing.max_replications
+        out = [n]
+        while n < cap:
+            n = min(cap, max(n + self.pool.workers, 2 * n))
+            out.append(n)
+        return out
+
+    def evaluate(self, agvs: int, result: GroupResult) -> Evaluation:
+        factors = {**self.fixed, FLEET: agvs}
+        looks = self.looks()
+        alpha = 1.0 - CONFIDENCE
+        early = min(EARLY_ALPHA, alpha / (2 * len(looks)))
+        for i, reps in enumerate(looks):
+            meets_at = 1.0 - (early if i < len(looks) - 1 else alpha - early * (len(looks) - 1))
             runs = [self.experiment.run(factors, r) for r in range(reps)]
             execute(runs, self.out_dir, quiet=True, pool=self.pool)
             values, failed = self._values(runs)
-            checks = [target_check(factors, t, values[t.kpi]) for t in self.targets]
-            ev = Evaluation(agvs, reps, checks, failed)
-            if ev.verdict != "undecided" or reps >= cap:
+            arrays = {t.kpi: np.array(list(values[t.kpi].values()), dtype=float)
+                      for t in self.targets}
+            checks = [target_check(factors, t, arrays[t.kpi]) for t in self.targets]
+            strict = [target_check(factors, t, arrays[t.kpi], meets_at) for t in self.targets] \
+                if abs(meets_at - CONFIDENCE) > 1e-12 else checks
+            ev = Evaluation(agvs, reps, checks, failed, values, strict=strict, meets_at=meets_at)
+            if ev.verdict != "undecided":
                 break
-            wanted = [c.needed for c in checks if c.decision == "undecided" and c.needed]
-            grow = max(wanted) if wanted else reps + 1
-            reps = min(cap, max(reps + 1, min(grow, 2 * reps)))
+            last = alpha - early * (len(looks) - 1)
+            if i < len(looks) - 1 and reps >= FUTILE_FROM \
+                    and any(_futile(c, looks[-1], 1.0 - last) for c in checks):
+                ev.futile = True
+                break
         result.evaluations[agvs] = ev
-        note = " (undecided at the replication limit: counted as not meeting)" \
-            if ev.verdict == "undecided" else ""
+        note = ""
+        if ev.futile:
+            note = " (hopeless: a mean on or near the wrong side of its bound; not meeting)"
+        elif ev.verdict == "undecided":
+            note = " (undecided at the replication limit: counted as not meeting)"
         self.progress.note(f"{_where(self.fixed)}{agvs} AGVs, {ev.replications} "
                            f"replications: {ev.verdict}{note}")
         return ev
 
-    def _values(self, runs: Sequence[Any]) -> tuple[dict[str, np.ndarray], int]:
-        values: dict[str, list[float]] = {t.kpi: [] for t in self.targets}
+    def _values(self, runs: Sequence[Any]) -> tuple[dict[str, dict[int, float]], int]:
+        values: dict[str, dict[int, float]] = {t.kpi: {} for t in self.targets}
         failed = 0
         for spec in runs:
             kpi_file = self.out_dir / "runs" / spec.run_id / "kpis.json"
@@ -171,8 +292,8 @@ class Sizer:
             figures = json.loads(kpi_file.read_text(encoding="utf-8"))
             for kpi in values:
                 value = kpi_value(figures, kpi)
-                values[kpi].append(math.nan if value is None else float(value))
-        return {k: np.array(v, dtype=float) for k, v in values.items()}, failed
+                values[kpi][spec.replication] = math.nan if value is None else float(value)
+        return values, failed
 
     def search(self, estimate: Estimate, lo_limit: int, hi_limit: int) -> GroupResult:
         result = GroupResult(self.fixed, estimate, min_agvs=lo_limit, max_agvs=hi_limit)
@@ -246,16 +367,21 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
         raise InputError(str(experiment.file), "sizing.max_agvs", hi_limit,
                          f"at least the smallest fleet searched ({lo_limit})")
     with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
-        prepare(experiment, out_dir)
         results = []
         n_workers = workers or os.cpu_count() or 1
         pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers) if scheduler \
             else LocalPool(n_workers)
         with pool, Progress(stream=stream, quiet=quiet) as progress:
+            experiment = settle_warmup(experiment, out_dir, groups(experiment),
+                                       largest_fleet(experiment) or hi_limit, pool, progress)
+            prepare(experiment, out_dir)
             for fixed in groups(experiment):
                 results.append(_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool,
                                            progress))
         document = {"experiment": experiment.name, "confidence": 0.95,
+                    "stopping": spec.sizing.stopping,
+                    "warmup_h": experiment.scenario().warmup_h,
+                    "runs": sum(r.runs() for r in results),
                     "targets": [t.describe() for t in spec.targets],
                     "groups": [r.as_dict() for r in results]}
         (out_dir / "sizing.json").write_text(json.dumps(document, indent=2, default=str) + "\n",

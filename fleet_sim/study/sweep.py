@@ -651,6 +651,15 @@ def sweep(experiment: Experiment, out_dir: Path, workers: int = 0, scheduler: st
           stream: IO[str] | None = None) -> SweepOutcome:
     """Run the experiment's design into `out_dir` and write its summary, statistics and DB."""
     with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
+        if experiment.spec.warmup.method != "fixed":
+            from fleet_sim.study.warmup import largest_fleet, pilot_groups, settle_warmup
+
+            n_workers = workers or os.cpu_count() or 1
+            pilot_pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers, run_fn) \
+                if scheduler else LocalPool(n_workers, run_fn)
+            with pilot_pool, Progress(stream=stream, quiet=quiet) as progress:
+                experiment = settle_warmup(experiment, out_dir, pilot_groups(experiment),
+                                           largest_fleet(experiment), pilot_pool, progress)
         prepare(experiment, out_dir)
         outcome = execute(experiment.runs(), out_dir, workers, scheduler, quiet, run_fn, stream)
     return outcome

@@ -115,6 +115,11 @@ class Driver:
         self.process.interrupt(cause)
 
     @property
+    def in_parking(self) -> bool:
+        """In a parking area, off the track."""
+        return self.parked_in is not None
+
+    @property
     def dispatch_node(self) -> str:
         """Where the dispatcher should measure travel from: the node the AGV is committed to."""
         if self.ahead:
@@ -312,7 +317,7 @@ class Driver:
             assert isinstance(speed, float)
             v_end = speed
             self._leg = None
-        length = traffic.graph.edges[u, nxt]["length_m"]
+        length = traffic.routes.edge[u, nxt]["length_m"]
         self.recorder.drove(start, self.env.now, length)
         if self.recorder.record_occupancy:
             self.recorder.occupied("segment", f"{u}>{nxt}", self.id, start, self.env.now)

@@ -38,6 +38,17 @@ chosen by its travel time to the next stop. An AGV that fails while it carries n
 a pickup, or between a dropoff and the next pickup) gives the order back: it returns to the
 front of the queue with the stops not yet done (a shorter chain, the same order id; stops done
 stay done). One that fails loaded loses the order, as a plain one (`order_failed`).
+
+Admission (scenario `dispatch.max_active_agvs`, off by default: RSS-AGV-001 has no such rule):
+at most N AGVs on the track at once; the others wait in parking. An AGV holds an admission from
+the moment the fleet manager gives a parked AGV work (an order or a charger) until it has driven
+back into a parking area; one that starts on the track holds one from the start, and a failed
+AGV keeps its own while the operator has it. Once N are admitted, orders go only to idle AGVs
+already on the track, and a freed admission goes to a parked AGV waiting for a charger before
+any order (a battery must not run down in parking). Like a CONWIP limit in a factory: a loop
+packed beyond what it can carry stops carrying anything (100 busy AGVs lock the 186-node
+warehouse solid), so a planner caps the AGVs on the track at the loop's working load and the
+rest wait; throughput then plateaus as the fleet grows instead of collapsing.
 """
 
 from __future__ import annotations
@@ -83,6 +94,11 @@ class FleetAgv(Protocol):
     @property
     def state(self) -> VehicleState:
         """Its RSS-AGV-001 state, as its status reports it."""
+        ...
+
+    @property
+    def in_parking(self) -> bool:
+        """The AGV stands in a parking area, off the track."""
         ...
 
     def note(self, event: str, detail: str = "") -> None:
@@ -131,6 +147,10 @@ class FleetManager:
         self.charger_queue: deque[tuple[FleetAgv, simpy.Event]] = deque()
         self.charger_cancelled: set[simpy.Event] = set()
         """Charger requests given up while their charger's assign command was on its way."""
+        self.max_active = config.max_active_agvs
+        """Admission: most AGVs on the track at once (None: no limit)."""
+        self.admitted: set[int] = set()
+        """AGVs holding an admission (on the track, or given work to leave parking for)."""
         recorder.queue_lengths.append((env.now, 0))
         # work conservation: who stands Idle, and what holds each back
         self.standing: dict[int, FleetAgv] = {}
@@ -273,6 +293,7 @@ class FleetManager:
         order.reassigned += 1
         agv.note("order_reassigned", f"order {order.id}")
         self.waiting.appendleft(order)
+        self._release_if_parked(agv)
         self._dispatch()
 
     def order_failed(self, order: Order, code: str) -> None:
@@ -314,6 +335,7 @@ class FleetManager:
         else:
             self.charger_cancelled.add(request)
         self.charger_wait.discard(agv.id)
+        self._release_if_parked(agv)
         self._changed()
 
     def release_charger(self, place: Place) -> None:
@@ -322,7 +344,13 @@ class FleetManager:
 
     def _assign_chargers(self) -> None:
         while self.chargers_free and self.charger_queue:
-            agv, event = self.charger_queue.popleft()
+            queued = next((item for item in self.charger_queue if self._may_admit(item[0])),
+                          None)
+            if queued is None:
+                break  # the AGVs queued wait in parking for an admission
+            self.charger_queue.remove(queued)
+            agv, event = queued
+            self._admit(agv)
             place = min(self.chargers_free, key=lambda c: (
                 self.traffic.travel_time_s(agv.dispatch_node, c.nodes[0], agv.id), c.id))
             self.chargers_free.remove(place)
@@ -365,10 +393,12 @@ class FleetManager:
             del self.waiting[skipped]
             if order.stops:
                 self.idle.remove(agv)
+                self._admit(agv)
                 self._dock_chain(order)
             else:
                 order.pickup_node = self._docking_node(pickup)
                 self.idle.remove(agv)
+                self._admit(agv)
                 order.dropoff_node = self._docking_node(self.layout.places[order.dropoff])
             order.agv = agv.id
             order.assigned_s = self.env.now
@@ -387,7 +417,7 @@ class FleetManager:
         self._changed()
 
     def _choose(self, pickup_node: str, order: Order | None = None) -> FleetAgv | None:
-        ready = [v for v in self.idle if v.fms_link]
+        ready = [v for v in self.idle if v.fms_link and self._may_admit(v)]
         if not ready:
             return None
         if self.agv_types and order is not None:
@@ -462,9 +492,39 @@ class FleetManager:
             return NotDispatched.LINK_LOST
         if agv.id in self.polling:
             return NotDispatched.STATUS_POLL
+        if not self._may_admit(agv):
+            return NotDispatched.ADMISSION_FULL
         if self.agv_types and not any(self.may_serve(agv, order) for order in self.waiting):
             return NotDispatched.TYPE_NOT_ALLOWED
         return None
+
+    # ---- admission ----------------------------------------------------------------------------
+    def _may_admit(self, agv: FleetAgv) -> bool:
+        """The AGV may be given work: no limit, it holds an admission, or one is free."""
+        return self.max_active is None or agv.id in self.admitted \
+            or len(self.admitted) < self.max_active
+
+    def _admit(self, agv: FleetAgv) -> None:
+        if self.max_active is None or agv.id in self.admitted:
+            return
+        self.admitted.add(agv.id)
+        agv.note("admitted", f"{len(self.admitted)} of {self.max_active} on the track")
+
+    def on_track_at_start(self, agv: FleetAgv) -> None:
+        """The AGV starts on the track (scenario `fleet.start_nodes`): it holds an admission."""
+        if self.max_active is not None:
+            self.admitted.add(agv.id)
+
+    def parked(self, agv: FleetAgv) -> None:
+        """The AGV has driven into a parking area with no order: its admission is free for
+        another (unless an order is on its way to it)."""
+        self._release_if_parked(agv)
+
+    def _release_if_parked(self, agv: FleetAgv) -> None:
+        if agv.id in self.admitted and agv.in_parking and agv.id not in self.assigning:
+            self.admitted.discard(agv.id)
+            self._assign_chargers()  # a battery first, then orders
+            self._dispatch()
 
     # ---- parking ----------------------------------------------------------------------------
     def reserve_parking(self, agv: FleetAgv) -> Place | None:

@@ -88,6 +88,8 @@ class FleetManagerLink(Protocol):
 
     def release_parking(self, place: Place) -> None: ...
 
+    def parked(self, agv: Vehicle) -> None: ...
+
     def charger_available(self) -> bool: ...
 
     def request_charger(self, agv: Vehicle) -> simpy.Event: ...
@@ -291,6 +293,8 @@ class Vehicle(Driver):
                     # drive off the tape into a bay, at turn speed, before letting go of it
                     yield self.env.timeout(self.clear_m / self.profile.turn_speed_mps)
                     self._enter_parking(place)
+                    if self.order is None:  # not one assigned while it drove in
+                        self.fleet.parked(self)
                     self.parking_target = None
                     self.fire("Event_Arrived_Parking", place.id)
                 else:
@@ -540,7 +544,7 @@ class Vehicle(Driver):
         return cap
 
     def _travel(self, u: str, v: str, time_s: float) -> Proc:
-        edge = self.traffic.graph.edges[u, v]
+        edge = self.traffic.routes.edge[u, v]
         dead = edge["rssi_dbm"] < self.rules.link_min_rssi_dbm
         if dead != self.in_dead_spot:
             self.in_dead_spot = dead

@@ -16,10 +16,23 @@ Rules (see docs/engine.md for why):
   in order, at least the minimum gap behind the one ahead: no overtaking and no overlap.
 * Corridors (chains of two-way segments) are single-track: an AGV takes the corridor lock before
   it takes the node from which it enters the corridor, so two AGVs never meet head-on.
-* Routes follow the shortest free-flow travel time (fleet_sim.sim.traffic.routing).
-* A wait-for cycle is looked for whenever an AGV starts waiting and every `deadlock_check_s`
-  while it still waits (fleet_sim.sim.traffic.deadlock). A cycle is recorded and resolved by the
-  `DeadlockPolicy` handed to `Traffic`: one member takes another route or backs off.
+* Routes follow the shortest free-flow travel time (fleet_sim.sim.traffic.routing), unless the
+  planner gives routes a cost (`RouteCosts`, scenario `traffic.congestion_cost_s` and
+  `traffic.weak_wifi_cost_s`, both 0 by default, the spec's shortest routes): seconds added per
+  AGV standing on or queued for the node a segment leads to, at the moment the route is planned,
+  and per segment whose Wi-Fi signal is weak (below `rules.weak_rssi_dbm`, E_002), where the
+  link may drop. Dispatching still measures free-flow travel times.
+* A wait-for cycle is looked for whenever an AGV starts waiting (fleet_sim.sim.traffic.deadlock),
+  and, while a cycle it was found in may still stand, every `deadlock_check_s` while it waits. A
+  cycle is recorded and resolved by the `DeadlockPolicy` handed to `Traffic`: one member takes
+  another route or backs off.
+* Why only then: an AGV waits for one lock at a time, so the wait-for graph has at most one edge
+  out of each AGV, and a lock passed on goes to an AGV that thereby stops waiting. The only
+  change that can close a cycle is therefore an AGV starting to wait, and the cycle then runs
+  through it. AGVs that no cycle was found for do not walk their wait chains again while they
+  wait (`_suspects`): before, every blocked AGV walked its whole chain every `deadlock_check_s`
+  when anything had changed anywhere, which in a long queue cost (queue length)^2 per check
+  period, the largest cost of a congested run with 200 AGVs.
 * Mutex zones (the layout's `traffic_zones`, fleet_sim.sim.traffic.zones): at most N AGVs
   inside; an AGV takes the zone's lock (a `Gate`) before its first node in it.
 * Giving way: an AGV that has waited `give_way_after_s` for a corridor or a side track while
@@ -33,6 +46,7 @@ at its last look has nothing new to find.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from typing import Protocol, cast
 
 import simpy
@@ -52,6 +66,22 @@ from fleet_sim.sim.traffic.deadlock import (
 from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock, ZoneLock
 from fleet_sim.sim.traffic.routing import Routes
 from fleet_sim.sim.traffic.zones import Gate
+
+
+@dataclass(frozen=True)
+class RouteCosts:
+    """Extra route cost per segment (seconds); all zero: shortest free-flow routes."""
+
+    congestion_s: float = 0.0
+    """Per AGV on or queued for the node the segment leads to, when the route is planned."""
+    weak_wifi_s: float = 0.0
+    """Per segment with a Wi-Fi signal below `weak_rssi_dbm`."""
+    weak_rssi_dbm: float = -70.0
+
+    @property
+    def active(self) -> bool:
+        return self.congestion_s > 0 or self.weak_wifi_s > 0
+
 
 CorridorHold = tuple[Claim, str | None]
 """A corridor claim and the node from which the client will enter it (None once inside)."""
@@ -94,7 +124,8 @@ class Traffic:
     """The reservation table: node and corridor locks, keyed by client."""
 
     def __init__(self, env: simpy.Environment, layout: Layout, motion: Motion,
-                 recorder: Recorder, policy: DeadlockPolicy | None = None) -> None:
+                 recorder: Recorder, policy: DeadlockPolicy | None = None,
+                 costs: RouteCosts | None = None) -> None:
         self.env = env
         self.layout = layout
         self.graph = layout.graph
@@ -131,6 +162,14 @@ class Traffic:
         """Mutex zone id -> its lock."""
         self._zones: dict[int, dict[str, Claim]] = {}
         """Client id -> zone id -> its zone claims (granted or waiting)."""
+        self.costs = costs if costs is not None else RouteCosts()
+        self._weak: dict[tuple[str, str], float] = {
+            (u, v): self.costs.weak_wifi_s for u, v, d in self.graph.edges(data=True)
+            if self.costs.weak_wifi_s > 0 and d["rssi_dbm"] < self.costs.weak_rssi_dbm}
+        """Weak-Wi-Fi segments and their extra route cost."""
+        self._suspects: set[int] = set()
+        """Clients found in a wait-for cycle that may still stand: they look again while they
+        wait; nobody else needs to (see the module docstring)."""
 
     # ---- vehicle types ----------------------------------------------------------------------
     def add_vehicle_type(self, name: str, motion: Motion) -> None:
@@ -220,9 +259,13 @@ class Traffic:
     def start_waiting(self, client_id: int, lock: Lock) -> None:
         self.waiting[client_id] = lock
         self.version += 1
+        cycle = find_cycle(client_id, self.waiting)
+        if cycle is not None:
+            self._suspects.update(cycle)
 
     def stop_waiting(self, client_id: int) -> None:
         del self.waiting[client_id]
+        self._suspects.discard(client_id)
         self.version += 1
 
     def holders(self) -> Iterator[tuple[str, int]]:
@@ -251,17 +294,34 @@ class Traffic:
         return None
 
     def route(self, src: str, dest: str, client_id: int | None = None) -> list[str]:
-        """Nodes from src to dest by shortest free-flow travel time, src included; around
-        segments reported blocked when there is a way round (for client `client_id`'s type)."""
+        """Nodes from src to dest by shortest free-flow travel time (plus the route costs, if
+        any), src included; around segments reported blocked when there is a way round (for
+        client `client_id`'s vehicle type)."""
         routes = self.routes_of(client_id)
         if self.known_blocks:
             now = self.env.now
             self.known_blocks = {k: t for k, t in self.known_blocks.items() if t > now}
+        if self.costs.active:
             if self.known_blocks:
-                around = routes.route_avoiding(src, dest, set(), set(self.known_blocks))
+                around = routes.route_costed(src, dest, self._extra_cost,
+                                             frozenset(self.known_blocks))
                 if around is not None:
                     return around
+            path = routes.route_costed(src, dest, self._extra_cost)
+            assert path is not None  # the layout is strongly connected
+            return path
+        if self.known_blocks:
+            around = routes.route_avoiding(src, dest, set(), set(self.known_blocks))
+            if around is not None:
+                return around
         return routes.route(src, dest)
+
+    def _extra_cost(self, u: str, v: str) -> float:
+        cost = self._weak.get((u, v), 0.0)
+        if self.costs.congestion_s > 0:
+            lock = self.node_locks[v]
+            cost += self.costs.congestion_s * (len(lock.users) + len(lock.put_queue))
+        return cost
 
     def entry_corridor(self, node: str, nxt: str | None) -> Corridor | None:
         """The corridor an AGV enters when it leaves `node` for `nxt`, if `node` is outside it."""
@@ -294,8 +354,11 @@ class Traffic:
     def resolve_deadlock(self, client: TrafficClient) -> Escape | None:
         """Look for a wait-for cycle through `client` and resolve it. Returns the escape when
         the client itself must move; another victim is interrupted with `DeadlockVictim`."""
+        if client.id not in self._suspects:
+            return None  # no cycle closed through it since it last looked
         cycle = find_cycle(client.id, self.waiting)
         if cycle is None:
+            self._suspects.discard(client.id)
             return None
         members = [self._clients[m] for m in cycle]
         if any(m.id in self._escapes or m.failing for m in members):
