@@ -107,7 +107,8 @@ def test_every_kpi_of_a_hand_made_run() -> None:
             "battery_low": 12.962963,  # AGV 0 [2000, 2700]: the queue is empty from 2700
             "link_lost": 3.703704,  # AGV 0 [900, 1100] (opened in the warm-up)
             "status_poll": 16.666667,  # AGV 1 [900, 1800]
-            "command_in_transit": 0.0, "type_not_allowed": 0.0},
+            "command_in_transit": 0.0, "type_not_allowed": 0.0,
+            "admission_full": 0.0},
         "orders_failed": 1, "orders_reassigned": 1,
         "charges": 2, "charging_queue_wait_mean_s": 40.0,  # (60 + 20) / 2
         "commands_sent": 7, "command_retries": 1, "obstacle_pauses": 4, "comm_losses": 1,
