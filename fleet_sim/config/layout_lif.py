@@ -570,13 +570,7 @@ def _choose_layout(lif: LifFile, file: str, layout_id: str | None) -> int:
 
 
 def _choose_vehicle_type(layout: Layout, file: str, at: str, vehicle_type: str | None) -> str:
-    types: dict[str, None] = {}
-    for node in layout.nodes:
-        for prop in node.vehicleTypeNodeProperties:
-            types.setdefault(prop.vehicleTypeId)
-    for edge in layout.edges:
-        for eprop in edge.vehicleTypeEdgeProperties:
-            types.setdefault(eprop.vehicleTypeId)
+    types = _vehicle_types(layout)
     if vehicle_type is not None:
         if vehicle_type not in types:
             raise InputError(file, f"{at}.nodes", vehicle_type,

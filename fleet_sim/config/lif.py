@@ -35,7 +35,6 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
-from datetime import datetime
 from pathlib import Path
 from typing import Annotated, Final, Literal, TypeVar
 
@@ -50,7 +49,14 @@ from agv_model.inputs import (
     validate,
 )
 from fleet_sim.config.distributions import TimeDistribution
-from fleet_sim.config.layout import Branch, LayoutDefaults, Marker, NodeKind, ZoneSpec
+from fleet_sim.config.layout import (
+    Branch,
+    LayoutDefaults,
+    Marker,
+    NodeKind,
+    ZoneSpec,
+    is_timestamp,
+)
 
 T = TypeVar("T")
 
@@ -352,17 +358,6 @@ def _one_entry_per_type(entries: Sequence[VehicleTypeNodeProperty | VehicleTypeE
                           f"one entry per vehicle type ({where}[{seen[entry.vehicleTypeId]}] "
                           "is for it already)")
         seen[entry.vehicleTypeId] = k
-
-
-def is_timestamp(text: str) -> bool:
-    """Whether `text` is an ISO 8601 date and time with a time zone (LIF: UTC, ``...Z``)."""
-    if not re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(\.\d+)?(Z|[+-]\d\d:\d\d)", text):
-        return False
-    try:
-        datetime.fromisoformat(text.replace("Z", "+00:00"))
-    except ValueError:
-        return False
-    return True
 
 
 def read_lif(path: Path) -> LifFile:
