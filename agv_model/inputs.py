@@ -1,5 +1,6 @@
 """One way to read and check every file a user writes: layouts, scenarios, experiments, order
-traces, vehicle profiles and link settings.
+traces, vehicle profiles and link settings, and the JSON files of standards fleet-sim reads
+(VDMA LIF layouts, VDA 5050 factsheets).
 
 Each file is a pydantic model built on `StrictModel`; `validate` turns the first problem pydantic
 finds into one `InputError` whose message names the file, the element (a dotted path such as
@@ -26,6 +27,7 @@ Decisions, where the issue is silent:
 
 from __future__ import annotations
 
+import json
 import types
 import typing
 from collections.abc import Mapping
@@ -253,6 +255,38 @@ def read_yaml(path: Path) -> Any:
             loader.dispose()
 
 
+def read_json(path: Path) -> Any:
+    """Read one JSON file (RFC 8259); a missing, unreadable, oversized or non-UTF-8 file, bad
+    syntax (named by line and column), a key written twice in one object, NaN or Infinity
+    (not JSON, though Python writes them) or absurdly deep nesting is an InputError naming the
+    file."""
+    file = str(path)
+    text = read_text(path)
+
+    def refuse_constant(name: str) -> Any:
+        raise _Refused("document", name, "finite numbers (NaN and Infinity are not JSON)")
+
+    def one_key_each(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        result: dict[str, Any] = {}
+        for key, value in pairs:
+            if key in result:
+                raise _Refused("document", f"key {key!r} twice in one object",
+                               "each key once per JSON object")
+            result[key] = value
+        return result
+
+    try:
+        return json.loads(text, parse_constant=refuse_constant, object_pairs_hook=one_key_each)
+    except _Refused as exc:
+        raise InputError(file, exc.element, exc.value, exc.expected) from None
+    except RecursionError:
+        raise InputError(file, "document", "nesting too deep for Python's stack",
+                         "JSON nested at most a few hundred levels deep") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(file, f"line {exc.lineno} column {exc.colno}", exc.msg,
+                         "valid JSON") from None
+
+
 def validate(model: type[M], data: Any, file: str, element: str = "",
              context: Mapping[str, Any] | None = None) -> M:
     """`model` built from `data` (parsed YAML); the first problem becomes one InputError.
@@ -327,6 +361,9 @@ def _expectation(kind: str, walk: _Walk, ctx: Mapping[str, Any], message: str) -
         return _bounds(walk)
     if kind in _TYPE_NAMES:
         return _TYPE_NAMES[kind]
+    if kind == "too_short" and "min_length" in ctx:
+        least = ctx["min_length"]
+        return f"a list of at least {least} item{'s' if least != 1 else ''}"
     if kind in ("value_error", "assertion_error") and ctx.get("error") is not None:
         return str(ctx["error"])
     return message
@@ -348,10 +385,15 @@ def _bounds(walk: _Walk) -> str:
         elif isinstance(item, annotated_types.Le):
             high, high_value = "]", item.le
     if low and high:
-        return f"{noun} in {low}{low_value:g}, {high_value:g}{high}"
+        return f"{noun} in {low}{_number(low_value)}, {_number(high_value)}{high}"
     if low:
-        return f"{noun} {'>' if low == '(' else '>='} {low_value:g}"
-    return f"{noun} {'<' if high == ')' else '<='} {high_value:g}"
+        return f"{noun} {'>' if low == '(' else '>='} {_number(low_value)}"
+    return f"{noun} {'<' if high == ')' else '<='} {_number(high_value)}"
+
+
+def _number(value: object) -> str:
+    """A bound as written: integers whole (4294967295, not 4.29497e+09), other numbers short."""
+    return str(value) if isinstance(value, int) else f"{value:g}"
 
 
 class _Walk:

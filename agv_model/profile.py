@@ -8,6 +8,11 @@ says why. A figure without a source, a source without a figure, an unknown key, 
 an impossible value is an `InputError` naming the file, the key, the value and what was
 expected (`ProfileFile` is the file as written, `fleet-sim schema profile` its JSON Schema). A
 profile's name is its file name without `.yaml`.
+
+A profile imported from a VDA 5050 factsheet (`fleet-sim profile import`) names the factsheet as
+its document (``VDA 5050 factsheet: <file name>``) and cites it as ``VDA 5050 factsheet, <JSON
+path> ...``; the figures a factsheet does not give are its base profile's, cited as ``assumed;
+from base profile <name> (...)``.
 """
 
 from __future__ import annotations
@@ -41,6 +46,9 @@ DOCUMENTS: Final[Mapping[str, str]] = {
     "TABO commands": "tabo-commands.ja.tsv",
     "AGV-3 protocol": "agv-3-protocol.sv.md",
 }
+FACTSHEET: Final = "VDA 5050 factsheet"
+"""The tag of citations of a VDA 5050 factsheet, and of a `document` that is one
+(``VDA 5050 factsheet: acme-tug.json``)."""
 
 
 class Kinematics(StrictModel):
@@ -96,10 +104,11 @@ def _check_sources(model: StrictModel, source: Mapping[str, str]) -> None:
         if name not in figures:
             raise Problem(f"source.{name}", text,
                           f"a figure of this section: {', '.join(figures)}")
-        if not (text.startswith(ASSUMED) or any(text.startswith(tag) for tag in DOCUMENTS)):
+        if not (text.startswith(ASSUMED) or any(text.startswith(tag) for tag in DOCUMENTS)
+                or text.startswith(FACTSHEET)):
             raise Problem(f"source.{name}", text,
                           f"'{ASSUMED} ...' or a citation starting with one of "
-                          f"{', '.join(DOCUMENTS)}")
+                          f"{', '.join((*DOCUMENTS, FACTSHEET))}")
     for name in figures:
         if name not in source:
             raise Problem(f"source.{name}", None, "a citation or 'assumed ...' for this figure")
@@ -147,7 +156,8 @@ class ProfileFile(StrictModel):
 
     title: Annotated[str, Field(min_length=1)]
     document: str
-    """The file name of the vehicle's document in specs/."""
+    """The file name of the vehicle's document in specs/, or ``VDA 5050 factsheet: <file
+    name>`` for a profile imported from a factsheet."""
     protocol: str | None
     """The wire protocol (agv_model.protocols); null: the document defines none."""
     kinematics: KinematicsSection
@@ -157,8 +167,10 @@ class ProfileFile(StrictModel):
     @field_validator("document")
     @classmethod
     def _known_document(cls, document: str) -> str:
-        if document not in DOCUMENTS.values():
-            raise Problem("", document, f"one of {', '.join(DOCUMENTS.values())}")
+        if document not in DOCUMENTS.values() and not (
+                document.startswith(f"{FACTSHEET}: ") and len(document) > len(FACTSHEET) + 2):
+            raise Problem("", document, f"one of {', '.join(DOCUMENTS.values())}, or "
+                                        f"'{FACTSHEET}: <file name>'")
         return document
 
     @field_validator("protocol")

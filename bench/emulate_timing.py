@@ -85,4 +85,8 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    from machine import machine_line  # bench/machine.py, beside this script
+
+    print(machine_line("at start"), flush=True)
     main()
+    print(machine_line("at end"))

@@ -24,8 +24,7 @@ BASE: dict[str, Any] = {"layout": "../layouts/warehouse.yaml", "fleet.size": 12,
                         "demand.rate_per_hour": 90, "demand.profile": [], "duration_h": 8}
 VARIANTS: dict[str, dict[str, Any]] = {
     "baseline (charging on)": {},
-    "no battery limits": {"charging.enabled": False,
-                          "fleet.vehicle.battery.capacity_wh": 1e9},
+    "no battery limits": {"fleet.vehicle.battery": False},
     "obstacles 2/km, mean 4 s": {"incidents.obstacle_rate_per_km": 2.0},
     "aisle 5 blocked 15 min": {"incidents.blocks": [
         {"from": "M011", "to": "A05_04", "at_s": 14400, "duration_s": 900}]},

@@ -4,6 +4,10 @@ Bad input (a layout, scenario, experiment, trace or profile file) ends in one li
 file, the element, the value and what was expected, and exit status 2; never a traceback.
 `fleet-sim schema KIND` prints the JSON Schema of a file kind, for editors that check YAML as it
 is typed.
+
+`fleet-sim layout import|export` (VDMA LIF files) are parsed as commands of their own: `layout
+FILE` keeps working as it always has, and a layout file actually named `import` or `export` is
+still checked when written as a path (`./import`).
 """
 
 from __future__ import annotations
@@ -71,13 +75,44 @@ def _speed(text: str) -> float:
     return _number(text, "metres per second", 0, 100)
 
 
+def _window_hours(text: str) -> float:
+    return _number(text, "hours", 0, MAX_DURATION_H, low_open=False)
+
+
 def _workers(text: str) -> int:
     return _integer(text, "number of workers (0: one per core)", 0, 1024)
 
 
+def _timestamp(text: str) -> str:
+    """An ISO 8601 UTC time for a LIF export, or `now`."""
+    from datetime import UTC, datetime
+
+    from fleet_sim.config.layout import is_timestamp
+
+    if text == "now":
+        now = datetime.now(UTC)
+        return now.strftime("%Y-%m-%dT%H:%M:%S.") + f"{now.microsecond // 10_000:02d}Z"
+    if not is_timestamp(text):
+        raise argparse.ArgumentTypeError(f"got {text!r}; expected an ISO 8601 date and time in "
+                                         "UTC such as 2017-04-15T11:40:03.12Z, or now")
+    return text
+
+
+def _identifier(text: str) -> str:
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"got {text!r}; expected a non-empty id")
+    return text
+
+
+LAYOUT_COMMANDS = {"import": "layout-import", "export": "layout-export"}
+"""`fleet-sim layout import|export ...` -> the internal command that parses it."""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = _Parser(prog="fleet-sim", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(
+        dest="command", required=True,
+        metavar="{run,layout,crosscheck,emulate,sweep,size,report,schema,profile}")
 
     run = sub.add_parser("run", help="run one scenario and write its run directory")
     run.add_argument("scenario", type=Path, help="scenario YAML file")
@@ -86,8 +121,34 @@ def main(argv: Sequence[str] | None = None) -> int:
     run.add_argument("--seed", type=_seed, help="random seed (overrides seed)")
     run.add_argument("--out", type=Path, help="run directory (default: results/<scenario name>)")
     run.add_argument("--quiet", action="store_true", help="no progress display")
+    run.add_argument("--replay", action="store_true",
+                     help="also record every AGV's motion (moves.parquet) and write replay.html")
 
-    lay = sub.add_parser("layout", help="check a layout file and draw it to PNG")
+    rpl = sub.add_parser("replay", help="write RUN_DIR/replay.html: the floor, every AGV moving, "
+                         "its timeline and the order lead times, in one offline page")
+    rpl.add_argument("run_dir", type=Path, help="run directory (of `fleet-sim run`, or a "
+                     "sweep's runs/<run>)")
+    rpl.add_argument("--from", dest="from_h", type=_window_hours, metavar="H",
+                     help="start of the window, hours since the start of the run (default 0)")
+    rpl.add_argument("--to", dest="to_h", type=_window_hours, metavar="H",
+                     help="end of the window, hours since the start (default: the end)")
+    rpl.add_argument("--quiet", action="store_true", help="no progress display")
+
+    exp = sub.add_parser("export", help="a run's or a sweep's tables as CSV files or a workbook")
+    exp.add_argument("source", type=Path, help="run directory, or sweep/sizing results folder")
+    form = exp.add_mutually_exclusive_group(required=True)
+    form.add_argument("--csv", dest="format", action="store_const", const="csv",
+                      help="one CSV file per table, in SOURCE/export/")
+    form.add_argument("--xlsx", dest="format", action="store_const", const="xlsx",
+                      help="one Excel workbook, SOURCE/export.xlsx, a sheet per table")
+    exp.add_argument("--out", type=Path,
+                     help="where instead: a folder for --csv, a .xlsx file for --xlsx")
+
+    lay = sub.add_parser("layout", help="check a layout file and draw it to PNG; `layout "
+                         "import` / `layout export` read and write VDMA LIF files",
+                         epilog="fleet-sim layout import FILE.lif.json --out NAME.yaml; "
+                                "fleet-sim layout export NAME.yaml --lif FILE.json "
+                                "(see their --help)")
     lay.add_argument("layout", type=Path, help="layout YAML file")
     lay.add_argument("--png", type=Path, help="where to draw it (default: results/<name>.png)")
     lay.add_argument("--max-speed", type=_speed, default=None,
@@ -123,10 +184,63 @@ def main(argv: Sequence[str] | None = None) -> int:
     schema.add_argument("kind", choices=SCHEMA_KINDS, help="which file")
     schema.add_argument("--out", type=Path, help="write it to this file instead")
 
+    # `layout import` and `layout export`: no help= keeps them out of the command list
+    imp = sub.add_parser("layout-import", prog="fleet-sim layout import",
+                         description="Read a VDMA LIF 1.0.0 file and write a fleet_sim layout; "
+                                     "what the layout cannot hold is listed.")
+    imp.add_argument("lif", type=Path, metavar="FILE.lif.json", help="LIF file")
+    imp.add_argument("--out", type=Path, required=True, help="layout YAML file to write")
+    imp.add_argument("--layout-id", type=_identifier, metavar="ID",
+                     help="which layout of the file (needed if it has several)")
+    imp.add_argument("--vehicle-type", type=_identifier, metavar="ID",
+                     help="which vehicleTypeId's nodes, edges and speeds (needed if the "
+                          "layout is for several)")
+    imp.add_argument("--all-types", action="store_true",
+                     help="import every vehicle type: segments and stations open to some "
+                          "types only get allowed_types (--vehicle-type: the type whose "
+                          "speeds and lengths are kept)")
+    exp = sub.add_parser("layout-export", prog="fleet-sim layout export",
+                         description="Write a fleet_sim layout as a VDMA LIF 1.0.0 file.")
+    exp.add_argument("layout", type=Path, metavar="NAME.yaml", help="layout YAML file")
+    exp.add_argument("--lif", type=Path, required=True, metavar="FILE.json",
+                     help="LIF file to write")
+    exp.add_argument("--timestamp", type=_timestamp, metavar="ISO|now",
+                     help="exportTimestamp (default: the layout's lif.export_timestamp, else "
+                          "1970-01-01T00:00:00.00Z, so the same layout gives the same file)")
+    exp.add_argument("--vehicle-type", type=_identifier, metavar="ID",
+                     help="vehicleTypeId to write (default: the layout's lif.vehicle_type_id, "
+                          "else fleet-sim)")
+    exp.add_argument("--max-speed", type=_speed, default=None,
+                     help="vehicle top speed in m/s to check speed limits against")
+
+    prof = sub.add_parser("profile", help="vehicle profiles: `profile import` makes one of a "
+                          "VDA 5050 factsheet")
+    prof_sub = prof.add_subparsers(dest="profile_command", required=True, metavar="{import}")
+    fact = prof_sub.add_parser("import", help="make a vehicle profile of a VDA 5050 2.1.0 "
+                               "factsheet", description="Make a vehicle profile of a VDA 5050 "
+                               "2.1.0 factsheet: speeds, accelerations and length from the "
+                               "factsheet, the rest from a base profile; what is not used is "
+                               "listed.")
+    fact.add_argument("factsheet", type=Path, metavar="FACTSHEET.json", help="factsheet file")
+    fact.add_argument("--out", type=Path, required=True, help="profile YAML file to write")
+    fact.add_argument("--base", default="rss-agv-001", metavar="PROFILE",
+                      help="bundled profile name or profile file giving the figures a "
+                           "factsheet lacks: turn speed, battery, link (default: rss-agv-001)")
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if len(argv) >= 2 and argv[0] == "layout" and argv[1] in LAYOUT_COMMANDS:
+        argv = [LAYOUT_COMMANDS[argv[1]], *argv[2:]]
+    elif argv and argv[0] in LAYOUT_COMMANDS.values():
+        parser.error(f"argument command: invalid choice: {argv[0]!r} (use: layout "
+                     f"{argv[0].removeprefix('layout-')})")
     args = parser.parse_args(argv)
     try:
         if args.command == "run":
             return _run(args)
+        if args.command == "replay":
+            return _replay(args)
+        if args.command == "export":
+            return _export(args)
         if args.command == "emulate":
             return _emulate(args)
         if args.command == "sweep":
@@ -139,6 +253,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _crosscheck(args)
         if args.command == "schema":
             return _schema(args)
+        if args.command == "layout-import":
+            return _layout_import(args)
+        if args.command == "layout-export":
+            return _layout_export(args)
+        if args.command == "profile":
+            return _profile_import(args)
         return _layout(args)
     except (FleetSimError, InputError) as exc:
         print(f"fleet-sim: error: {exc}", file=sys.stderr)
@@ -167,10 +287,15 @@ def _run(args: argparse.Namespace) -> int:
     if args.seed is not None:
         overrides["seed"] = args.seed
     scenario = _load_with_hours(load_scenario, args.scenario, overrides, args.hours)
+    if args.replay and scenario.motion != "closed_form":
+        raise InputError(str(args.scenario), "motion", scenario.motion,
+                         "closed_form with --replay: a replay draws the closed-form speed "
+                         "profile; with SUMO moving the AGVs their positions between nodes are "
+                         "not recorded")
     out = args.out or _fresh_dir(Path("results") / folder_name(scenario.name))
     _check_out_dir(out, "--out" if args.out else "results folder")
     layout = load_layout_for(scenario, str(args.scenario))
-    _warn_unreachable_chargers(scenario, layout)
+    _warn_setup(scenario, layout)
     trace = []
     if scenario.demand.kind == "trace":
         assert scenario.demand.trace_csv is not None
@@ -180,16 +305,69 @@ def _run(args: argparse.Namespace) -> int:
             progress.update(now_s, f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h "
                                    f"({now_s / end_s:.0%})")
 
-        run = simulate(scenario, layout, trace, progress=simulated)
+        run = simulate(scenario, layout, trace, progress=simulated, record_moves=args.replay)
     figures = run_kpis(run)
     write_run(run, out, figures)
     print(summary_text(figures))
     print(f"  run directory               {out}  ({run.wall_s:.1f} s wall, "
           f"{run.sim_events:,} events)")
+    if args.replay:
+        from fleet_sim.analysis.replay import write_moves
+        from fleet_sim.report.replay import write_replay
+
+        write_moves(run.recorder, out)
+        del run
+        if not args.quiet:
+            print("  writing replay.html", file=sys.stderr, flush=True)
+        page = write_replay(out)
+        print(f"  replay                      {page}  ({_megabytes(page)})")
     return 0
 
 
-SCHEMA_KINDS = ("layout", "scenario", "experiment", "profile")
+def _megabytes(path: Path) -> str:
+    return f"{path.stat().st_size / 1e6:.1f} MB"
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from fleet_sim.analysis.replay import MOVES_FILE
+    from fleet_sim.report.replay import check_window, write_replay
+    from fleet_sim.study.progress import Progress
+
+    run_dir: Path = args.run_dir
+    check_window(run_dir, args.from_h, args.to_h)  # bad input fails before any work
+    _check_out_dir(run_dir, "run_dir", "run directory")
+    again = not (run_dir / MOVES_FILE).is_file()
+    with Progress(1.0, quiet=args.quiet, plain_lines=4) as progress:
+        if again:
+            progress.note(f"{run_dir} has no {MOVES_FILE}: simulating the run again from its "
+                          "config.resolved.yaml (same seed, same run)")
+
+        def simulated(now_s: float, end_s: float) -> None:
+            progress.update(now_s / end_s, f"re-simulated {now_s / 3600:.2f} of "
+                                           f"{end_s / 3600:.2f} h ({now_s / end_s:.0%})")
+
+        page = write_replay(run_dir, args.from_h, args.to_h, progress=simulated,
+                            writing=lambda: progress.note(f"writing {run_dir / 'replay.html'}"))
+    print(f"replay: {page.resolve()}  ({_megabytes(page)})")
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from fleet_sim.report.export import export
+
+    if args.out is not None:
+        if args.format == "csv":
+            _check_out_dir(args.out, "--out")
+        else:
+            _check_out_file(args.out, "--out")
+    written = export(args.source, args.format, args.out,
+                     note=lambda text: print(f"  {text}", file=sys.stderr, flush=True))
+    for item in written:
+        print(f"{item.table:8s} {item.rows:>10,} rows  {item.path}")
+    return 0
+
+
+SCHEMA_KINDS = ("layout", "scenario", "experiment", "profile", "lif", "factsheet")
 
 
 def _schema(args: argparse.Namespace) -> int:
@@ -244,19 +422,21 @@ def _check_out_file(out: Path, argument: str) -> None:
     _check_out_dir(out.parent, argument, f"{argument.lstrip('-')} folder")
 
 
-def _warn_unreachable_chargers(scenario: typing.Any, layout: typing.Any) -> None:
-    """One warning line on stderr if charging is on and some AGVs cannot reach a charger."""
-    from fleet_sim.config.scenario import agvs_without_charger
+def _warn_setup(scenario: typing.Any, layout: typing.Any) -> None:
+    """One warning line on stderr per battery or charging trap of the scenario (AGVs that
+    cannot reach a charger, a draining battery with charging off): the run goes on."""
+    from fleet_sim.config.scenario import setup_warnings
 
-    stranded = agvs_without_charger(scenario, layout)
-    if not stranded:
-        return
-    shown = ", ".join(str(a) for a in stranded[:20]) + (", ..." if len(stranded) > 20 else "")
-    why = "the layout has no charger" if not layout.chargers else "no charger is reachable " \
-        "from their start nodes"
-    print(f"fleet-sim: warning: charging is on but {why}: AGV {shown} "
-          f"({len(stranded)} of {scenario.fleet.size}) will run down and stop with E_201",
-          file=sys.stderr)
+    for warning in setup_warnings(scenario, layout):
+        print(f"fleet-sim: warning: {warning.text}", file=sys.stderr)
+
+
+def _warn_experiment(experiment: typing.Any) -> None:
+    """The setup warnings of an experiment's design points, each kind once."""
+    from fleet_sim.config.experiment import experiment_warnings
+
+    for text in experiment_warnings(experiment):
+        print(f"fleet-sim: warning: {text}", file=sys.stderr)
 
 
 def _fresh_dir(base: Path) -> Path:
@@ -294,6 +474,7 @@ def _sweep(args: argparse.Namespace) -> int:
     _check_workers(args)
     experiment = load_experiment(args.experiment)
     check_targets_known(experiment)
+    _warn_experiment(experiment)
     out = args.out or default_out(experiment)
     runs = experiment.runs()
     where = f"Dask cluster {args.scheduler}" if args.scheduler else \
@@ -332,6 +513,7 @@ def _size(args: argparse.Namespace) -> int:
     _check_workers(args)
     experiment = load_experiment(args.experiment)
     check_targets_known(experiment)
+    _warn_experiment(experiment)
     out = args.out or default_out(experiment)
     print(f"size {experiment.name}: targets "
           + ", ".join(t.describe() for t in experiment.spec.targets))
@@ -387,6 +569,78 @@ def _layout(args: argparse.Namespace) -> int:
         print(f"  SUMO network {network.net_file} (+ plain .nod/.edg/.con.xml, "
               f"{network.vtype_file.name})")
     return 0
+
+
+def _layout_import(args: argparse.Namespace) -> int:
+    """LIF -> layout file. The layout is written even if it does not check as a graph yet (a
+    LIF without parking, say): the planner completes it; the problem is named, exit status 1."""
+    from fleet_sim.config.layout import layout_from_spec, layout_yaml
+    from fleet_sim.config.layout_lif import import_lif
+
+    _check_out_file(args.out, "--out")
+    imported = import_lif(args.lif, args.layout_id, args.vehicle_type, args.all_types)
+    _write(args.out, layout_yaml(imported.spec, imported.comments()), "--out")
+    spec = imported.spec
+    print(f"{args.lif}: LIF {imported.lif_version} layout {imported.layout_id!r}, vehicle type "
+          f"{imported.vehicle_type!r} -> {args.out}")
+    print(f"  nodes        {len(spec.nodes)}")
+    print(f"  segments     {len(spec.segments)} "
+          f"({sum(s.direction == 'two_way' for s in spec.segments)} two-way)")
+    print(f"  places       {len(spec.stations)} stations, {len(spec.chargers)} chargers, "
+          f"{len(spec.parking)} parking")
+    for note in imported.notes:
+        print(f"  {'read as ' if note.kept else 'not kept'}     {note.line()}")
+    try:
+        layout_from_spec(spec, str(args.out))
+    except InputError as exc:
+        print(f"fleet-sim: warning: {exc} (written; complete the layout and check it with "
+              "`fleet-sim layout`)", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _layout_export(args: argparse.Namespace) -> int:
+    from fleet_sim.config.layout import load_layout
+    from fleet_sim.config.layout_lif import layout_to_lif, lif_json
+
+    _check_out_file(args.lif, "--lif")
+    layout = load_layout(args.layout, max_speed_mps=args.max_speed)
+    data = layout_to_lif(layout.spec, args.timestamp, args.vehicle_type)
+    _write(args.lif, lif_json(data), "--lif")
+    lif_layout = data["layouts"][0]
+    print(f"{args.layout}: layout {layout.name!r} -> {args.lif} (LIF "
+          f"{data['metaInformation']['lifVersion']})")
+    print(f"  nodes        {len(lif_layout['nodes'])}")
+    print(f"  edges        {len(lif_layout['edges'])} (a two-way segment is two edges)")
+    print(f"  stations     {len(lif_layout['stations'])} (pickup, drop-off, chargers, parking)")
+    print(f"  exported at  {data['metaInformation']['exportTimestamp']}"
+          + ("" if args.timestamp else " (--timestamp now for the current time)"))
+    print("  fleetSim     handling times, charger power, parking capacity, markers, Wi-Fi, "
+          "zones and explicit lengths are in the extension key fleetSim")
+    return 0
+
+
+def _profile_import(args: argparse.Namespace) -> int:
+    from fleet_sim.config.profile_factsheet import import_factsheet
+
+    _check_out_file(args.out, "--out")
+    imported = import_factsheet(args.factsheet, args.base)
+    _write(args.out, imported.text(), "--out")
+    print(f"{args.factsheet}: {imported.title} -> {args.out} (profile "
+          f"{args.out.stem!r})")
+    print("  from the factsheet   top speed, acceleration, deceleration, length")
+    print(f"  from {imported.base:<15} turn speed, battery, link (assumed for this vehicle)")
+    for line in imported.not_used:
+        print(f"  not used             {line}")
+    return 0
+
+
+def _write(path: Path, text: str, argument: str) -> None:
+    try:
+        path.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise InputError(argument, argument.lstrip("-"), str(path),
+                         f"a writable file ({exc.strerror})") from None
 
 
 def _crosscheck(args: argparse.Namespace) -> int:

@@ -1,6 +1,7 @@
 """A generated corpus of bad inputs ("no garbage in").
 
-Every case is a bad layout, scenario, experiment, order trace, vehicle profile or CLI argument.
+Every case is a bad layout, scenario, experiment, order trace, vehicle profile, LIF file, VDA
+5050 factsheet or CLI argument.
 Each must end in one InputError (or, through the CLI, exit status 2 and one line on stderr) that
 names the file or the argument, never a traceback, and within a few seconds (a hang or an alias
 bomb fails the test). Most cases go through the loaders in-process; a representative sample goes
@@ -9,6 +10,8 @@ through the real `fleet-sim` command in a subprocess.
 
 from __future__ import annotations
 
+import copy
+import json
 import os
 import signal
 import subprocess
@@ -22,10 +25,12 @@ from typing import Any
 import pytest
 import yaml
 
-from agv_model.inputs import MAX_FILE_BYTES
+from agv_model.inputs import MAX_FILE_BYTES, validate
 from agv_model.profile import read_profile
 from fleet_sim.config.experiment import load_experiment
-from fleet_sim.config.layout import load_layout
+from fleet_sim.config.layout import LayoutSpec, load_layout
+from fleet_sim.config.layout_lif import import_lif, layout_to_lif
+from fleet_sim.config.profile_factsheet import import_factsheet
 from fleet_sim.config.scenario import load_layout_for, load_scenario
 from fleet_sim.config.trace import load_trace
 from fleet_sim.errors import InputError
@@ -33,6 +38,8 @@ from fleet_sim.errors import InputError
 ROOT = Path(__file__).resolve().parents[1]
 LAYOUT = ROOT / "layouts" / "tiny_loop.yaml"
 PROFILE = ROOT / "agv_model" / "profiles" / "tabo.yaml"
+FACTSHEET = ROOT / "tests" / "data" / "tugger.factsheet.json"
+FILE_NAMES = {"trace": "orders.csv", "lif": "x.lif.json", "factsheet": "factsheet.json"}
 CASE_SECONDS = 10
 
 NAN, INF = float("nan"), float("inf")
@@ -59,6 +66,21 @@ def _profile() -> dict[str, Any]:
     data = yaml.safe_load(PROFILE.read_text(encoding="utf-8"))
     assert isinstance(data, dict)
     return data
+
+
+def _lif() -> dict[str, Any]:
+    """The tiny loop as fleet-sim exports it: a valid LIF file (nodes[2] is a pickup)."""
+    return layout_to_lif(validate(LayoutSpec, _layout(), str(LAYOUT)))
+
+
+def _factsheet() -> dict[str, Any]:
+    data = json.loads(FACTSHEET.read_text(encoding="utf-8"))
+    assert isinstance(data, dict)
+    return data
+
+
+def _json(data: Any) -> bytes:
+    return json.dumps(data).encode()
 
 
 def _set(data: dict[str, Any], dotted: str, value: Any) -> dict[str, Any]:
@@ -99,10 +121,103 @@ RAW: dict[str, bytes] = {
 }
 
 
+# Raw files that are not JSON objects: the same for LIF files and factsheets.
+RAW_JSON: dict[str, bytes] = {
+    "binary": bytes(range(256)) * 4,
+    "latin1": '{"name": "caf\xe9"}'.encode("latin-1"),
+    "nul": b'{"name": "x\x00y"}',
+    "empty": b"",
+    "truncated": b'{"metaInformation": {"creator": ',
+    "nan": b'{"x": NaN}',
+    "infinity": b'{"x": -Infinity}',
+    "duplicate_keys": b'{"version": "2.1.0", "layouts": [], "layouts": []}',
+    "deep_nesting": b"[" * 50_000 + b"]" * 50_000,
+    "top_level_list": b"[1, 2]",
+    "top_level_text": b'"just words"',
+    "yaml_not_json": b"name: x\nnodes: []\n",
+    "trailing_garbage": b"{} and more",
+}
+
+
+def _drop(data: dict[str, Any], dotted: str) -> dict[str, Any]:
+    keys = dotted.split(".")
+    target: Any = data
+    for key in keys[:-1]:
+        target = target[int(key)] if isinstance(target, list) else target[key]
+    del target[keys[-1]]
+    return data
+
+
+NODE = "layouts.0.nodes.3"
+EDGE = "layouts.0.edges.0"
+EDGE_TYPE = f"{EDGE}.vehicleTypeEdgeProperties.0"
+# (case id, change to the valid LIF file)
+LIF_CASES: list[tuple[str, Callable[[dict[str, Any]], dict[str, Any]]]] = [
+    ("x-text", lambda d: _set(d, f"{NODE}.nodePosition.x", "abc")),
+    ("x-bool", lambda d: _set(d, f"{NODE}.nodePosition.x", True)),
+    ("x-huge", lambda d: _set(d, f"{NODE}.nodePosition.x", 1e400)),
+    ("position-null", lambda d: _set(d, f"{NODE}.nodePosition", None)),
+    ("position-missing", lambda d: _drop(d, f"{NODE}.nodePosition")),
+    ("node-id-number", lambda d: _set(d, f"{NODE}.nodeId", 12)),
+    ("node-id-twice", lambda d: _set(d, f"{NODE}.nodeId", "SW")),
+    ("no-vehicle-types", lambda d: _set(d, f"{NODE}.vehicleTypeNodeProperties", [])),
+    ("type-twice", lambda d: _set(d, f"{NODE}.vehicleTypeNodeProperties",
+                                  [{"vehicleTypeId": "A"}, {"vehicleTypeId": "A"}])),
+    ("theta-beyond-pi", lambda d: _set(d, f"{NODE}.vehicleTypeNodeProperties.0.theta", 4)),
+    ("blocking-type", lambda d: _set(
+        d, "layouts.0.nodes.2.vehicleTypeNodeProperties.0.actions.0.blockingType", "MAYBE")),
+    ("edge-to-nowhere", lambda d: _set(d, f"{EDGE}.endNodeId", "ZZ")),
+    ("edge-without-start", lambda d: _drop(d, f"{EDGE}.startNodeId")),
+    ("max-speed-zero", lambda d: _set(d, f"{EDGE_TYPE}.maxSpeed", 0)),
+    ("max-speed-negative", lambda d: _set(d, f"{EDGE_TYPE}.maxSpeed", -1)),
+    ("max-speed-text", lambda d: _set(d, f"{EDGE_TYPE}.maxSpeed", "fast")),
+    ("rotation-allowed-missing", lambda d: _drop(d, f"{EDGE_TYPE}.rotationAllowed")),
+    ("rotation-at-start", lambda d: _set(d, f"{EDGE_TYPE}.rotationAtStartNodeAllowed", "LEFT")),
+    ("knots-miscounted", lambda d: _set(d, f"{EDGE_TYPE}.trajectory", {
+        "degree": 2, "knotVector": [0, 1], "controlPoints": [{"x": 0, "y": 0}]})),
+    ("knot-beyond-one", lambda d: _set(d, f"{EDGE_TYPE}.trajectory", {
+        "knotVector": [0, 0, 2, 2], "controlPoints": [{"x": 0, "y": 0}, {"x": 4, "y": 0}]})),
+    ("station-without-nodes", lambda d: _set(d, "layouts.0.stations.0.interactionNodeIds", [])),
+    ("station-at-nowhere", lambda d: _set(d, "layouts.0.stations.0.interactionNodeIds", ["ZZ"])),
+    ("station-height", lambda d: _set(d, "layouts.0.stations.0.stationHeight", -1)),
+    ("lif-2", lambda d: _set(d, "metaInformation.lifVersion", "2.0.0")),
+    ("lif-version-text", lambda d: _set(d, "metaInformation.lifVersion", "one")),
+    ("timestamp", lambda d: _set(d, "metaInformation.exportTimestamp", "yesterday")),
+    ("no-meta", lambda d: _drop(d, "metaInformation")),
+    ("layouts-text", lambda d: _set(d, "layouts", "none")),
+    ("no-layouts", lambda d: _set(d, "layouts", [])),
+    ("extension-length", lambda d: _set(d, f"{EDGE}.fleetSim", {"length_m": -1})),
+    ("extension-unknown-key", lambda d: _set(d, f"{EDGE}.fleetSim", {"colour": "red"})),
+    ("extension-kind", lambda d: _set(d, "layouts.0.stations.0.fleetSim.kind", "bakery")),
+    ("extension-power-of-a-pickup", lambda d: _set(d, "layouts.0.stations.0.fleetSim.power_kw",
+                                                   3)),
+    ("extension-handling", lambda d: _set(d, "layouts.0.stations.0.fleetSim.handling",
+                                          {"dist": "fixed", "mean_s": -5})),
+]
+FACTSHEET_CASES: list[tuple[str, Callable[[dict[str, Any]], dict[str, Any]]]] = [
+    ("speed-text", lambda d: _set(d, "physicalParameters.speedMax", "fast")),
+    ("speed-negative", lambda d: _set(d, "physicalParameters.speedMax", -1)),
+    ("speed-zero", lambda d: _set(d, "physicalParameters.speedMax", 0)),
+    ("speed-bool", lambda d: _set(d, "physicalParameters.speedMax", True)),
+    ("speed-huge", lambda d: _set(d, "physicalParameters.speedMax", 1e400)),
+    ("speed-min-above-max", lambda d: _set(d, "physicalParameters.speedMin", 5)),
+    ("no-length", lambda d: _drop(d, "physicalParameters.length")),
+    ("no-type", lambda d: _drop(d, "typeSpecification")),
+    ("agv-class", lambda d: _set(d, "typeSpecification.agvClass", "SPACESHIP")),
+    ("version-3", lambda d: _set(d, "version", "3.0.0")),
+    ("header-negative", lambda d: _set(d, "headerId", -1)),
+    ("pick-time", lambda d: _set(d, "loadSpecification.loadSets.0.pickTime", -3)),
+    ("order-nodes", lambda d: (d["protocolLimits"]["maxArrayLens"].update(
+        {"order.nodes": 2.5}), d)[1]),
+    ("wheel-diameter", lambda d: _set(d, "agvGeometry.wheelDefinitions.0.diameter", 0)),
+    ("timing-missing", lambda d: _drop(d, "protocolLimits.timing.minOrderInterval")),
+]
+
+
 @dataclass(frozen=True)
 class Case:
     id: str
-    kind: str  # layout, scenario, experiment, trace, profile
+    kind: str  # layout, scenario, experiment, trace, profile, lif, factsheet
     content: Callable[[Path], bytes]
     """The file's bytes, given the folder the case is written in."""
 
@@ -124,7 +239,27 @@ def _cases() -> Iterator[Case]:
     for field, value in [("duration_h", 8761), ("demand.rate_per_hour", 100_001),
                          ("fleet.size", 2001), ("fleet.size", 0), ("unknown_key", 1),
                          ("fleet.vehicle.max_speed_mps", NAN), ("fleet.start_nodes", ["ZZ"]),
-                         ("layout", "missing.yaml"), ("layout", str(ROOT / "layouts"))]:
+                         ("layout", "missing.yaml"), ("layout", str(ROOT / "layouts")),
+                         ("fleet.vehicle.battery", True), ("fleet.vehicle.battery", "on"),
+                         ("fleet.vehicle.battery", "empty"), ("fleet.vehicle.battery", 0),
+                         ("fleet.vehicle.battery", [1]),
+                         ("fleet.vehicle.battery", {"capacity_wh": 0}),
+                         ("fleet.vehicle.battery", {"idle_w": NAN}),
+                         ("fleet.vehicle.battery", {"switch": "off"}),
+                         ("fleet.vehicles", [{"type": "a", "count": 1}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 2, "profile": "nowhere"}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 1},
+                                             {"type": "a", "count": 1}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 2, "speed": 1}]),
+                         ("fleet.vehicles", [{"type": "a", "count": 2.5}]),
+                         ("fleet.vehicles", "many"),
+                         ("demand.flows", [{"stops": ["PICK", "DROP", "PICK"]}]),
+                         ("demand.flows", [{"stops": ["PICK", "DROP"] * 11}]),
+                         ("demand.flows", [{"stops": ["PICK", "PICK", "DROP", "DROP"]}]),
+                         ("demand.flows", [{"stops": ["PICK", "DROP", "ZZ", "DROP"]}]),
+                         ("demand.flows", [{"from": "PICK", "stops": ["PICK", "DROP"]}]),
+                         ("demand.flows", [{"from": "PICK"}]),
+                         ("demand.flows", [{"stops": "PICK>DROP"}])]:
         yield Case(f"scenario-{field}-{value!r}", "scenario",
                    lambda _d, f=field, v=value: _yaml(_set(_scenario(), f, v)))
     for field, value in [("nodes.0.x", NAN), ("nodes.0.x", INF), ("nodes.0.y", "north"),
@@ -132,6 +267,12 @@ def _cases() -> Iterator[Case]:
                          ("segments.0.speed_limit_mps", 0), ("nodes.1.id", "SW"),
                          ("parking.0.capacity", 1e308), ("parking.0.capacity", 0),
                          ("defaults.speed_limit_mps", NAN), ("stations.0.nodes", []),
+                         ("segments.0.allowed_types", "narrow"),
+                         ("traffic_zones", [{"id": "Z", "kind": "mutex", "nodes": ["ZZ"]}]),
+                         ("traffic_zones", [{"id": "Z", "kind": "mutex", "nodes": ["SW"],
+                                             "capacity": 0}]),
+                         ("traffic_zones", [{"id": "Z", "kind": "ban", "nodes": ["SW"]}]),
+                         ("stations.0.allowed_types", [["a"]]),
                          ("nodes", "none")]:
         yield Case(f"layout-{field}-{value!r}", "layout",
                    lambda _d, f=field, v=value: _yaml(_set(_layout(), f, v)))
@@ -172,8 +313,26 @@ def _cases() -> Iterator[Case]:
                       ("time_text", header + b"soon,PICK,DROP\n"),
                       ("unknown_station", header + b"1,NOWHERE,DROP\n"),
                       ("short_row", header + b"1,PICK\n"),
-                      ("nul", header + b"1,PI\x00CK,DROP\n")]:
+                      ("nul", header + b"1,PI\x00CK,DROP\n"),
+                      ("stops_odd", b"time_s,stops\n1,PICK>DROP>PICK\n"),
+                      ("stops_wrong_kind", b"time_s,stops\n1,PICK>DROP>DROP>PICK\n"),
+                      ("stops_unknown", b"time_s,stops\n1,PICK>DROP>PICK>NOWHERE\n"),
+                      ("stops_too_many", b"time_s,stops\n1," + b">".join([b"PICK>DROP"] * 11)
+                       + b"\n"),
+                      ("stops_time_nan", b"time_s,stops\nnan,PICK>DROP>PICK>DROP\n"),
+                      ("stops_pickup_differs", header[:-1] + b",stops\n1,DROP,DROP,"
+                       b"PICK>DROP>PICK>DROP\n"),
+                      ("stops_empty_plain_row", b"time_s,stops\n1,\n"),
+                      ("stops_no_time", b"stops\nPICK>DROP\n")]:
         yield Case(f"trace-{name}", "trace", lambda _d, raw=raw: raw)
+    for kind in ("lif", "factsheet"):
+        for name, raw in RAW_JSON.items():
+            yield Case(f"{kind}-{name}", kind, lambda _d, raw=raw: raw)
+    for name, change in LIF_CASES:
+        yield Case(f"lif-{name}", "lif", lambda _d, c=change: _json(c(copy.deepcopy(_lif()))))
+    for name, change in FACTSHEET_CASES:
+        yield Case(f"factsheet-{name}", "factsheet",
+                   lambda _d, c=change: _json(c(_factsheet())))
 
 
 def _write_base(folder: Path) -> Path:
@@ -199,6 +358,10 @@ def _load(kind: str, path: Path) -> None:
         load_experiment(path)
     elif kind == "profile":
         read_profile(path)
+    elif kind == "lif":
+        import_lif(path)
+    elif kind == "factsheet":
+        import_factsheet(path)
     else:
         load_trace(path, load_layout(LAYOUT))
 
@@ -210,7 +373,7 @@ def test_the_corpus_is_large() -> None:
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
 def test_bad_input_is_one_named_error(case: Case, tmp_path: Path) -> None:
-    path = tmp_path / ("orders.csv" if case.kind == "trace" else f"{case.kind}.yaml")
+    path = tmp_path / FILE_NAMES.get(case.kind, f"{case.kind}.yaml")
     path.write_bytes(case.content(tmp_path))
 
     def expire(_signum: int, _frame: FrameType | None) -> None:
@@ -228,6 +391,30 @@ def test_bad_input_is_one_named_error(case: Case, tmp_path: Path) -> None:
     assert "\n" not in message, message
     assert message.startswith(str(tmp_path)) or message.startswith(str(ROOT)), message
     assert "; expected " in message, message
+
+
+def test_the_valid_lif_and_factsheet_the_cases_change_are_read(tmp_path: Path) -> None:
+    path = tmp_path / "x.lif.json"
+    path.write_bytes(_json(_lif()))
+    assert import_lif(path).spec.name == "tiny_loop"
+    assert import_factsheet(FACTSHEET).title == "T12 tugger (Example Motion)"
+
+
+def test_a_malformed_lif_names_the_json_path(tmp_path: Path) -> None:
+    path = tmp_path / "x.lif.json"
+    path.write_bytes(_json(_set(_lif(), f"{NODE}.nodePosition.x", "abc")))
+    with pytest.raises(InputError) as info:
+        import_lif(path)
+    assert str(info.value) == (f"{path}: layouts[0].nodes[3].nodePosition.x: got 'abc'; "
+                               "expected a number")
+    path.write_bytes(_json(_set(_lif(), f"{EDGE}.endNodeId", "ZZ")))
+    with pytest.raises(InputError, match=r"x.lif.json: layouts\[0\].edges\[0\].endNodeId: got "
+                                         r"'ZZ'; expected the nodeId of a node in the file"):
+        import_lif(path)
+    path.write_bytes(b'{"metaInformation": {},\n "layouts": [}')
+    with pytest.raises(InputError, match=r"x.lif.json: line 2 column 14: got 'Expecting value'; "
+                                         "expected valid JSON"):
+        import_lif(path)
 
 
 def test_a_file_over_the_size_cap_is_refused_unread(tmp_path: Path) -> None:
@@ -269,7 +456,17 @@ def _cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
     binary.write_bytes(RAW["binary"])
     bomb = tmp / "bomb.yaml"
     bomb.write_bytes(RAW["alias_bomb"])
+    bad_lif = tmp / "bad.lif.json"
+    bad_lif.write_bytes(_json(_set(_lif(), f"{NODE}.nodePosition.x", "abc")))
+    bad_factsheet = tmp / "bad.factsheet.json"
+    bad_factsheet.write_bytes(_json(_set(_factsheet(), "physicalParameters.speedMax", -1)))
     return [
+        (["layout", "import", str(bad_lif), "--out", str(tmp / "x.yaml")],
+         f"{bad_lif}: layouts[0].nodes[3].nodePosition.x: got 'abc'; expected a number"),
+        (["profile", "import", str(bad_factsheet), "--out", str(tmp / "p.yaml")],
+         "physicalParameters.speedMax: got -1; expected a number > 0"),
+        (["layout", "export", str(LAYOUT), "--lif", str(tmp / "x.json"), "--timestamp", "noon"],
+         "argument --timestamp: got 'noon'; expected an ISO 8601"),
         (["run", scenario, "--hours", "nan"], "argument --hours: got 'nan'; expected a finite"),
         (["run", scenario, "--hours", "0.05"], "--hours: duration_h: got 0.05"),
         (["run", scenario, "--agvs", "0"], "argument --agvs: got '0'"),
@@ -312,7 +509,9 @@ def test_agvs_that_cannot_reach_a_charger_are_named(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     warning = [line for line in result.stderr.splitlines() if "warning" in line]
     assert warning == ["fleet-sim: warning: charging is on but the layout has no charger: "
-                       "AGV 0, 1 (2 of 2) will run down and stop with E_201"]
+                       "AGV 0, 1 (2 of 2) will run down and stop with E_201: from 90 % to the "
+                       "charging threshold 30 %, where they stop taking orders, in about 2.9 h "
+                       "working flat out or 28.8 h idle, then E_201 at 10 % 9.6 h later"]
 
 
 def test_a_layout_with_a_charger_warns_no_one() -> None:

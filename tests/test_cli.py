@@ -73,3 +73,38 @@ def test_layout_command_checks_and_draws(tmp_path: Path) -> None:
     result = fleet_sim("layout", str(broken))
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert "segments[11].to: got 'ZZ'; expected the id of a node" in result.stderr
+
+
+def test_a_battery_that_runs_down_is_warned_at_the_start_and_recorded(tmp_path: Path) -> None:
+    """The issue's trap (charging off, a draining battery, a long run): one warning line that
+    names the settings and says when the AGVs stop; the run goes on and keeps the warning."""
+    scenario = write_yaml(tmp_path / "s.yaml", {
+        "name": "trap", "layout": str(LAYOUTS / "tiny_loop.yaml"), "duration_h": 6,
+        "warmup_h": 0.5, "fleet": {"size": 1}, "demand": {"rate_per_hour": 15},
+        "charging": {"enabled": False}})
+    result = fleet_sim("run", str(scenario), "--quiet", "--out", str(tmp_path / "run"))
+    assert result.returncode == 0, result.stderr
+    (warning,) = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert warning.startswith("fleet-sim: warning: charging.enabled is false but the battery "
+                              "drains (fleet.vehicle.battery): ")
+    assert "stops taking orders after about 3.4 h working flat out" in warning
+    assert "For no battery model set fleet.vehicle.battery: off" in warning
+    figures = json.loads((tmp_path / "run" / "kpis.json").read_text())
+    assert figures["setup_warnings"] == [warning.removeprefix("fleet-sim: warning: ")]
+    assert "idle with orders waiting" in result.stdout
+
+
+def test_a_sweep_warns_once_per_experiment_not_per_run(tmp_path: Path) -> None:
+    scenario = write_yaml(tmp_path / "s.yaml", {
+        "name": "trap", "layout": str(LAYOUTS / "tiny_loop.yaml"), "duration_h": 4,
+        "warmup_h": 0.5, "demand": {"rate_per_hour": 10}, "charging": {"enabled": False}})
+    experiment = write_yaml(tmp_path / "e.yaml", {
+        "name": "trap", "scenario": str(scenario), "factors": {"fleet.size": [1, 2]},
+        "replications": 2})
+    result = fleet_sim("sweep", str(experiment), "--quiet", "--workers", "1",
+                       "--out", str(tmp_path / "out"))
+    assert result.returncode == 0, result.stderr
+    warnings = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert len(warnings) == 1 and "charging.enabled is false" in warnings[0]
+    summary = pd.read_parquet(tmp_path / "out" / "summary.parquet")
+    assert len(summary) == 4 and (summary["setup_warnings"].str.len() > 0).all()

@@ -10,10 +10,15 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleet_sim.config.experiment import load_experiment, replication_seed, run_id
+from fleet_sim.config.experiment import (
+    experiment_warnings,
+    load_experiment,
+    replication_seed,
+    run_id,
+)
 from fleet_sim.errors import InputError
 
-from .conftest import ROOT, write_yaml
+from .conftest import LAYOUTS, ROOT, write_yaml
 
 TINY = str(ROOT / "experiments" / "tiny_loop.yaml")
 
@@ -110,3 +115,21 @@ def test_cli_bad_experiment_is_one_line_and_exit_2(tmp_path: Path) -> None:
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in result.stderr
     assert "factors.fleet.sise" in lines[0] and str(path) in lines[0]
+
+
+def test_setup_warnings_once_per_experiment_with_their_design_points(tmp_path: Path) -> None:
+    scenario = write_yaml(tmp_path / "s.yaml", {
+        "layout": str(LAYOUTS / "tiny_loop.yaml"), "duration_h": 6, "warmup_h": 0.5})
+    experiment = load_experiment(write_yaml(tmp_path / "e.yaml", {
+        "name": "traps", "scenario": str(scenario),
+        "factors": {"fleet.size": [1, 2, 3], "charging.enabled": [True, False]}}))
+    warnings = experiment_warnings(experiment)
+    assert len(warnings) == 2
+    assert warnings[0].startswith("charging is on but the layout has no charger: AGV 0 (1 of 1)")
+    assert warnings[0].endswith(" (in 3 of 6 design points)")
+    assert warnings[1].startswith("charging.enabled is false but the battery drains")
+    assert warnings[1].endswith(" (in 3 of 6 design points)")
+    off = load_experiment(write_yaml(tmp_path / "off.yaml", {
+        "name": "off", "scenario": str(scenario), "overrides": {"fleet.vehicle.battery": False},
+        "factors": {"charging.enabled": [True, False]}}))
+    assert experiment_warnings(off) == []

@@ -1,13 +1,18 @@
 """The fleet manager (fleet_sim.sim.agents.fleet_manager): assigning orders, putting back the
 order of an AGV that cannot carry it out, the charger queue, parking, admission; and, in whole
 runs, idle AGVs parked, no order lost, Little's law on the order queue, admission never beyond
-its limit and a large fleet that keeps delivering under it."""
+its limit and a large fleet that keeps delivering under it; work conservation: every reason
+for not dispatching provoked and recorded, and over long runs with every incident on, no moment
+at which an AGV stands Idle while an order waits without a recorded reason."""
 
 from __future__ import annotations
 
 import copy
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,8 +23,11 @@ from fleet_sim.analysis.kpis import run_kpis
 from fleet_sim.analysis.tables import orders_table
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.scenario import DispatchConfig
+from fleet_sim.errors import SimulationError
 from fleet_sim.model.kinematics import Motion
-from fleet_sim.model.records import Order, Recorder
+from fleet_sim.model.not_dispatched import NOT_DISPATCHED, NOT_DISPATCHED_END, NotDispatched
+from fleet_sim.model.records import EventRecord, Order, Recorder
+from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.engine import RunOutput, build_model, simulate
@@ -35,6 +43,7 @@ class StubAgv:
     id: int
     node: str
     fms_link: bool = True
+    state: VehicleState = VehicleState.IDLE
     in_parking: bool = False
     notes: list[tuple[str, str]] = field(default_factory=list)
     orders: list[Order] = field(default_factory=list)
@@ -58,8 +67,7 @@ def fleet_manager(layout: Layout, config: DispatchConfig | None = None) -> Fleet
     return FleetManager(env, layout, traffic, config or DispatchConfig(), recorder, commands)
 
 
-@pytest.fixture(scope="module")
-def spurs_layout(tmp_path_factory: pytest.TempPathFactory) -> Layout:
+def spurs_data() -> dict[str, Any]:
     """The tiny loop with two chargers and a second parking area, each on a 4 m two-way spur:
     CN north of N1, CS south of S3, and a one-place parking Q north of D (PARK is K, west)."""
     data = copy.deepcopy(yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text()))
@@ -72,8 +80,22 @@ def spurs_layout(tmp_path_factory: pytest.TempPathFactory) -> Layout:
     data["chargers"] = [{"id": "CHG_N", "node": "CN", "power_kw": 1.0},
                         {"id": "CHG_S", "node": "CS", "power_kw": 1.0}]
     data["parking"].append({"id": "PARK2", "node": "Q", "capacity": 1})
-    path = write_yaml(tmp_path_factory.mktemp("spurs") / "spurs.yaml", data)
-    return load_layout(path)
+    return data
+
+
+@pytest.fixture(scope="module")
+def spurs_layout(tmp_path_factory: pytest.TempPathFactory) -> Layout:
+    """spurs_data as a layout."""
+    return load_layout(write_yaml(tmp_path_factory.mktemp("spurs") / "spurs.yaml", spurs_data()))
+
+
+def closed_pick_layout(folder: Path) -> Layout:
+    """The spurs layout whose pickup only vehicle type `a` may serve."""
+    data = spurs_data()
+    for station in data["stations"]:
+        if station["id"] == "PICK":
+            station["allowed_types"] = ["a"]
+    return load_layout(write_yaml(folder / "closed_pick.yaml", data))
 
 
 def test_an_idle_agv_gets_the_oldest_order_at_once(tiny_layout: Layout) -> None:
@@ -147,10 +169,51 @@ def test_chargers_nearest_free_first_then_first_come_first_served(spurs_layout: 
     assert not wait_2.triggered and not wait_3.triggered
     fm.release_charger(spurs_layout.places["CHG_S"])
     assert wait_2.triggered and wait_2.value.id == "CHG_S" and not wait_3.triggered
-    fm.cancel_charger_request(third)
+    fm.cancel_charger_request(third, wait_3)
     fm.release_charger(spurs_layout.places["CHG_N"])
     assert not wait_3.triggered
     assert fm.charger_available() and [c.id for c in fm.chargers_free] == ["CHG_N"]
+
+
+def test_a_charger_given_to_an_agv_that_gave_up_goes_back(spurs_layout: Layout) -> None:
+    """An AGV that fails while its charger is given to it (or on its way to it over a slow
+    command link) never comes: the charger goes back to the free ones."""
+    fm = fleet_manager(spurs_layout)
+    agv = StubAgv(0, "D")
+    granted = fm.request_charger(agv)
+    assert granted.triggered and [c.id for c in fm.chargers_free] == ["CHG_S"]
+    fm.cancel_charger_request(agv, granted)
+    assert sorted(c.id for c in fm.chargers_free) == ["CHG_N", "CHG_S"]
+
+    env = simpy.Environment()  # the assign command takes its time on the CarriRo link
+    recorder = Recorder(0.0, 3600.0)
+    traffic = Traffic(env, spurs_layout, Motion(1.0, 0.5, 0.5, 0.3), recorder)
+    commands = CommandPath(env, "carriro-ad-plus", 0.0, np.random.default_rng(0), recorder)
+    fm = FleetManager(env, spurs_layout, traffic, DispatchConfig(), recorder, commands)
+    on_its_way = fm.request_charger(agv)
+    assert [c.id for c in fm.chargers_free] == ["CHG_S"] and not on_its_way.triggered
+    fm.cancel_charger_request(agv, on_its_way)
+    env.run(until=10.0)
+    assert not on_its_way.triggered
+    assert sorted(c.id for c in fm.chargers_free) == ["CHG_N", "CHG_S"]
+    assert not fm.charger_cancelled
+
+
+def test_an_agv_failing_while_it_waits_for_a_charger_gives_it_up(spurs_layout: Layout) -> None:
+    """Three AGVs at the charging threshold, two chargers: the one that waits fails (a
+    scripted fault) while waiting; the chargers are all free again at the end."""
+    scenario = make_scenario(
+        duration_h=3, warmup_h=0, seed=3, dispatch={"park_idle": False},
+        fleet={"size": 3, "vehicle": {"battery": {"initial_soc_pct": 32}}},
+        demand={"rate_per_hour": 60}, incidents={"faults": [
+            {"agv": 2, "at_s": 1000.0, "code": "E_999"}]})
+    model = build_model(scenario, spurs_layout)
+    model.env.run(until=scenario.duration_s)
+    waits = [e for e in model.recorder.events if e.agv == 2 and e.time_s <= 1000.0
+             and e.event == "not_dispatched" and e.detail == "waiting_for_charger"]
+    assert waits, "AGV 2 was not waiting for a charger when it failed"
+    held = [v.charger for v in model.vehicles if v.charger is not None]
+    assert len(model.fleet.chargers_free) + len(held) == 2
 
 
 def test_asking_for_a_charger_withdraws_the_agv_from_orders(spurs_layout: Layout) -> None:
@@ -219,6 +282,168 @@ def test_littles_law_on_the_order_queue(tiny_layout: Layout) -> None:
     wait = (arrived["assigned_s"].fillna(end) - arrived["created_s"]).mean()
     assert figures["order_queue_mean"] > 0.2  # a queue worth checking
     assert figures["order_queue_mean"] == pytest.approx(rate * wait, rel=0.05)
+
+
+# ---- work conservation ---------------------------------------------------------------------
+
+
+def test_an_idle_agv_that_cannot_take_a_waiting_order_gets_a_reason_on_changes_only(
+        tiny_layout: Layout) -> None:
+    fm = fleet_manager(tiny_layout)
+    lost = StubAgv(0, "S1", fms_link=False)
+    fm.status_changed(lost)  # Idle
+    fm.vehicle_idle(lost)
+    fm.env.run(until=10.0)
+    assert lost.notes == []  # no order waits: nothing to explain
+    fm.submit(Order(0, 10.0, "PICK", "DROP"))
+    fm.env.run(until=20.0)
+    fm.submit(Order(1, 20.0, "PICK", "DROP"))  # the reason goes on: not recorded again
+    fm.env.run(until=30.0)
+    assert lost.notes == [(NOT_DISPATCHED, "link_lost")]
+    lost.fms_link = True
+    fm.status_changed(lost)
+    fm.link_restored()
+    assert len(lost.orders) == 1 and len(fm.waiting) == 1
+    lost.state = VehicleState.MOVING  # the AGV sets off with its order, in the same instant
+    fm.status_changed(lost)
+    fm.env.run(until=40.0)
+    assert lost.notes[1:] == [(NOT_DISPATCHED_END, "link_lost")]
+
+
+def test_an_idle_agv_with_orders_waiting_and_no_reason_stops_the_run(tiny_layout: Layout) -> None:
+    """The invariant is checked in every run: an Idle AGV the fleet manager was told about,
+    not offered for orders and held back by nothing, while an order waits, is a bug."""
+    fm = fleet_manager(tiny_layout)
+    forgotten = StubAgv(2, "S1")
+    fm.status_changed(forgotten)
+    fm.submit(Order(0, 0.0, "PICK", "DROP"))
+    with pytest.raises(SimulationError, match=r"AGV 2 stands Idle at S1 while 1 orders wait"):
+        fm.env.run(until=1.0)
+
+
+def idle_unexplained_s(events: Sequence[EventRecord], queue_lengths: Sequence[tuple[float, int]],
+                       end_s: float) -> tuple[float, float]:
+    """An independent sweep over the run's records: (AGV-seconds Idle while an order waited
+    with no not_dispatched reason open, AGV-seconds a reason was open while the AGV was not
+    Idle or no order waited)."""
+    changes: list[tuple[float, int, Any]] = [(t, i, n) for i, (t, n) in enumerate(queue_lengths)]
+    changes += [(e.time_s, len(queue_lengths) + i, e) for i, e in enumerate(events)]
+    changes.sort(key=lambda c: (c[0], c[1]))
+    state: dict[int, str] = {}
+    reason: dict[int, str | None] = {}
+    queue = 0
+    unexplained = stale = 0.0
+    for k, (t, _, change) in enumerate(changes):
+        if isinstance(change, int):
+            queue = change
+        elif change.event == NOT_DISPATCHED:
+            reason[change.agv] = change.detail
+        elif change.event == NOT_DISPATCHED_END:
+            assert reason.get(change.agv) == change.detail, change
+            reason[change.agv] = None
+        else:
+            state[change.agv] = change.to_state
+        until = changes[k + 1][0] if k + 1 < len(changes) else end_s
+        for agv, now in state.items():
+            idle_waiting = now == "Idle" and queue > 0
+            explained = reason.get(agv) is not None
+            unexplained += (until - t) * (idle_waiting and not explained)
+            stale += (until - t) * (explained and not idle_waiting)
+    return unexplained, stale
+
+
+def _recorded_reasons(events: Sequence[EventRecord]) -> set[str]:
+    return {e.detail for e in events if e.event == NOT_DISPATCHED}
+
+
+BATTERY_OFF = {"battery": "off"}
+# one run per reason, each provoking it and nothing else (orders keep waiting in each)
+REASON_RUNS: dict[NotDispatched, dict[str, Any]] = {
+    # 3 AGVs start just above the 30 % threshold on a loop with 2 chargers: one waits
+    NotDispatched.WAITING_FOR_CHARGER: {
+        "duration_h": 3, "fleet": {"size": 3, "vehicle": {"battery": {"initial_soc_pct": 32}}},
+        "demand": {"rate_per_hour": 90}},
+    # charging off, just above P_050: the AGV soon may not move, and stands until E_201
+    NotDispatched.BATTERY_LOW: {
+        "duration_h": 2, "fleet": {"size": 1, "vehicle": {"battery": {"initial_soc_pct": 22}}},
+        "charging": {"enabled": False}, "demand": {"rate_per_hour": 60}},
+    # Req.Err.011: the FMS link lost for 5 minutes; the AGV waits at a tag (Idle)
+    NotDispatched.LINK_LOST: {
+        "duration_h": 1, "fleet": {"size": 1, "vehicle": BATTERY_OFF},
+        "demand": {"rate_per_hour": 60},
+        "incidents": {"link_losses": [{"agv": 0, "at_s": 600, "duration_s": 300}]}},
+    # the fleet manager learns that an AGV is free at its next status poll, every 30 s
+    NotDispatched.STATUS_POLL: {
+        "duration_h": 1, "fleet": {"size": 2, "vehicle": BATTERY_OFF, "status_poll_s": 30},
+        "demand": {"rate_per_hour": 90}},
+    # every assign command takes its time over the CarriRo serial link (meanwhile the AGV
+    # stands where it is: with park_idle it would set off for parking, Moving)
+    NotDispatched.COMMAND_IN_TRANSIT: {
+        "duration_h": 1, "fleet": {"size": 2, "vehicle": BATTERY_OFF,
+                                   "command_profile": "carriro-ad-plus"},
+        "dispatch": {"park_idle": False}, "demand": {"rate_per_hour": 90}},
+    # admission: one AGV on the track at a time, the other two stand Idle in parking
+    NotDispatched.ADMISSION_FULL: {
+        "duration_h": 1, "fleet": {"size": 3, "vehicle": BATTERY_OFF},
+        "dispatch": {"max_active_agvs": 1}, "demand": {"rate_per_hour": 90}},
+    # two types, the pickup open to type a only (closed_pick_layout): b stands Idle
+    NotDispatched.TYPE_NOT_ALLOWED: {
+        "duration_h": 1, "fleet": {"vehicles": [
+            {"type": "a", "count": 1, "vehicle": BATTERY_OFF},
+            {"type": "b", "count": 1, "vehicle": BATTERY_OFF}]},
+        "demand": {"rate_per_hour": 90}},
+}
+
+
+def test_every_reason_has_a_run_that_provokes_it() -> None:
+    assert set(REASON_RUNS) == set(NotDispatched)
+
+
+@pytest.mark.parametrize("reason", list(REASON_RUNS), ids=[r.value for r in REASON_RUNS])
+def test_each_reason_for_not_dispatching_is_provoked_and_recorded(
+        reason: NotDispatched, spurs_layout: Layout, tmp_path: Path) -> None:
+    scenario = make_scenario(warmup_h=0, seed=3, **REASON_RUNS[reason])
+    layout = spurs_layout  # the tiny loop with two chargers on spurs
+    if reason is NotDispatched.TYPE_NOT_ALLOWED:
+        layout = closed_pick_layout(tmp_path)
+    run = simulate(scenario, layout)
+    events = run.recorder.events
+    assert _recorded_reasons(events) == {reason.value}
+    figures = run_kpis(run)
+    assert figures["idle_with_orders_waiting_pct"] > 0
+    assert figures["idle_with_orders_waiting_pct_by_reason"][reason.value] == \
+        pytest.approx(figures["idle_with_orders_waiting_pct"], abs=1e-5)
+    assert idle_unexplained_s(events, run.recorder.queue_lengths, scenario.duration_s) == \
+        pytest.approx((0.0, 0.0), abs=1e-6)
+    unrecorded = [e for e in events if e.event not in (NOT_DISPATCHED, NOT_DISPATCHED_END)]
+    assert idle_unexplained_s(unrecorded, run.recorder.queue_lengths,
+                              scenario.duration_s)[0] > 0  # the check sees the idle time
+
+
+def test_work_conservation_over_a_long_run_with_every_incident(spurs_layout: Layout) -> None:
+    """24 h, 4 AGVs, 2 chargers, a status poll, the CarriRo command link, link losses, faults,
+    free AGVs standing where they are: at every moment an AGV stands Idle while an order
+    waits, a reason is open for it (the dispatch latency is zero: the poll and the command
+    link are reasons), and a reason is open only then; the reasons add up to the KPI."""
+    scenario = make_scenario(
+        duration_h=24, warmup_h=1, seed=5,
+        fleet={"size": 4, "status_poll_s": 5, "command_profile": "carriro-ad-plus"},
+        dispatch={"park_idle": False}, demand={"rate_per_hour": 100},
+        charging={"threshold_pct": 40},
+        incidents={"link_loss_rate_per_h": 1.0, "link_loss_duration":
+                   {"dist": "exponential", "mean_s": 60}, "mtbf_h": 10,
+                   "transfer_failure_prob": 0.01})
+    run = simulate(scenario, spurs_layout)
+    events = run.recorder.events
+    assert _recorded_reasons(events) >= {"waiting_for_charger", "link_lost", "status_poll",
+                                         "command_in_transit"}
+    assert idle_unexplained_s(events, run.recorder.queue_lengths, scenario.duration_s) == \
+        pytest.approx((0.0, 0.0), abs=1e-6)
+    figures = run_kpis(run)
+    by_reason = figures["idle_with_orders_waiting_pct_by_reason"]
+    assert figures["idle_with_orders_waiting_pct"] > 0
+    assert sum(by_reason.values()) == pytest.approx(figures["idle_with_orders_waiting_pct"],
+                                                    abs=1e-4)
 
 
 # ---- admission (dispatch.max_active_agvs) ----------------------------------------------------

@@ -39,6 +39,7 @@ def bundled() -> list[tuple[str, Path]]:
     files += [("experiment" if _is_experiment(_yaml(p)) else "scenario", p)
               for p in sorted((ROOT / "experiments").glob("*.yaml"))]
     files += [("profile", p) for p in sorted(PROFILE_DIR.glob("*.yaml"))]
+    files += [("lif", p) for p in sorted(LAYOUTS.glob("*.lif.json"))]
     return files
 
 
@@ -46,7 +47,8 @@ BUNDLED = bundled()
 
 
 def test_every_kind_of_bundled_file_is_there() -> None:
-    assert {kind for kind, _ in BUNDLED} == {"layout", "scenario", "experiment", "profile"}
+    assert {kind for kind, _ in BUNDLED} == {"layout", "scenario", "experiment", "profile",
+                                             "lif"}
 
 
 @pytest.mark.parametrize(("kind", "path"), BUNDLED, ids=[f"{k}:{p.name}" for k, p in BUNDLED])
@@ -69,6 +71,12 @@ def test_bundled_files_validate_against_the_published_schema(kind: str, path: Pa
         replications=0)),
     ("profile", PROFILE_DIR / "tabo.yaml", lambda d: d["link"].update(parity="E")),
     ("profile", PROFILE_DIR / "tabo.yaml", lambda d: d["kinematics"].pop("source")),
+    ("lif", LAYOUTS / "warehouse.lif.json", lambda d: d["layouts"][0]["nodes"][3][
+        "nodePosition"].update(x="abc")),
+    ("lif", LAYOUTS / "warehouse.lif.json", lambda d: d["layouts"][0]["edges"][0][
+        "vehicleTypeEdgeProperties"].clear()),
+    ("lif", LAYOUTS / "warehouse.lif.json", lambda d: d["layouts"][0]["edges"][0].update(
+        fleetSim={"direction": "sideways"})),
 ])
 def test_a_bad_value_fails_the_schema_as_it_fails_the_loader(kind: str, path: Path,
                                                              change: Any) -> None:
@@ -111,8 +119,8 @@ def _set(data: dict[str, Any], dotted: str, value: Any) -> None:
         if i == len(parts) - 1:
             target[key] = value
         else:
-            if isinstance(key, str) and key not in target:
-                target[key] = {}
+            if isinstance(key, str) and not isinstance(target.get(key), dict | list):
+                target[key] = {}  # absent, or a switch such as battery: off
             target = target[key]
 
 
@@ -206,7 +214,7 @@ def test_trace_rows_refuse_nan(tmp_path: Path) -> None:
      "one of 'one_way', 'two_way'"),
     ({"from": "A", "to": "B", "from_node": "C"}, "from_node", "C",
      "no such key here (known keys: from, to, length_m, speed_limit_mps, direction, branch, "
-     "rssi_dbm)"),
+     "rssi_dbm, allowed_types)"),
     (["A", "B"], "top level", ["A", "B"], "a mapping"),
 ])
 def test_formatter_speaks_the_files_language(data: Any, element: str, value: object,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fleet_sim.model.kinematics import piece_time, stop_entry_speed, traverse
+from fleet_sim.model.kinematics import distance_at, piece_time, stop_entry_speed, traverse
 
 
 def gridded_time(pieces: list[tuple[float, float]], v_in: float, v_end: float, accel: float,
@@ -13,6 +13,12 @@ def gridded_time(pieces: list[tuple[float, float]], v_in: float, v_end: float, a
     """Independent check on a fine distance grid: the fastest speed at each point is the lowest
     of the local limit, what accelerating from behind allows and what braking ahead allows;
     time is the sum of step / speed."""
+    return float(gridded_clock(pieces, v_in, v_end, accel, decel, step_m)[1][-1])
+
+
+def gridded_clock(pieces: list[tuple[float, float]], v_in: float, v_end: float, accel: float,
+                  decel: float, step_m: float = 2e-4) -> tuple[np.ndarray, np.ndarray]:
+    """(distance, time) at each point of the fine grid of `gridded_time`."""
     lengths = [p[0] for p in pieces]
     n = round(sum(lengths) / step_m)
     x = np.linspace(0.0, sum(lengths), n + 1)
@@ -31,7 +37,7 @@ def gridded_time(pieces: list[tuple[float, float]], v_in: float, v_end: float, a
     for i in range(n - 1, -1, -1):
         v[i] = min(v[i], np.sqrt(v[i + 1] ** 2 + 2 * decel * dx))
     # exact time over each small step of uniform acceleration between its end speeds
-    return float(np.sum(2 * dx / (v[:-1] + v[1:])))
+    return x, np.concatenate([[0.0], np.cumsum(2 * dx / (v[:-1] + v[1:]))])
 
 
 def test_cruise_profile_by_hand() -> None:
@@ -67,3 +73,22 @@ def test_closed_form_matches_a_fine_grid(seed: int) -> None:
     v_end_max = float(rng.choice([0.0, 0.3, 1.0]))
     t_closed, v_end = traverse(pieces, v_in, v_end_max, 0.5, 0.5)
     assert t_closed == pytest.approx(gridded_time(pieces, v_in, v_end, 0.5, 0.5), abs=2e-3)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_position_along_the_profile_matches_a_fine_grid(seed: int) -> None:
+    """distance_at (what the replay draws) against the grid's distance at the same times."""
+    rng = np.random.default_rng(100 + seed)
+    pieces = [(float(rng.uniform(0.5, 6)), float(rng.choice([0.3, 0.5, 1.0])))
+              for _ in range(int(rng.integers(1, 4)))]
+    v_in = min(float(rng.choice([0.0, 0.3])), pieces[0][1])
+    t_total, v_end = traverse(pieces, v_in, float(rng.choice([0.0, 0.3, 1.0])), 0.5, 0.5)
+    x, clock = gridded_clock(pieces, v_in, v_end, 0.5, 0.5)
+    for t in np.linspace(0.0, t_total, 41):
+        grid_m = float(np.interp(t, clock, x))
+        assert distance_at(pieces, v_in, v_end, 0.5, 0.5, float(t)) == pytest.approx(
+            grid_m, abs=2e-3)
+    length = sum(p[0] for p in pieces)
+    assert distance_at(pieces, v_in, v_end, 0.5, 0.5, t_total) == pytest.approx(length, abs=1e-9)
+    assert distance_at(pieces, v_in, v_end, 0.5, 0.5, t_total + 5) == length
+    assert distance_at(pieces, v_in, v_end, 0.5, 0.5, 0.0) == 0.0

@@ -18,6 +18,7 @@ from fleet_sim.analysis.kpis import (
     kpi_value,
 )
 from fleet_sim.config.experiment import load_experiment
+from fleet_sim.model.not_dispatched import NotDispatched
 from fleet_sim.model.records import Order, Recorder
 from fleet_sim.study.sweep import OK, execute_run
 
@@ -41,13 +42,20 @@ def hand_made_recorder() -> Recorder:
               reassigned=1),  # all in the warm-up
     ]
     for event in [(0.0, 0, "boot", "Booting", "Idle"), (0.0, 1, "boot", "Booting", "Idle"),
+                  (500.0, 1, "not_dispatched", "Idle", "Idle", "status_poll"),
+                  (800.0, 0, "not_dispatched", "Idle", "Idle", "link_lost"),
+                  (1100.0, 0, "not_dispatched", "Idle", "Idle", "waiting_for_charger"),
                   (1200.0, 0, "go", "Idle", "Moving"),
+                  (1200.0, 0, "not_dispatched_end", "Moving", "Moving", "waiting_for_charger"),
                   (1500.0, 0, "order_assigned", "Idle", "Idle"),  # no change of state
                   (1800.0, 1, "fault", "Idle", "Error"),
+                  (1800.0, 1, "not_dispatched_end", "Error", "Error", "status_poll"),
                   (2000.0, 0, "arrived", "Moving", "Idle"),
+                  (2000.0, 0, "not_dispatched", "Idle", "Idle", "battery_low"),
                   (2400.0, 1, "manual", "Error", "Maintenance"),
+                  (2700.0, 0, "not_dispatched_end", "Idle", "Idle", "battery_low"),
                   (3000.0, 1, "auto", "Maintenance", "Idle")]:
-        rec.event(*event, node="P")
+        rec.event(*event[:5], node="P", detail=event[5] if len(event) > 5 else "")
     rec.queue_lengths = [(0.0, 0), (500.0, 3), (900.0, 2), (1800.0, 1), (2700.0, 0)]
     rec.blocked_s = 270.0
     rec.distance_m = 12_345.0
@@ -72,7 +80,7 @@ def test_every_kpi_of_a_hand_made_run() -> None:
     figures = hand_made_figures()
     assert figures == {
         "scenario": "hand", "layout": "tiny_loop", "agvs": 2, "seed": 3, "duration_h": 1.0,
-        "warmup_h": 0.25,
+        "warmup_h": 0.25, "setup_warnings": [],
         "orders_created": 6,
         "orders_completed": 4,  # orders 1, 2, 3 and 6 (delivered in the warm-up)
         "throughput_per_hour": 4.0,  # orders 1, 2, 3 in 0.75 h
@@ -91,6 +99,16 @@ def test_every_kpi_of_a_hand_made_run() -> None:
         "state_paused_pct": 0.0, "state_error_pct": 11.111111,
         "state_maintenance_pct": 11.111111, "state_safe_mode_pct": 0.0,
         "availability_pct": 77.777778,  # 1 - 1200 / 5400
+        # orders wait in [900, 2700]; Idle meanwhile: AGV 0 [900, 1200] + [2000, 2700], AGV 1
+        # [900, 1800]: 1900 of 5400
+        "idle_with_orders_waiting_pct": 35.185185,
+        "idle_with_orders_waiting_pct_by_reason": {
+            "waiting_for_charger": 1.851852,  # AGV 0 [1100, 1200]
+            "battery_low": 12.962963,  # AGV 0 [2000, 2700]: the queue is empty from 2700
+            "link_lost": 3.703704,  # AGV 0 [900, 1100] (opened in the warm-up)
+            "status_poll": 16.666667,  # AGV 1 [900, 1800]
+            "command_in_transit": 0.0, "type_not_allowed": 0.0,
+            "admission_full": 0.0},
         "orders_failed": 1, "orders_reassigned": 1,
         "charges": 2, "charging_queue_wait_mean_s": 40.0,  # (60 + 20) / 2
         "commands_sent": 7, "command_retries": 1, "obstacle_pauses": 4, "comm_losses": 1,
@@ -138,7 +156,8 @@ def test_catalogue_names_every_kpi_a_run_reports_once() -> None:
     assert kpi_names() - reported == {
         "wall_s", "errors_by_code.E_101", "errors_by_code.E_102", "errors_by_code.E_201",
         "errors_by_code.E_202", "errors_by_code.E_301", "errors_by_code.E_999",
-        "warnings_by_code.E_001", "warnings_by_code.E_002"}
+        "warnings_by_code.E_001", "warnings_by_code.E_002",
+        *(f"idle_with_orders_waiting_pct_by_reason.{r}" for r in NotDispatched)}
     assert not set(RUN_FIELDS) & kpi_names()
     assert all(k.unit and k.meaning for k in CATALOGUE)
 
@@ -150,6 +169,7 @@ def test_kpi_value_reads_per_code_counts() -> None:
     assert kpi_value(figures, "warnings_by_code.E_002") == 3
     assert kpi_value(figures, "throughput_pct_of_demand") == 75.0
     assert kpi_value(figures, "lead_time_p95_s") == 1450.0
+    assert kpi_value(figures, "idle_with_orders_waiting_pct_by_reason.link_lost") == 3.703704
     assert kpi_value({}, "lead_time_p95_s") is None
 
 

@@ -15,20 +15,29 @@ from html.parser import HTMLParser
 from pathlib import Path
 from types import SimpleNamespace
 
+import pandas as pd
 import pytest
 import yaml
 from jinja2 import UndefinedError
 
 from fleet_sim.config.experiment import load_experiment
 from fleet_sim.report.render import environment, render_html, write_report
-from fleet_sim.report.report import Figure, Report, RunsSection, ScenarioSection, Table
+from fleet_sim.report.report import (
+    Figure,
+    Report,
+    ReportData,
+    RunsSection,
+    ScenarioSection,
+    Table,
+    section_idle_waiting,
+)
 from fleet_sim.study.sizing import size_fleet
 from fleet_sim.study.sweep import sweep
 
 from .conftest import LAYOUTS, ROOT, write_yaml
 
 EVIL = '<script>alert("x")</script><img src=x onerror=alert(1)> & "quotes"'
-FIGURES = {"layout", "kpis", "states-0", "blocked", "heatmap", "incidents"}
+FIGURES = {"layout", "kpis", "states-0", "blocked", "heatmap", "incidents", "leads"}
 
 CHECK = """<script>
 window.addEventListener('load', () => {
@@ -125,6 +134,11 @@ def test_report_files(results: Path) -> None:
     sizing = json.loads((results / "sizing.json").read_text())
     recommended = sizing["groups"][0]["recommended"]
     assert recommended is not None and f"{recommended} AGVs meet every target" in html
+    # the tiny loop has no charger, and charging is on: every run recorded the warning
+    text = " ".join("".join(_Page(html).text).split())
+    assert "Settings warnings" in text and \
+        "charging is on but the layout has no charger" in text
+    assert "In none of the" in text  # no AGV stood Idle while orders waited
 
 
 def test_names_from_user_files_are_text_in_the_page(results: Path) -> None:
@@ -148,6 +162,44 @@ def test_names_from_user_files_are_text_in_the_page(results: Path) -> None:
     assert f"description = {EVIL}: " in text  # the sizing statement of that series
     captions = [a["alt"] for tag, a in page.tags if tag == "img"]
     assert f"Utilisation by state (description={EVIL})" in captions
+
+
+def test_the_report_shows_a_run_in_detail(results: Path) -> None:
+    """The recommended fleet's first replication: its timeline (inline SVG, one bar per state
+    spell with a hover text, each AGV's row covering the run) and its lead-time breakdown."""
+    html = (results / "report.html").read_text(encoding="utf-8")
+    page = _Page(html)
+    sizing = json.loads((results / "sizing.json").read_text())
+    recommended = sizing["groups"][0]["recommended"]
+    section = html[html.index("A run in detail"):html.index("<h2>Incidents")]
+    found = re.search(r"Run <code>([^<]+)</code>", section)
+    assert found
+    import html as html_lib
+
+    run_id = html_lib.unescape(found.group(1))
+    assert f"fleet.size={recommended}__r00" in run_id
+    assert f"(fleet.size = {recommended})" in section
+    run_dir = results / "runs" / run_id
+    from fleet_sim.analysis.replay import state_spells
+
+    events = pd.read_parquet(run_dir / "events.parquet")
+    kpis = json.loads((run_dir / "kpis.json").read_text())
+    spells = state_spells(events, 0.0, kpis["duration_h"] * 3600.0)
+    bars = re.findall(r'<rect x="([0-9.]+)" y="([0-9.]+)" width="([0-9.]+)" height="10" '
+                      r'fill="#[0-9a-f]{6}"><title>([^<]*)</title></rect>', section)
+    assert len(bars) == len(spells)
+    widths: dict[str, float] = {}
+    for _, y, width, _ in bars:
+        widths[y] = widths.get(y, 0.0) + float(width)
+    assert len(widths) == kpis["agvs"]
+    assert all(w == pytest.approx(1000.0, rel=0.02) for w in widths.values())
+    assert all(html_lib.unescape(t).startswith("AGV ") and "reason: Event_" in
+               html_lib.unescape(t) for *_, t in bars)
+    leads = {row[0]: row for row in page.tables["leads"]}
+    assert list(leads)[1:] == ["wait for assignment", "drive empty", "load", "drive loaded",
+                               "unload", "blocked by traffic", "lead time (all parts)"]
+    assert float(leads["lead time (all parts)"][1].replace(",", "")) == pytest.approx(
+        kpis["lead_time_mean_s"], rel=1e-3)
 
 
 def chromium() -> str | None:
@@ -199,6 +251,33 @@ def test_report_cli_prints_where_it_is(results: Path) -> None:
 
 
 # ---- the templates, without a sweep --------------------------------------------------------
+
+
+def test_idle_with_orders_waiting_is_shown_where_it_is_above_zero(tmp_path: Path) -> None:
+    by = "idle_with_orders_waiting_pct_by_reason."
+    summary = pd.DataFrame({
+        "run_id": ["a", "b", "c", "d"], "status": ["ok"] * 4, "fleet.size": [1, 1, 2, 2],
+        "idle_with_orders_waiting_pct": [30.0, 20.0, 0.0, 0.0],
+        f"{by}battery_low": [30.0, 10.0, 0.0, 0.0], f"{by}link_lost": [0.0, 10.0, 0.0, 0.0],
+        f"{by}status_poll": [0.0] * 4,
+        "setup_warnings": ["charging.enabled is false but ..."] * 2 + ["", ""]})
+    data = ReportData(tmp_path, {}, summary, ["fleet.size"], [], None, None, None)
+    sec = section_idle_waiting(data)
+    assert sec.runs_above_zero == 2
+    assert sec.points is not None
+    assert sec.points.header == ["fleet.size", "Idle with orders waiting [% of AGV time]",
+                                 "battery_low", "link_lost"]  # reasons above zero somewhere
+    assert sec.points.rows == [["1", "25", "20", "5"]]  # means; the 2-AGV point is all zero
+    assert sec.warnings == ["charging.enabled is false but ... (2 of 4 runs)"]
+    page = _Page(render_html(Report("t", "l", [], [], [sec])))
+    assert page.tables["stats"][1] == ["1", "25", "20", "5"]
+    text = " ".join("".join(page.text).split())
+    assert "battery_low: SOC at or below P_050" in text
+    quiet = section_idle_waiting(ReportData(tmp_path, {}, summary.iloc[2:], ["fleet.size"], [],
+                                            None, None, None))
+    assert quiet.points is None and quiet.warnings == []
+    assert "In none of the 2 runs did an AGV stand Idle while an order waited" in " ".join(
+        "".join(_Page(render_html(Report("t", "l", [], [], [quiet]))).text).split())
 
 
 def _hostile_report() -> Report:

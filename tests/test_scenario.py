@@ -2,20 +2,25 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
 import yaml
 from pydantic import BaseModel, ValidationError
 
+from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import (
     Scenario,
     VehicleProfile,
+    battery_hours,
     load_layout_for,
     load_scenario,
     resolved,
+    setup_warnings,
 )
 from fleet_sim.config.trace import load_trace
+from fleet_sim.config.vehicle import BatteryProfile
 from fleet_sim.errors import InputError
 
 from .conftest import LAYOUTS, ROOT, write_yaml
@@ -175,3 +180,108 @@ def test_known_keys_do_not_list_internal_ones(tmp_path: Path) -> None:
     internal = write_yaml(tmp_path / "t.yaml", {"layout": "x.yaml", "_base_dir": "/etc"})
     with pytest.raises(InputError, match=r"_base_dir: got '/etc'; expected no such key"):
         load_scenario(internal)
+
+
+# ---- the battery switch and the battery traps ----------------------------------------------
+
+
+@pytest.mark.parametrize("off", ["off", "false", "null", "'off'"])
+def test_battery_off_is_written_out_and_reloads(tmp_path: Path, off: str) -> None:
+    path = tmp_path / "s.yaml"
+    path.write_text(f"layout: {LAYOUTS / 'tiny_loop.yaml'}\nfleet:\n  vehicle:\n"
+                    f"    battery: {off}\n", encoding="utf-8")
+    scenario = load_scenario(path)
+    assert scenario.fleet.vehicle.battery is None
+    plain = resolved(scenario)
+    assert plain["fleet"]["vehicle"]["battery"] is None
+    again = load_scenario(write_yaml(tmp_path / "again.yaml", plain))
+    assert again.fleet.vehicle.battery is None and resolved(again) == plain
+    assert load_scenario(ROOT / "experiments" / "warehouse_shift.yaml").fleet.vehicle.battery \
+        == BatteryProfile()  # left out: the default battery
+
+
+def test_the_schema_publishes_the_battery_switch() -> None:
+    import jsonschema
+
+    from fleet_sim.config.schemas import json_schema
+
+    schema = json_schema("scenario")
+    base = {"layout": "x.yaml"}
+    for good in (False, None, {"idle_w": 5}):
+        jsonschema.validate({**base, "fleet": {"vehicle": {"battery": good}}}, schema)
+    for bad in (True, "on", 3, {"idle_w": -1}):
+        with pytest.raises(jsonschema.ValidationError):
+            jsonschema.validate({**base, "fleet": {"vehicle": {"battery": bad}}}, schema)
+
+
+def test_battery_hours_by_hand() -> None:
+    vehicle = VehicleProfile()  # 960 Wh; 0.04 / 0.06 Wh/m at 1.0 m/s; idle 20 W; handling 100 W
+    # 90 % -> 20 %: 672 Wh. Flat out: 20 W + 0.05 Wh/m x 3600 m/h = 200 W -> 3.36 h; idle 33.6 h
+    assert battery_hours(vehicle, 90, 20) == pytest.approx((3.36, 33.6))
+    slow = vehicle.model_copy(update={"max_speed_mps": 0.25})  # driving 65 W < handling 100 W
+    assert battery_hours(slow, 90, 20).busy_h == pytest.approx(6.72)
+    assert battery_hours(vehicle, 15, 20) == (0.0, 0.0)  # there already
+    idle_free = vehicle.model_copy(update={"battery": BatteryProfile(idle_w=0)})
+    assert battery_hours(idle_free, 90, 20).idle_h == math.inf
+    assert battery_hours(vehicle.model_copy(update={"battery": None}), 90, 20) == \
+        (math.inf, math.inf)
+
+
+def _tiny(tmp_path: Path, **fields: object) -> tuple[Scenario, Layout]:
+    path = write_yaml(tmp_path / "s.yaml", {"layout": str(LAYOUTS / "tiny_loop.yaml"),
+                                            "fleet": {"size": 1}, **fields})
+    scenario = load_scenario(path)
+    return scenario, load_layout_for(scenario, str(path))
+
+
+def test_charging_off_with_a_draining_battery_is_warned_with_its_run_down_time(
+        tmp_path: Path) -> None:
+    """The issue's scenario: one AGV, charging off, 100 h."""
+    scenario, layout = _tiny(tmp_path, duration_h=100, charging={"enabled": False},
+                             demand={"rate_per_hour": 15})
+    (warning,) = setup_warnings(scenario, layout)
+    assert warning.kind == "charging_off"
+    assert warning.text == (
+        "charging.enabled is false but the battery drains (fleet.vehicle.battery): from 90 % "
+        "an AGV runs down to 20 % (P_050) and stops taking orders after about 3.4 h working "
+        "flat out or 33.6 h idle, then stands until E_201 at 10 % 4.8 h later; the run is "
+        "100 h. For no battery model set fleet.vehicle.battery: off")
+    # a run too short to run the battery down, or no battery model: nothing to say
+    short, _ = _tiny(tmp_path, duration_h=3, charging={"enabled": False})
+    assert setup_warnings(short, layout) == []
+    off, _ = _tiny(tmp_path, duration_h=100, charging={"enabled": False},
+                   fleet={"size": 1, "vehicle": {"battery": "off"}})
+    assert setup_warnings(off, layout) == []
+    on_off, _ = _tiny(tmp_path, duration_h=100, fleet={"size": 1, "vehicle": {"battery": None}})
+    assert setup_warnings(on_off, layout) == []  # charging on, but nothing to charge
+
+
+def test_charging_on_without_a_charger_says_when_the_agvs_stop(tmp_path: Path) -> None:
+    scenario, layout = _tiny(tmp_path, duration_h=1)
+    (warning,) = setup_warnings(scenario, layout)
+    # 90 % -> 30 % (the charging threshold): 576 Wh, 2.88 h at 200 W, 28.8 h at 20 W;
+    # 30 % -> 10 % standing in the charger queue: 192 Wh at 20 W, 9.6 h
+    assert (warning.kind, warning.text) == ("no_charger", (
+        "charging is on but the layout has no charger: AGV 0 (1 of 1) will run down and stop "
+        "with E_201: from 90 % to the charging threshold 30 %, where they stop taking orders, "
+        "in about 2.9 h working flat out or 28.8 h idle, then E_201 at 10 % 9.6 h later"))
+
+
+@pytest.mark.parametrize(("name", "hours"), [("tiny_loop", 100), ("warehouse_shift", 24)])
+def test_bundled_scenarios_stay_meaningful_on_long_runs(name: str, hours: float) -> None:
+    """A planner's --hours far beyond the shift: no silent run-down (no battery on the tiny
+    loop; chargers in the warehouse), the demand is met, AGVs hardly ever stand Idle while
+    orders wait, and when they do the reasons account for it."""
+    from fleet_sim.analysis.kpis import run_kpis
+    from fleet_sim.sim.engine import simulate
+
+    path = ROOT / "experiments" / f"{name}.yaml"
+    scenario = load_scenario(path, {"duration_h": hours})
+    layout = load_layout_for(scenario, str(path))
+    assert setup_warnings(scenario, layout) == []
+    figures = run_kpis(simulate(scenario, layout))
+    assert figures["throughput_pct_of_demand"] >= 98
+    assert "E_201" not in figures["errors_by_code"]
+    assert figures["idle_with_orders_waiting_pct"] < 0.5
+    assert sum(figures["idle_with_orders_waiting_pct_by_reason"].values()) == pytest.approx(
+        figures["idle_with_orders_waiting_pct"], abs=1e-4)

@@ -120,6 +120,7 @@ BREAK_GUARD: dict[str, Callable[[Vehicle], None]] = {
     "Event_Obstacle_Cleared": lambda a: setattr(a, "_obstacle_clear_s", 1.999),
     "Event_Load_Complete": lambda a: setattr(a, "loaded", False),
     "Event_Unload_Complete": lambda a: setattr(a, "loaded", True),
+    "Event_Next_Stop": lambda a: setattr(a, "loaded", True),
     "Event_Go_Charge": lambda a: setattr(a, "charger", None),
     "Event_Low_Battery": lambda a: setattr(a, "charger", None),
     "Event_Charge_Complete": lambda a: a.battery.set_soc(a.env.now, 95.0),

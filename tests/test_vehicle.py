@@ -5,13 +5,16 @@ from __future__ import annotations
 
 import copy
 import itertools
+import math
 from pathlib import Path
 
 import pytest
 import yaml
 
-from fleet_sim.analysis.tables import events_table
+from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.tables import events_table, orders_table
 from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.config.scenario import setup_warnings
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.sim.engine import simulate
 
@@ -122,3 +125,67 @@ def test_the_trip_to_the_charger_is_moving_with_its_purpose(tmp_path: Path) -> N
     trip_s = trapezoid_s(8, 0.0, TURN) + 1.0 / TURN + trapezoid_s(3, TURN, 0.0)
     assert trip_s == pytest.approx(17.3133, abs=1e-4)  # 9.49 + 3.3333 + 4.49
     assert list(rows["time_s"])[:4] == pytest.approx([0.0, 5.0, 5.0, 5.0 + trip_s], abs=1e-9)
+
+
+# ---- the battery switch: "no battery" and "charging off" ------------------------------------
+
+ISSUE_13 = {"duration_h": 300, "warmup_h": 0.5, "seed": 1, "demand": {"rate_per_hour": 15},
+            "charging": {"enabled": False}}
+"""The tiny loop, one AGV, 15 orders/h (about half its capacity), charging off."""
+
+
+def test_without_a_battery_one_agv_keeps_up_with_its_demand_for_300_h(
+        tiny_layout: Layout) -> None:
+    """`fleet.vehicle.battery: off`: throughput equals the arrival rate within sampling error,
+    Little's law holds on the order queue, no AGV ever stands Idle while an order waits."""
+    scenario = make_scenario(**ISSUE_13, fleet={"size": 1, "vehicle": {"battery": "off"}})
+    run = simulate(scenario, tiny_layout)
+    figures = run_kpis(run)
+    window_h = 300 - 0.5
+    # Poisson arrivals: 3 standard deviations of the count is 3 sqrt(15 x 299.5) = 201 orders
+    assert abs(figures["throughput_per_hour"] - 15.0) < 3 * math.sqrt(15 * window_h) / window_h
+    assert figures["throughput_per_hour"] * window_h == pytest.approx(
+        figures["demand_per_hour"] * window_h, abs=3)  # delivered = created, but the last few
+    assert figures["orders_open_at_end"] <= 2
+    orders = orders_table(run.recorder)
+    start, end = 0.5 * 3600, 300 * 3600
+    arrived = orders[orders["created_s"].between(start, end)]
+    rate = len(arrived) / (end - start)
+    wait = (arrived["assigned_s"].fillna(end) - arrived["created_s"]).mean()
+    assert figures["order_queue_mean"] > 0.1
+    assert figures["order_queue_mean"] == pytest.approx(rate * wait, rel=0.03)  # Little
+    assert figures["idle_with_orders_waiting_pct"] == 0.0
+    assert figures["errors_by_code"] == {} and figures["charges"] == 0
+    assert run.recorder.soc_samples == []  # no battery, no SOC curve
+    assert run.vehicles[0].soc_pct == 100.0
+
+
+def test_charging_off_with_a_draining_battery_runs_down_and_says_why(
+        tiny_layout: Layout) -> None:
+    """The issue's trap, now explained: with charging off the AGV stops taking orders at
+    P_050 and stands Idle until E_201; every such hour is recorded as battery_low."""
+    scenario = make_scenario(**{**ISSUE_13, "duration_h": 100}, fleet={"size": 1})
+    run = simulate(scenario, tiny_layout)
+    figures = run_kpis(run)
+    assert figures["throughput_per_hour"] < 0.75 * figures["demand_per_hour"]
+    assert figures["errors_by_code"]["E_201"] >= 5
+    assert figures["idle_with_orders_waiting_pct"] > 40
+    assert figures["idle_with_orders_waiting_pct_by_reason"]["battery_low"] == \
+        figures["idle_with_orders_waiting_pct"]
+    assert [w.kind for w in setup_warnings(scenario, tiny_layout)] == ["charging_off"]
+    # it withdrew at P_050 (20 %), not lower: no order was handed to it and given back
+    assert figures["orders_reassigned"] == 0
+
+
+def test_scheduled_charging_calls_need_charging_and_a_battery(tiny_layout: Layout) -> None:
+    """A charging schedule with charging off, or without a battery, calls no one (a call that
+    could never be answered left the AGV turning back from each parking trip, forever, at
+    one instant: the run never ended)."""
+    for fleet, charging in [({"size": 1}, {"enabled": False, "schedule_h": [0.05]}),
+                            ({"size": 1, "vehicle": {"battery": "off"}}, {"schedule_h": [0.05]})]:
+        scenario = make_scenario(duration_h=1, warmup_h=0, fleet=fleet, charging=charging,
+                                 demand={"rate_per_hour": 20})
+        run = simulate(scenario, tiny_layout)
+        assert not any(v.charge_due for v in run.vehicles)
+        assert not [e for e in run.recorder.events if e.event == "Event_Stop"]
+        assert sum(o.delivered_s is not None for o in run.recorder.orders) >= 10

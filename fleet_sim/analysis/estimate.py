@@ -7,6 +7,10 @@ free-flow times of the shortest routes under the vehicle's speed profile
 empty leg runs from the drop-off of one order to the pickup of an independent next order. No
 waiting, no traffic, no charging beyond `availability`: a lower bound on the fleet, which the
 sizing search (fleet_sim.study.sizing) starts from and the report sets beside the simulation.
+
+Multi-stop orders (fleet_sim.config.chains): a chain's pickup -> dropoff legs are loaded travel,
+its dropoff -> next pickup legs empty travel, and it is handled at every stop; the empty leg
+between orders runs from the chain's last stop to the first stop of the next order.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.model.kinematics import Motion, Piece, traverse
-from fleet_sim.sim.demand import resolved_flows
+from fleet_sim.sim.demand import resolved_chains
 from fleet_sim.sim.traffic.routing import Routes
 
 
@@ -96,27 +100,36 @@ def analytic_estimate(scenario: Scenario, layout: Layout, availability: float = 
         return float(np.mean(times))
 
     if trace:
-        pairs: dict[tuple[str, str], float] = {}
+        pairs: dict[tuple[str, ...], float] = {}
         for item in trace:
-            pairs[(item.pickup, item.dropoff)] = pairs.get((item.pickup, item.dropoff), 0) + 1
-        flows = [(p, d, w) for (p, d), w in pairs.items()]
+            stops = item.stops or (item.pickup, item.dropoff)
+            pairs[stops] = pairs.get(stops, 0) + 1
+        flows = list(pairs.items())
     else:
-        flows = resolved_flows(scenario.demand, layout)
-    total = sum(w for _, _, w in flows)
+        flows = resolved_chains(scenario.demand, layout)
+    total = sum(w for _, w in flows)
     p_pick: dict[str, float] = {}
     p_drop: dict[str, float] = {}
-    for p, d, w in flows:
-        p_pick[p] = p_pick.get(p, 0.0) + w / total
-        p_drop[d] = p_drop.get(d, 0.0) + w / total
-    loaded = sum(w / total * place_time(p, d) for p, d, w in flows)
+    for stops, w in flows:
+        p_pick[stops[0]] = p_pick.get(stops[0], 0.0) + w / total
+        p_drop[stops[-1]] = p_drop.get(stops[-1], 0.0) + w / total
+
+    def legs(stops: tuple[str, ...], first: int) -> float:
+        """Travel over the legs stops[k] -> stops[k + 1], k = first, first + 2, ..."""
+        return sum(place_time(stops[k], stops[k + 1]) for k in range(first, len(stops) - 1, 2))
+
+    loaded = sum(w / total * legs(stops, 0) for stops, w in flows)
     empty = sum(pd * pp * place_time(d, p) for d, pd in p_drop.items()
                 for p, pp in p_pick.items())
+    inner = sum(w / total * legs(stops, 1) for stops, w in flows if len(stops) > 2)
+    if inner:
+        empty += inner
 
     def handling(place: str) -> float:
         spec = layout.places[place].handling
         return spec.expected_s if spec is not None else 0.0
 
-    handle = sum(w / total * (handling(p) + handling(d)) for p, d, w in flows)
+    handle = sum(w / total * sum(handling(s) for s in stops) for stops, w in flows)
     mean_rate, peak_rate = demand_rates(scenario, trace)
     return Estimate(empty, loaded, handle, mean_rate, peak_rate, availability)
 

@@ -24,6 +24,10 @@ ORDER_COLUMNS = ("order_id", "created_s", "pickup", "dropoff", "pickup_node", "d
                  "delivered_s", "pickup_handling_s", "dropoff_handling_s", "lead_time_s",
                  "failed_s", "failure", "reassigned")
 
+STOPS_COLUMN = "stops"
+"""Added after ORDER_COLUMNS when a run has multi-stop orders: each order's chain of stations
+(plain orders: "pickup>dropoff"). Runs without them keep the columns above, byte for byte."""
+
 
 def events_table(recorder: Recorder) -> pd.DataFrame:
     """One row per state change and incident (events.parquet)."""
@@ -34,7 +38,9 @@ def events_table(recorder: Recorder) -> pd.DataFrame:
 
 
 def orders_table(recorder: Recorder) -> pd.DataFrame:
-    """One row per order with its timestamps and lead time (orders.parquet)."""
+    """One row per order with its timestamps and lead time (orders.parquet). A multi-stop
+    order's timestamps are those of its first pickup and last dropoff; its lead time runs
+    from creation to the last dropoff."""
     rows = [
         (o.id, o.created_s, o.pickup, o.dropoff, o.pickup_node, o.dropoff_node, o.agv,
          o.assigned_s, o.pickup_arrival_s, o.picked_s, o.dropoff_arrival_s, o.delivered_s,
@@ -50,6 +56,9 @@ def orders_table(recorder: Recorder) -> pd.DataFrame:
     frame["reassigned"] = frame["reassigned"].astype("int64")
     for column in ("pickup", "dropoff", "pickup_node", "dropoff_node", "failure"):
         frame[column] = frame[column].astype("string")
+    if any(o.stops for o in recorder.orders):  # multi-stop orders: their chains, "A>B>C>D"
+        frame[STOPS_COLUMN] = pd.Series(
+            [">".join(o.chain) for o in recorder.orders], dtype="string")
     return frame
 
 

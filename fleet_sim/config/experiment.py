@@ -39,6 +39,9 @@ Decisions, where the issue is silent:
   index over its levels, one given as ``{min, max}`` uniformly within its stratum (rounded for
   ``integer: true``). Its random stream is ``SeedSequence(master_seed, spawn_key=(2**32,))``, apart
   from every replication's.
+* Battery and charging traps (fleet_sim.config.scenario.setup_warnings) are said once per
+  experiment (`experiment_warnings`): each kind of trap once, with the first design point's
+  line and how many design points have it, not once per run.
 """
 
 from __future__ import annotations
@@ -64,6 +67,7 @@ from fleet_sim.config.scenario import (
     check_against_layout,
     is_folder_name,
     load_scenario,
+    setup_warnings,
 )
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.errors import InputError
@@ -421,7 +425,7 @@ def layout_for(scenario: Scenario, scenario_file: str) -> Layout:
     if not layout_path.exists():
         raise InputError(scenario_file, "layout", scenario.layout,
                          f"an existing layout file (looked for {layout_path})")
-    layout = cached_layout(str(layout_path.resolve()), scenario.fleet.vehicle.max_speed_mps)
+    layout = cached_layout(str(layout_path.resolve()), scenario.fleet.max_speed_mps)
     check_against_layout(scenario, layout, scenario_file)
     return layout
 
@@ -453,6 +457,23 @@ def _check_scenarios(experiment: Experiment, levels: Mapping[str, list[Any]]) ->
             where = ", ".join(f"{k}={v}" for k, v in factors.items())
             raise InputError(file, f"design point ({where})", exc.value,
                              f"{exc.expected} (scenario field {exc.element})") from None
+
+
+def experiment_warnings(experiment: Experiment) -> list[str]:
+    """The setup warnings of the experiment's design points, each kind once: the line of the
+    first point that has it, and in how many of the points it holds."""
+    first: dict[str, str] = {}
+    points: dict[str, int] = {}
+    design = experiment.points or ((),)
+    for point in design:
+        scenario = experiment.scenario(dict(point))
+        layout = layout_for(scenario, str(experiment.scenario_file))
+        for warning in setup_warnings(scenario, layout):
+            first.setdefault(warning.kind, warning.text)
+            points[warning.kind] = points.get(warning.kind, 0) + 1
+    return [text + (f" (in {points[kind]} of {len(design)} design points)"
+                    if points[kind] < len(design) else "")
+            for kind, text in first.items()]
 
 
 def load_trace_for(scenario: Scenario, layout: Layout) -> list[TraceOrder]:

@@ -20,16 +20,29 @@ Modelling decisions written down here because the engine relies on them:
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
-from dataclasses import dataclass
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, replace
+from datetime import datetime
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Final, Literal
 
 import networkx as nx
-from pydantic import Field, Strict
+import yaml
+from pydantic import Field, Strict, field_validator
 
-from agv_model.inputs import Items, NonNegative, Positive, StrictModel, Text, read_yaml, validate
+from agv_model.inputs import (
+    Items,
+    NonNegative,
+    Positive,
+    Problem,
+    StrictModel,
+    Text,
+    read_yaml,
+    validate,
+)
 from fleet_sim.config.distributions import FixedTime, TimeDistribution
+from fleet_sim.config.writing import comment_lines, tidy_numbers
 from fleet_sim.errors import InputError
 
 NodeKind = Literal["tag", "junction", "station", "charger", "parking"]
@@ -69,6 +82,9 @@ class SegmentSpec(StrictModel):
     branch: Branch = "auto"
     rssi_dbm: float | None = None
     """Wi-Fi signal on the segment; default: its zone's, else defaults.rssi_dbm."""
+    allowed_types: Items[Text] = ()
+    """Vehicle types (the scenario's fleet.vehicles[].type, or a one-type fleet's
+    vehicle.name) that may drive the segment; empty: every type."""
 
 
 class StationSpec(StrictModel):
@@ -76,6 +92,9 @@ class StationSpec(StrictModel):
     kind: Literal["pickup", "dropoff"]
     nodes: Items[Text]
     handling: TimeDistribution = FixedTime(mean_s=20.0)
+    allowed_types: Items[Text] = ()
+    """Vehicle types that may serve the station; empty: every type. An order goes only to an
+    AGV whose type may serve both its stations."""
 
 
 class ChargerSpec(StrictModel):
@@ -110,6 +129,76 @@ class ZoneSpec(StrictModel):
     obstacle_duration: TimeDistribution | None = None
 
 
+class TrafficZoneSpec(StrictModel):
+    """A traffic zone (FlexSim's control areas, openTCS blocks, Open-RMF mutex groups): a set
+    of nodes, given as `nodes` and/or `segments` (a segment adds both its ends).
+
+    * ``mutex``: at most `capacity` AGVs inside at once (an AGV is inside while it holds a
+      node of the zone); an AGV asks traffic for the zone before it takes its first node in
+      it and waits outside when the zone is full.
+    * ``ban``: AGVs of `banned_types` never enter: their routes keep off every segment into
+      the zone, and they serve no station inside it."""
+
+    id: Text
+    kind: Literal["mutex", "ban"]
+    nodes: Items[Text] = ()
+    segments: Items[Annotated[tuple[Text, Text], Strict(False)]] = ()
+    """[from, to] pairs of the layout's segments."""
+    capacity: int = Field(default=1, ge=1)
+    """mutex: the most AGVs inside at once."""
+    banned_types: Items[Text] = ()
+    """ban: the vehicle types that may not enter."""
+
+
+EPOCH_TIMESTAMP: Final = "1970-01-01T00:00:00.00Z"
+"""The LIF export timestamp when neither the layout nor --timestamp gives one: a fixed value,
+so that exporting the same layout twice gives the same bytes."""
+LIF_CREATOR: Final = "fleet-sim"
+LIF_VEHICLE_TYPE: Final = "fleet-sim"
+
+
+def is_timestamp(text: str) -> bool:
+    """Whether `text` is an ISO 8601 date and time with its time zone (LIF wants UTC: ``Z``)."""
+    if not re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(\.\d+)?(Z|[+-]\d\d:\d\d)", text):
+        return False
+    try:
+        datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except ValueError:
+        return False
+    return True
+
+
+class LifInfo(StrictModel):
+    """How the layout is named in a VDMA LIF file (`fleet-sim layout export --lif`); `fleet-sim
+    layout import` writes the values of the file it read, where they differ from these
+    defaults, so that a layout exported again keeps them."""
+
+    project: Text | None = None
+    """metaInformation.projectIdentification; default: the layout's name."""
+    creator: Text = LIF_CREATOR
+    """metaInformation.creator."""
+    export_timestamp: Text = EPOCH_TIMESTAMP
+    """metaInformation.exportTimestamp (ISO 8601, UTC); `--timestamp` overrides it."""
+    layout_id: Text | None = None
+    """layoutId; default: the layout's name."""
+    layout_version: Text = "1"
+    level_id: Text | None = None
+    """layoutLevelId: the floor or level; default: none."""
+    map_id: Text | None = None
+    """Every node's mapId; default: the layout id."""
+    vehicle_type_id: Text = LIF_VEHICLE_TYPE
+    """The vehicleTypeId the nodes and edges are written for (VDMA suggests
+    manufacturer.seriesName of the vehicle's VDA 5050 factsheet)."""
+
+    @field_validator("export_timestamp")
+    @classmethod
+    def _iso_8601(cls, text: str) -> str:
+        if not is_timestamp(text):
+            raise Problem("", text, "an ISO 8601 date and time in UTC such as "
+                                    "2017-04-15T11:40:03.12Z")
+        return text
+
+
 class LayoutSpec(StrictModel):
     """A layout file: the nodes and segments of the track and the places on it."""
 
@@ -122,6 +211,22 @@ class LayoutSpec(StrictModel):
     description: Text = ""
     defaults: LayoutDefaults = LayoutDefaults()
     zones: Items[ZoneSpec] = ()
+    lif: LifInfo = LifInfo()
+    """Names and ids for LIF export (`fleet-sim layout export --lif`)."""
+    traffic_zones: Items[TrafficZoneSpec] = ()
+    """Mutex and ban zones enforced by traffic control (`zones` are Wi-Fi and obstacle
+    areas)."""
+
+
+@dataclass(frozen=True)
+class TrafficZone:
+    """A traffic zone as the engine sees it (TrafficZoneSpec, its nodes resolved)."""
+
+    id: str
+    kind: Literal["mutex", "ban"]
+    nodes: frozenset[str]
+    capacity: int
+    banned_types: frozenset[str]
 
 
 @dataclass(frozen=True)
@@ -146,6 +251,14 @@ class Place:
     handling: TimeDistribution | None = None
     power_kw: float = 0.0
     docking_s: float = 0.0
+    allowed_types: frozenset[str] = frozenset()
+    """Types that may serve a station; empty: every type."""
+    banned_types: frozenset[str] = frozenset()
+    """Types banned from the station's nodes by a ban zone."""
+
+    def serves(self, vehicle_type: str) -> bool:
+        return (not self.allowed_types or vehicle_type in self.allowed_types) \
+            and vehicle_type not in self.banned_types
 
 
 class Layout:
@@ -164,7 +277,8 @@ class Layout:
         self._corridor_at: dict[str, Corridor] = {n: c for c in corridors for n in c.members}
         places: list[Place] = []
         for s in spec.stations:
-            places.append(Place(s.id, s.kind, s.nodes, len(s.nodes), handling=s.handling))
+            places.append(Place(s.id, s.kind, s.nodes, len(s.nodes), handling=s.handling,
+                                allowed_types=frozenset(s.allowed_types)))
         for c in spec.chargers:
             places.append(Place(c.id, "charger", (c.node,), 1, power_kw=c.power_kw,
                                 docking_s=c.docking_s))
@@ -177,6 +291,27 @@ class Layout:
         self.parking = [p for p in places if p.kind == "parking"]
         self.turn_length_m = spec.defaults.turn_length_m
         self.markers = {n.id: n.marker for n in spec.nodes if n.marker is not None}
+        self.traffic_zones = [
+            TrafficZone(z.id, z.kind, frozenset(z.nodes) | {n for seg in z.segments for n in seg},
+                        z.capacity, frozenset(z.banned_types)) for z in spec.traffic_zones]
+        self.mutex_zones_at: dict[str, tuple[TrafficZone, ...]] = {}
+        """Node -> the mutex zones it lies in."""
+        for zone in self.traffic_zones:
+            if zone.kind == "mutex":
+                for node in sorted(zone.nodes):
+                    self.mutex_zones_at[node] = (*self.mutex_zones_at.get(node, ()), zone)
+        self._banned_at: dict[str, frozenset[str]] = {}
+        for zone in self.traffic_zones:
+            if zone.kind == "ban":
+                for node in zone.nodes:
+                    self._banned_at[node] = self._banned_at.get(node, frozenset()) \
+                        | zone.banned_types
+        if self._banned_at:
+            self.places = {pid: replace(p, banned_types=frozenset().union(
+                *(self._banned_at.get(n, frozenset()) for n in p.nodes)))
+                for pid, p in self.places.items()}
+            self.pickups = [self.places[p.id] for p in self.pickups]
+            self.dropoffs = [self.places[p.id] for p in self.dropoffs]
 
     def corridor_of(self, u: str, v: str) -> Corridor | None:
         return self._corridor_of.get((u, v))
@@ -211,6 +346,22 @@ class Layout:
         return "left" if diff > 0 else "right"
 
     @property
+    def restricts_types(self) -> bool:
+        """Some segment or station is open to some vehicle types only."""
+        return any(s.allowed_types for s in self.spec.segments) \
+            or any(s.allowed_types for s in self.spec.stations) or bool(self._banned_at)
+
+    def type_graph(self, vehicle_type: str) -> nx.DiGraph:
+        """The track an AGV of `vehicle_type` may drive: a view without the segments closed
+        to it (segments' `allowed_types`)."""
+        def allowed(u: str, v: str) -> bool:
+            if vehicle_type in self._banned_at.get(v, ()):
+                return False  # a ban zone: no way in
+            types: frozenset[str] = self.graph.edges[u, v]["allowed_types"]
+            return not types or vehicle_type in types
+        return nx.subgraph_view(self.graph, filter_edge=allowed)
+
+    @property
     def total_length_m(self) -> float:
         """Length of tape, counting a two-way segment once."""
         seen: set[frozenset[str]] = set()
@@ -234,6 +385,7 @@ def load_layout(path: str | Path, max_speed_mps: float | None = None) -> Layout:
 def layout_from_spec(spec: LayoutSpec, file: str, max_speed_mps: float | None = None) -> Layout:
     graph = _build_graph(spec, file, max_speed_mps)
     _check_places(spec, file, graph)
+    _check_traffic_zones(spec, file, graph)
     _check_connectivity(spec, file, graph)
     return Layout(spec, file, graph, _find_corridors(graph))
 
@@ -284,7 +436,7 @@ def _build_graph(spec: LayoutSpec, file: str, max_speed_mps: float | None) -> nx
             graph.add_edge(u, v, length_m=length, speed_limit_mps=limit,
                            two_way=seg.direction == "two_way", branch=branch, index=i,
                            rssi_dbm=seg.rssi_dbm, obstacle_rate_per_km=None,
-                           obstacle_duration=None)
+                           obstacle_duration=None, allowed_types=frozenset(seg.allowed_types))
     _apply_zones(spec, file, graph)
     for node in spec.nodes:
         if graph.out_degree(node.id) == 0:
@@ -313,6 +465,40 @@ def _apply_zones(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None:
         if zone is not None:
             data["obstacle_rate_per_km"] = zone.obstacle_rate_per_km
             data["obstacle_duration"] = zone.obstacle_duration
+
+
+def _check_traffic_zones(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None:
+    seen: dict[str, int] = {}
+    for i, zone in enumerate(spec.traffic_zones):
+        where = f"traffic_zones[{i}]"
+        if zone.id in seen:
+            raise InputError(file, f"{where}.id", zone.id,
+                             f"a unique id (traffic_zones[{seen[zone.id]}] has it)")
+        seen[zone.id] = i
+        if not zone.nodes and not zone.segments:
+            raise InputError(file, where, zone.id, "a zone with nodes or segments")
+        for j, node in enumerate(zone.nodes):
+            if node not in graph:
+                raise InputError(file, f"{where}.nodes[{j}]", node, "the id of a node in `nodes`")
+        for j, (u, v) in enumerate(zone.segments):
+            if not graph.has_edge(u, v):
+                raise InputError(file, f"{where}.segments[{j}]", f"{u} -> {v}",
+                                 "a segment of the layout ([from, to])")
+        if zone.kind == "ban" and not zone.banned_types:
+            raise InputError(file, f"{where}.banned_types", [],
+                             "at least one vehicle type for a ban zone")
+        if zone.kind == "mutex" and zone.banned_types:
+            raise InputError(file, f"{where}.banned_types", list(zone.banned_types),
+                             "none for a mutex zone (a ban zone bans types)")
+        if zone.kind == "ban" and zone.capacity != 1:
+            raise InputError(file, f"{where}.capacity", zone.capacity,
+                             "no capacity for a ban zone (a mutex zone has one)")
+        parking = {p.node for p in spec.parking}
+        inside = (set(zone.nodes) | {n for seg in zone.segments for n in seg}) & parking
+        if zone.kind == "mutex" and inside:
+            raise InputError(file, f"{where}.nodes", sorted(inside)[0],
+                             "no parking access node in a mutex zone (parked AGVs hold no "
+                             "node and would not count)")
 
 
 def _check_places(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None:
@@ -413,3 +599,54 @@ def _find_corridors(graph: nx.DiGraph) -> list[Corridor]:
         if frozenset((u, v)) not in assigned:  # a two-way segment directly between junctions
             corridors.append(Corridor(len(corridors), frozenset(), frozenset({(u, v), (v, u)})))
     return corridors
+
+
+def layout_yaml(spec: LayoutSpec, comments: Sequence[str] = ()) -> str:
+    """The layout file of `spec`, one line per node, segment and place as the bundled layouts
+    are written, `comments` as its first lines; loading it gives `spec` back."""
+    lines = [comment_lines(comments).rstrip("\n")] if comments else []
+    lines.append(_flow({"name": spec.name}))
+    if spec.description:
+        lines.append(_flow({"description": spec.description}))
+    lines.append(_flow({"defaults": spec.defaults.model_dump(mode="json")}))
+    sections: list[tuple[str, list[dict[str, Any]]]] = [
+        ("nodes", [{"id": n.id, "x": n.x, "y": n.y, "kind": n.kind}
+                   | ({"marker": n.marker} if n.marker is not None else {}) for n in spec.nodes]),
+        ("segments", [s.model_dump(mode="json", by_alias=True, exclude_defaults=True)
+                      for s in spec.segments]),
+        ("stations", [{"id": s.id, "kind": s.kind, "nodes": list(s.nodes),
+                       "handling": s.handling.model_dump(mode="json")}
+                      | ({"allowed_types": list(s.allowed_types)} if s.allowed_types else {})
+                      for s in spec.stations]),
+        ("chargers", [c.model_dump(mode="json") for c in spec.chargers]),
+        ("parking", [p.model_dump(mode="json") for p in spec.parking]),
+        ("zones", [z.model_dump(mode="json", exclude_none=True) for z in spec.zones]),
+        ("traffic_zones", [z.model_dump(mode="json", exclude_defaults=True)
+                           for z in spec.traffic_zones]),
+    ]
+    for key, items in sections:
+        if items or key in ("nodes", "segments", "stations", "parking"):
+            lines.append(f"{key}:" if items else f"{key}: []")
+            lines += [f"- {_flow(item)}" for item in items]
+    lif = spec.lif.model_dump(mode="json", exclude_defaults=True)
+    if lif:
+        lines.append(_flow({"lif": lif}))
+    return "\n".join(lines) + "\n"
+
+
+def _flow(data: dict[str, Any]) -> str:
+    """One mapping on one line (a top-level key's value in flow style)."""
+    if len(data) == 1:
+        (key, value), = data.items()
+        if not isinstance(value, dict | list):
+            return yaml.safe_dump(tidy_numbers(data), sort_keys=False, allow_unicode=True,
+                                  width=1 << 30).rstrip("\n")
+        return f"{key}: {_flow_value(value)}"
+    return _flow_value(data)
+
+
+def _flow_value(value: Any) -> str:
+    text = yaml.safe_dump(tidy_numbers(value), default_flow_style=True, sort_keys=False,
+                          allow_unicode=True, width=1 << 30)
+    return text.rstrip("\n").removesuffix("\n...").rstrip("\n")
+

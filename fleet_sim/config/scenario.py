@@ -16,11 +16,28 @@ Decisions, where the issue is silent:
   layouts), not in the hash.
 * The resolved config names the layout and the order trace by absolute path, so
   ``fleet-sim run results/<run>/config.resolved.yaml`` reruns the run from any folder.
-* Charging on, but some AGVs cannot reach a charger from where they start (no charger in the
-  layout, or none reachable along one-way segments): `agvs_without_charger` names them and
-  ``fleet-sim run`` prints one warning line; the run goes on. Not refused: "how long does the
-  fleet last without chargers" is a fair question, and the answer (each such AGV runs down and
-  stops with E_201) is in the results. Sweeps do not warn (their runs share the scenario).
+* Battery traps are warned about, not refused (`setup_warnings`, one line each): "how long
+  does the fleet last without charging" is a fair question, and the answer (each AGV runs down
+  and stops with E_201) is in the results. ``fleet-sim run`` prints them; ``sweep`` and
+  ``size`` print each kind once per experiment (`fleet_sim.config.experiment
+  .experiment_warnings`); every run records them in kpis.json (``warnings``).
+
+  - Charging on, but some AGVs cannot reach a charger from where they start (no charger in the
+    layout, or none reachable along one-way segments): `agvs_without_charger` names them.
+    Warned whatever the run's length: charging that cannot happen is a contradiction in the
+    files.
+  - Charging off with a battery that drains: warned when the run is long enough for an AGV
+    working flat out to reach P_050 (20 %), where it stops taking orders (4.2.2) and stands
+    until E_201. A shorter run with charging off is a fair choice and is not warned about.
+    No battery model at all is ``fleet.vehicle.battery: off``.
+
+  How long a battery lasts (`battery_hours`): the energy between two SOCs,
+  E = (from_pct - to_pct) / 100 x capacity_wh, over a power: standing idle, idle_w; working
+  flat out, the larger of handling_w and driving at max_speed_mps with half the distance
+  loaded, idle_w + (drive_wh_per_m + drive_loaded_wh_per_m) / 2 x max_speed_mps x 3600 W (the
+  controller's idle draw goes on while driving, as in fleet_sim.model.battery). With the
+  defaults, 90 % -> 20 % is 672 Wh: 3.4 h flat out (200 W), 33.6 h idle (20 W); 20 % -> 10 %
+  standing idle is 4.8 h. Real work lies in between.
 * The scenario ``name`` is free text (reports show it, escaped); the default run folder is
   ``results/<folder_name(name)>``, every character outside the experiment name's rule
   (`is_folder_name`) replaced by ``_``, so ``../x`` or ``/abs`` never writes outside
@@ -29,9 +46,10 @@ Decisions, where the issue is silent:
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
-from typing import Any, Final, Literal
+from typing import Any, Final, Literal, NamedTuple
 
 import networkx as nx
 from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
@@ -49,10 +67,11 @@ from agv_model.inputs import (
     read_yaml,
     validate,
 )
-from agv_model.profile import profile_names
+from agv_model.profile import load_profile, profile_names, read_profile
+from fleet_sim.config.chains import MAX_STOPS, MIN_STOPS, check_chain
 from fleet_sim.config.distributions import ExponentialTime, TimeDistribution, TriangularTime
 from fleet_sim.config.layout import Layout, load_layout
-from fleet_sim.config.vehicle import VehicleProfile
+from fleet_sim.config.vehicle import VehicleProfile, vehicle_from_profile
 from fleet_sim.errors import InputError
 
 MAX_DURATION_H: Final = 8760.0
@@ -76,9 +95,68 @@ def folder_name(name: str) -> str:
     return safe if is_folder_name(safe) else safe.replace(".", "_") or "scenario"
 
 
+class VehicleType(StrictModel):
+    """One type of a mixed fleet (`fleet.vehicles`): `count` AGVs of one vehicle profile."""
+
+    type: Text
+    """The type's name, as the layout's `allowed_types` and the KPIs (by_type.<type>) say it."""
+    count: int = Field(ge=1, le=MAX_FLEET_SIZE)
+    profile: Text | None = None
+    """An agv_model vehicle profile that fills `vehicle` (fleet_sim.config.vehicle
+    .vehicle_from_profile): a bundled one (rss-agv-001, carriro-ad-plus, ktm-02, tabo, agv-3)
+    or a profile file, such as one `fleet-sim profile import` wrote from a VDA 5050
+    factsheet, relative to the scenario file. Fields given under `vehicle` win over it."""
+    vehicle: VehicleProfile = VehicleProfile()
+    """The type's kinematics, body, station times and battery (as `fleet.vehicle`)."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_profile(cls, data: Any, info: ValidationInfo) -> Any:
+        if not isinstance(data, dict) or not isinstance(data.get("profile"), str):
+            return data
+        given = data.get("vehicle", {})
+        if not isinstance(given, dict):
+            return data  # not a mapping: the field's own check names it
+        base_dir = (info.context or {}).get("base_dir", ".")
+        return {**data, "vehicle": _deep_merge(_profile_fields(data["profile"], base_dir),
+                                               given)}
+
+
+def _profile_fields(name: str, base_dir: str) -> dict[str, Any]:
+    """The vehicle fields of profile `name` (bundled, or a file relative to `base_dir`)."""
+    try:
+        if name in profile_names():
+            profile = load_profile(name)
+        else:
+            path = Path(name) if Path(name).is_absolute() else Path(base_dir) / name
+            if path.suffix not in (".yaml", ".yml") or not path.is_file():
+                raise Problem("profile", name,
+                              f"a bundled profile ({', '.join(profile_names())}) or a profile "
+                              f"file (.yaml; looked for {path})")
+            profile = read_profile(path)
+    except InputError as exc:
+        raise Problem("profile", name, f"a valid profile file ({exc})") from None
+    return vehicle_from_profile(profile)
+
+
+def _deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _deep_merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
 class FleetConfig(StrictModel):
     size: int = Field(default=4, ge=1, le=MAX_FLEET_SIZE)
+    """Number of AGVs; with `vehicles`, the sum of their counts (may be left out)."""
     vehicle: VehicleProfile = VehicleProfile()
+    """The vehicle of a one-type fleet; not given with `vehicles`."""
+    vehicles: Items[VehicleType] = ()
+    """A mixed fleet: types of vehicle and how many of each (AGVs numbered type by type, in
+    this order); empty: `size` AGVs of `vehicle`."""
     start_nodes: Items[Text] = ()
     """Where AGVs start, one node each; empty: inside the parking areas, filled in file order."""
     command_profile: Text | None = None
@@ -88,8 +166,60 @@ class FleetConfig(StrictModel):
     """The fleet manager polls each AGV this often and learns it is free at the next poll;
     0: AGVs report at once."""
 
+    @model_validator(mode="before")
+    @classmethod
+    def _size_of_mix(cls, data: Any) -> Any:
+        """With `vehicles`, `size` is the sum of the counts, and `vehicle` is each type's."""
+        if not isinstance(data, dict) or not data.get("vehicles"):
+            return data
+        if "vehicle" in data:
+            raise Problem("vehicle", "given", "no fleet.vehicle with fleet.vehicles (each type "
+                                              "has its own vehicle or profile)")
+        types = data["vehicles"]
+        counts = [t.get("count") for t in types if isinstance(t, dict)] \
+            if isinstance(types, list | tuple) else []
+        if "size" not in data and counts and len(counts) == len(types) \
+                and all(type(c) is int and c >= 1 for c in counts):
+            return {**data, "size": sum(counts)}
+        return data
+
+    @property
+    def agv_types(self) -> tuple[str, ...]:
+        """The type of each AGV, in AGV order (one-type fleet: the vehicle's name)."""
+        if not self.vehicles:
+            return (self.vehicle.name,) * self.size
+        return tuple(t.type for t in self.vehicles for _ in range(t.count))
+
+    @property
+    def agv_profiles(self) -> tuple[VehicleProfile, ...]:
+        """The vehicle profile of each AGV, in AGV order."""
+        if not self.vehicles:
+            return (self.vehicle,) * self.size
+        return tuple(t.vehicle for t in self.vehicles for _ in range(t.count))
+
+    @property
+    def type_profiles(self) -> dict[str, VehicleProfile]:
+        """Type name -> its vehicle profile, in fleet order."""
+        if not self.vehicles:
+            return {self.vehicle.name: self.vehicle}
+        return {t.type: t.vehicle for t in self.vehicles}
+
+    @property
+    def max_speed_mps(self) -> float:
+        """The fastest type's top speed (segment limits above it are refused)."""
+        return max(p.max_speed_mps for p in self.type_profiles.values())
+
     @model_validator(mode="after")
     def _consistent(self) -> FleetConfig:
+        if self.vehicles:
+            total = sum(t.count for t in self.vehicles)
+            if self.size != total:
+                raise Problem("size", self.size, f"the sum of fleet.vehicles' counts ({total}); "
+                                                 "leave fleet.size out with fleet.vehicles")
+            names = [t.type for t in self.vehicles]
+            for i, name in enumerate(names):
+                if name in names[:i]:
+                    raise Problem(f"vehicles[{i}].type", name, "a type named once")
         if self.start_nodes and len(self.start_nodes) < self.size:
             raise Problem("start_nodes", list(self.start_nodes),
                           f"at least one start node per AGV ({self.size})")
@@ -103,9 +233,37 @@ class FleetConfig(StrictModel):
 
 
 class Flow(StrictModel):
-    from_station: Text = Field(alias="from")
-    to_station: Text = Field(alias="to")
+    """An order flow: plain orders from one pickup to one dropoff (`from`, `to`), or chains of
+    stops (`stops`, fleet_sim.config.chains), one or the other."""
+
+    from_station: Text | None = Field(default=None, alias="from")
+    to_station: Text | None = Field(default=None, alias="to")
     weight: Positive = 1.0
+    stops: Items[Text] = ()
+    """A multi-stop order: stations alternating pickup, dropoff, pickup, dropoff... (an even
+    number, 2 to 20); empty: the plain order `from` -> `to`."""
+
+    @model_validator(mode="after")
+    def _from_to_or_stops(self) -> Flow:
+        if self.stops:
+            if self.from_station is not None or self.to_station is not None:
+                raise Problem("stops", list(self.stops), "either from and to, or stops, not both")
+            if not MIN_STOPS <= len(self.stops) <= MAX_STOPS or len(self.stops) % 2:
+                raise Problem("stops", list(self.stops),
+                              f"an even number of stops from {MIN_STOPS} to {MAX_STOPS} "
+                              "(pickup, dropoff, pickup, dropoff...)")
+        elif self.from_station is None or self.to_station is None:
+            missing = "from" if self.from_station is None else "to"
+            raise Problem(missing, None, "a station (a flow has from and to, or stops)")
+        return self
+
+    @property
+    def chain(self) -> tuple[str, ...]:
+        """The flow's stops: `stops`, or (from, to)."""
+        if self.stops:
+            return self.stops
+        assert self.from_station is not None and self.to_station is not None
+        return (self.from_station, self.to_station)
 
 
 class RatePeriod(StrictModel):
@@ -351,6 +509,9 @@ class Scenario(StrictModel):
 
     @model_validator(mode="after")
     def _warmup_within_run(self, info: ValidationInfo) -> Scenario:
+        if self.fleet.vehicles and self.motion == "sumo":
+            raise Problem("motion", self.motion, "closed_form with fleet.vehicles (the SUMO "
+                                                 "backend drives one vehicle type)")
         if self.warmup_h >= self.duration_h:
             raise Problem("warmup_h", self.warmup_h,
                           f"a warm-up >= 0 h and shorter than duration_h ({self.duration_h})")
@@ -420,15 +581,19 @@ def load_layout_for(scenario: Scenario, scenario_file: str) -> Layout:
     if not layout_path.exists():
         raise InputError(scenario_file, "layout", scenario.layout,
                          f"an existing layout file (looked for {layout_path})")
-    layout = load_layout(layout_path, max_speed_mps=scenario.fleet.vehicle.max_speed_mps)
+    layout = load_layout(layout_path, max_speed_mps=scenario.fleet.max_speed_mps)
     check_against_layout(scenario, layout, scenario_file)
     return layout
 
 
 def check_against_layout(scenario: Scenario, layout: Layout, file: str) -> None:
     for i, flow in enumerate(scenario.demand.flows):
+        if flow.stops:
+            check_chain(flow.stops, layout, file, f"demand.flows[{i}].stops")
+            continue
         for key, station, kind in (("from", flow.from_station, "pickup"),
                                    ("to", flow.to_station, "dropoff")):
+            assert station is not None
             place = layout.places.get(station)
             if place is None or place.kind != kind:
                 names = ", ".join(p.id for p in layout.places.values() if p.kind == kind)
@@ -455,6 +620,70 @@ def check_against_layout(scenario: Scenario, layout: Layout, file: str) -> None:
             raise InputError(file, "fleet.size", scenario.fleet.size,
                              f"at most the parking capacity of layout {layout.name} ({room}), "
                              "or fleet.start_nodes for the rest")
+    _check_types(scenario, layout, file)
+
+
+def _check_types(scenario: Scenario, layout: Layout, file: str) -> None:
+    """Where the layout closes segments or stations to some vehicle types: every type can
+    drive between all parking areas, chargers (charging on), its AGVs' start nodes and the
+    stations it may serve; and every flow has a type that may serve both its stations."""
+    if not layout.restricts_types:
+        return
+    fleet = scenario.fleet
+    starts = agv_start_nodes(scenario, layout)
+    for i, name in enumerate(fleet.type_profiles):
+        where = f"fleet.vehicles[{i}].type" if fleet.vehicles else "fleet.vehicle.name"
+        must = [(f"parking {p.id}", p.nodes[0]) for p in layout.parking]
+        if scenario.charging.enabled:
+            must += [(f"charger {c.id}", c.nodes[0]) for c in layout.chargers]
+        must += [(f"station {p.id}", n) for p in layout.pickups + layout.dropoffs
+                 if p.serves(name) for n in p.nodes]
+        must += [(f"the start of AGV {agv}", node) for agv, (node, kind)
+                 in enumerate(zip(starts, fleet.agv_types, strict=False)) if kind == name]
+        graph = layout.type_graph(name)
+        anchor = must[0][1]
+        both_ways = (nx.descendants(graph, anchor) | {anchor}) \
+            & (nx.ancestors(graph, anchor) | {anchor})
+        for what, node in must:
+            if node not in both_ways:
+                raise InputError(file, where, name,
+                                 f"a vehicle type that can drive to and from {what} (node "
+                                 f"{node}) and parking {layout.parking[0].id} on layout "
+                                 f"{layout.name}; the segments' allowed_types cut it off")
+    names = tuple(fleet.type_profiles)
+    for i, flow in enumerate(scenario.demand.flows):
+        if flow.stops:
+            if not chain_serving_types(layout, flow.stops, names):
+                raise InputError(file, f"demand.flows[{i}].stops", " -> ".join(flow.stops),
+                                 "stops that one vehicle type of the fleet "
+                                 f"({', '.join(names)}) may serve all of (stations' "
+                                 "allowed_types)")
+            continue
+        assert flow.from_station is not None and flow.to_station is not None
+        if not serving_types(layout, flow.from_station, flow.to_station, names):
+            raise InputError(file, f"demand.flows[{i}]", f"{flow.from_station} -> "
+                             f"{flow.to_station}", "stations that one vehicle type of the "
+                             f"fleet ({', '.join(names)}) may serve both of (stations' "
+                             "allowed_types)")
+    if not scenario.demand.flows and not any(
+            serving_types(layout, p.id, d.id, names)
+            for p in layout.pickups for d in layout.dropoffs):
+        raise InputError(file, "demand.flows", [], "flows, or a pickup and a dropoff station "
+                         f"that one vehicle type of the fleet ({', '.join(names)}) may serve")
+
+
+def serving_types(layout: Layout, pickup: str, dropoff: str,
+                  types: tuple[str, ...]) -> tuple[str, ...]:
+    """The types among `types` that may serve both stations."""
+    a, b = layout.places[pickup], layout.places[dropoff]
+    return tuple(t for t in types if a.serves(t) and b.serves(t))
+
+
+def chain_serving_types(layout: Layout, stops: tuple[str, ...],
+                        types: tuple[str, ...]) -> tuple[str, ...]:
+    """The types among `types` that may serve every stop of a chain."""
+    places = [layout.places[s] for s in stops]
+    return tuple(t for t in types if all(p.serves(t) for p in places))
 
 
 def agv_start_nodes(scenario: Scenario, layout: Layout) -> list[str]:
@@ -468,19 +697,117 @@ def agv_start_nodes(scenario: Scenario, layout: Layout) -> list[str]:
 
 def agvs_without_charger(scenario: Scenario, layout: Layout) -> list[int]:
     """The AGVs (numbers) that cannot drive to any charger from their start, if charging is on;
-    empty when charging is off."""
+    empty when charging is off or there is no battery model."""
     if not scenario.charging.enabled:
         return []
     chargers = {n for c in layout.chargers for n in c.nodes}
     stranded: list[int] = []
     reach: dict[str, bool] = {}
+    profiles = scenario.fleet.agv_profiles
     for agv, node in enumerate(agv_start_nodes(scenario, layout)):
+        if profiles[agv].battery is None:
+            continue
         if node not in reach:
             reach[node] = node in layout.graph and bool(
                 chargers & (nx.descendants(layout.graph, node) | {node}))
         if not reach[node]:
             stranded.append(agv)
     return stranded
+
+
+class BatteryHours(NamedTuple):
+    """How long a battery takes to fall from one SOC to another (see the module docstring)."""
+
+    busy_h: float
+    """Working flat out: driving at top speed, half the distance loaded (or handling)."""
+    idle_h: float
+    """Standing idle (inf if idling draws nothing)."""
+
+
+def battery_hours(vehicle: VehicleProfile, from_pct: float, to_pct: float) -> BatteryHours:
+    """Hours for the vehicle's battery to fall from `from_pct` to `to_pct`; zero if it is
+    there already, inf if nothing drains it. No battery model: inf."""
+    battery = vehicle.battery
+    if battery is None:
+        return BatteryHours(math.inf, math.inf)
+    energy_wh = max(0.0, from_pct - to_pct) / 100.0 * battery.capacity_wh
+    driving_w = battery.idle_w + (battery.drive_wh_per_m + battery.drive_loaded_wh_per_m) \
+        / 2.0 * vehicle.max_speed_mps * 3600.0
+    busy_w = max(driving_w, battery.handling_w)
+
+    def hours(power_w: float) -> float:
+        if energy_wh == 0:
+            return 0.0
+        return energy_wh / power_w if power_w > 0 else math.inf
+
+    return BatteryHours(hours(busy_w), hours(battery.idle_w))
+
+
+class SetupWarning(NamedTuple):
+    """A trap in a scenario's settings: `kind` groups the same trap across the design points
+    of an experiment, `text` is the one line shown."""
+
+    kind: str
+    text: str
+
+
+def setup_warnings(scenario: Scenario, layout: Layout) -> list[SetupWarning]:
+    """The battery and charging traps of `scenario` on `layout`, one line each (see the module
+    docstring): AGVs that cannot reach a charger with charging on; a draining battery with
+    charging off on a run long enough to run it down. A mixed fleet is looked at type by type
+    (the first type whose battery gives the trap is named)."""
+    for name, vehicle in scenario.fleet.type_profiles.items():
+        found = _type_warnings(scenario, layout, vehicle)
+        if found:
+            if scenario.fleet.vehicles:
+                found = [SetupWarning(w.kind, f"vehicle type {name}: {w.text}".replace(
+                    "fleet.vehicle.battery", f"the battery of type {name}")) for w in found]
+            return found
+    return []
+
+
+def _type_warnings(scenario: Scenario, layout: Layout,
+                   vehicle: VehicleProfile) -> list[SetupWarning]:
+    battery = vehicle.battery
+    if battery is None:
+        return []
+    rules, charging = scenario.rules, scenario.charging
+    out: list[SetupWarning] = []
+    if charging.enabled:
+        stranded = agvs_without_charger(scenario, layout)
+        if stranded:
+            stop = max(charging.threshold_pct, rules.bat_low_pct)
+            down = battery_hours(vehicle, battery.initial_soc_pct, stop)
+            dead = battery_hours(vehicle, stop, rules.bat_critical_pct)
+            shown = ", ".join(str(a) for a in stranded[:20]) \
+                + (", ..." if len(stranded) > 20 else "")
+            why = "the layout has no charger" if not layout.chargers \
+                else "no charger is reachable from their start nodes"
+            out.append(SetupWarning("no_charger", (
+                f"charging is on but {why}: AGV {shown} ({len(stranded)} of "
+                f"{scenario.fleet.size}) will run down and stop with E_201: from "
+                f"{battery.initial_soc_pct:g} % to the charging threshold {stop:g} %, where "
+                f"they stop taking orders, in about {_hours(down.busy_h)} working flat out or "
+                f"{_hours(down.idle_h)} idle, then E_201 at {rules.bat_critical_pct:g} % "
+                f"{_hours(dead.idle_h)} later")))
+        return out
+    down = battery_hours(vehicle, battery.initial_soc_pct, rules.bat_low_pct)
+    if scenario.duration_h > down.busy_h:
+        dead = battery_hours(vehicle, rules.bat_low_pct, rules.bat_critical_pct)
+        out.append(SetupWarning("charging_off", (
+            f"charging.enabled is false but the battery drains (fleet.vehicle.battery): from "
+            f"{battery.initial_soc_pct:g} % an AGV runs down to {rules.bat_low_pct:g} % (P_050) "
+            f"and stops taking orders after about {_hours(down.busy_h)} working flat out or "
+            f"{_hours(down.idle_h)} idle, then stands until E_201 at "
+            f"{rules.bat_critical_pct:g} % {_hours(dead.idle_h)} later; the run is "
+            f"{scenario.duration_h:g} h. For no battery model set fleet.vehicle.battery: off")))
+    return out
+
+
+def _hours(hours: float) -> str:
+    if hours == 0:
+        return "no time"
+    return "never" if math.isinf(hours) else f"{hours:.1f} h"
 
 
 def resolved(scenario: Scenario) -> dict[str, Any]:
@@ -490,4 +817,16 @@ def resolved(scenario: Scenario) -> dict[str, Any]:
     plain["layout"] = str(scenario.path(scenario.layout).resolve())
     if scenario.demand.trace_csv is not None:
         plain["demand"]["trace_csv"] = str(scenario.path(scenario.demand.trace_csv).resolve())
+    for flow in plain["demand"]["flows"]:  # a flow is written as given: from/to, or stops
+        for key in ("from", "to") if flow["stops"] else ("stops",):
+            del flow[key]
+    fleet = plain["fleet"]
+    if scenario.fleet.vehicles:  # the size is the counts' sum; each type has its vehicle
+        del fleet["size"], fleet["vehicle"]
+        for written in fleet["vehicles"]:
+            name = written["profile"]
+            if name is not None and name not in profile_names():
+                written["profile"] = str(scenario.path(name).resolve())
+    else:  # a one-type fleet's resolved config is written as it always was
+        del fleet["vehicles"]
     return plain

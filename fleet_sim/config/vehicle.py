@@ -1,15 +1,25 @@
 """The vehicle as a scenario describes it: kinematics, body, sub-state times and battery.
 
 Defaults come from RSS-AGV-001 section 7.1 where the spec gives a figure, "assumed" where not.
+
+Decisions, where the issue is silent:
+
+* ``battery: off`` (YAML ``off``, ``false`` or ``null``) is the switch for the battery model:
+  no drain, no charging, no battery thresholds; SOC is not recorded. The model holds None and
+  the resolved config writes ``battery: null``. ``on``/``true`` is refused: write the figures
+  (or leave the key out for the defaults). The battery is a property of the vehicle, so the
+  switch sits with its figures rather than at the top of the scenario.
 """
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
+from pydantic.config import JsonDict
 
 from agv_model.inputs import NonNegative, Percent, Positive, Problem, StrictModel, Text
+from agv_model.profile import Profile as AgvModelProfile
 
 ShareAboveZero = Annotated[float, Field(gt=0, le=1)]
 
@@ -37,6 +47,13 @@ class BatteryProfile(StrictModel):
         return 100.0 / self.capacity_wh
 
 
+def _battery_off_schema(schema: JsonDict) -> None:
+    """Publish ``false`` (YAML ``off``) beside the battery's figures and ``null``."""
+    variants = schema.get("anyOf")
+    if isinstance(variants, list):
+        variants.insert(1, {"const": False})
+
+
 class VehicleProfile(StrictModel):
     name: Text = "rss-agv-001"
     max_speed_mps: Positive = 1.0
@@ -62,7 +79,19 @@ class VehicleProfile(StrictModel):
     handling time."""
     spin_s: NonNegative = 6.0
     """Assumed: a 180-degree spin on the spot (5.3 TYPE_CMD 0x10)."""
-    battery: BatteryProfile = BatteryProfile()
+    battery: BatteryProfile | None = Field(default=BatteryProfile(),
+                                           json_schema_extra=_battery_off_schema)
+    """The battery's figures; off (false, null): no battery model (no drain, no charging)."""
+
+    @field_validator("battery", mode="before")
+    @classmethod
+    def _battery_off(cls, value: Any) -> Any:
+        if value is False or value is None or value == "off":
+            return None
+        if not isinstance(value, dict | BatteryProfile):
+            raise Problem("", value, "a mapping of battery figures, or off (no battery model: "
+                                     "no drain, no charging)")
+        return value
 
     @model_validator(mode="after")
     def _turn_within_top_speed(self) -> VehicleProfile:
@@ -70,3 +99,43 @@ class VehicleProfile(StrictModel):
             raise Problem("turn_speed_mps", self.turn_speed_mps,
                           f"at most max_speed_mps ({self.max_speed_mps})")
         return self
+
+
+LOADED_DRIVE_FACTOR = 1.5
+"""Assumed, as the defaults above: driving loaded costs 50 % more energy per metre."""
+
+
+def vehicle_from_profile(profile: AgvModelProfile) -> dict[str, Any]:
+    """The fields of a `VehicleProfile` taken from an agv_model profile (a bundled one, or one
+    written by `fleet-sim profile import` from a VDA 5050 factsheet), as plain data.
+
+    The bridge, where the two models differ in units and in what they carry:
+
+    * kinematics: mm, mm/s, mm/s2 -> m, m/s, m/s2 (top speed, acceleration, deceleration, turn
+      speed, length); one to one.
+    * battery: the profile's `moving_w` is the mean power while driving, in W; the scenario
+      drains the battery per metre. At the profile's top speed a metre takes 1 / v seconds, so
+      ``drive_wh_per_m = moving_w / (max_speed_mps * 3600)``, and loaded 1.5 times that
+      (`LOADED_DRIVE_FACTOR`, the scenario's own assumption). `capacity_wh` and `idle_w` carry
+      over; `charge_w` does not: a charge is as fast as the layout's charger (`power_kw`).
+      Handling power, initial SOC and the charge curve keep the scenario's defaults.
+    * everything else (min_gap_m, boot and station sub-state times, spin): the scenario's
+      defaults, since a profile does not carry them.
+    """
+    kin = profile.kinematics
+    bat = profile.battery
+    drive_wh_per_m = bat.moving_w / (kin.max_speed_mps * 3600.0)
+    return {
+        "name": profile.name,
+        "max_speed_mps": kin.max_speed_mps,
+        "accel_mps2": kin.accel_mps2,
+        "decel_mps2": kin.decel_mps2,
+        "turn_speed_mps": kin.turn_speed_mps,
+        "length_m": kin.length_m,
+        "battery": {
+            "capacity_wh": bat.capacity_wh,
+            "drive_wh_per_m": round(drive_wh_per_m, 9),
+            "drive_loaded_wh_per_m": round(drive_wh_per_m * LOADED_DRIVE_FACTOR, 9),
+            "idle_w": bat.idle_w,
+        },
+    }

@@ -80,6 +80,16 @@ def traverse(pieces: Sequence[Piece], v_in: float, v_end_max: float,
     Returns (time_s, v_end). `v_in` must allow braking to every later limit within the pieces,
     which holds when the caller ends each stretch at a speed from `stop_entry_speed` of the next.
     """
+    bounds = speed_bounds(pieces, v_in, v_end_max, accel, decel)
+    total = 0.0
+    for i, (length, limit) in enumerate(pieces):
+        total += piece_time(length, bounds[i], limit, bounds[i + 1], accel, decel)
+    return total, bounds[-1]
+
+
+def speed_bounds(pieces: Sequence[Piece], v_in: float, v_end_max: float,
+                 accel: float, decel: float) -> list[float]:
+    """The speed at each boundary between `pieces` (entry first, exit last) of `traverse`."""
     n = len(pieces)
     bounds = [0.0] * (n + 1)
     bounds[0] = v_in
@@ -94,10 +104,45 @@ def traverse(pieces: Sequence[Piece], v_in: float, v_end_max: float,
         brake = math.sqrt(bounds[i + 1] ** 2 + 2.0 * decel * pieces[i][0])
         if brake < bounds[i]:
             bounds[i] = brake
-    total = 0.0
+    return bounds
+
+
+def distance_at(pieces: Sequence[Piece], v_in: float, v_end: float, accel: float,
+                decel: float, t_s: float) -> float:
+    """How far into `pieces` a vehicle is `t_s` seconds after entering them at `v_in`, on the
+    profile of `traverse(pieces, v_in, v_end, ...)` (`v_end`: the speed traverse returned):
+    within each piece it accelerates to the piece's peak, cruises, and brakes to the next
+    boundary's speed, exactly as `piece_time` times it. Clamped to [0, total length]; the
+    replay draws AGVs with it (and with its JavaScript twin in the replay page)."""
+    bounds = speed_bounds(pieces, v_in, v_end, accel, decel)
+    done_m = 0.0
+    left_s = t_s
     for i, (length, limit) in enumerate(pieces):
-        total += piece_time(length, bounds[i], limit, bounds[i + 1], accel, decel)
-    return total, bounds[n]
+        if length <= 0.0:
+            continue
+        v0, v1 = bounds[i], bounds[i + 1]
+        v_peak_sq = (2.0 * accel * decel * length + decel * v0 * v0 + accel * v1 * v1) \
+            / (accel + decel)
+        v_peak = max(min(limit, math.sqrt(v_peak_sq)), v0, v1)
+        t_acc = (v_peak - v0) / accel
+        d_acc = (v_peak * v_peak - v0 * v0) / (2.0 * accel)
+        d_dec = (v_peak * v_peak - v1 * v1) / (2.0 * decel)
+        cruise = max(0.0, length - d_acc - d_dec)
+        t_cruise = cruise / v_peak
+        t_dec = (v_peak - v1) / decel
+        if left_s >= t_acc + t_cruise + t_dec:
+            done_m += length
+            left_s -= t_acc + t_cruise + t_dec
+            continue
+        if left_s < t_acc:
+            along = v0 * left_s + 0.5 * accel * left_s * left_s
+        elif left_s < t_acc + t_cruise:
+            along = d_acc + v_peak * (left_s - t_acc)
+        else:
+            tau = left_s - t_acc - t_cruise
+            along = d_acc + cruise + v_peak * tau - 0.5 * decel * tau * tau
+        return done_m + min(max(along, 0.0), length)
+    return done_m
 
 
 def stop_entry_speed(pieces: Sequence[Piece], decel: float) -> float:

@@ -42,6 +42,43 @@ class OccupancySpell(NamedTuple):
     end_s: float
 
 
+class MoveRecord(NamedTuple):
+    """Where an AGV is, for the replay (recorded only with `record_moves`): a row of
+    moves.parquet.
+
+    kind "drive": it drove the hop u -> v from start_s to end_s without stopping, from
+    `driven_s` seconds into the hop's closed-form profile on (pieces: a curve of `curve_m` at
+    `curve_mps` if it turns, then the rest of the segment at `limit_mps`; entered at
+    `v_in_mps`, left at `v_out_mps`, with the AGV's own `accel_mps2` and `decel_mps2`;
+    `hop_s` in all). An obstacle pause splits a hop into two rows; a fault ends one early.
+    "wait": it stood at u waiting for lock v (a node, "corridor 3" or "zone Z") that AGV
+    `other` held when the wait began (-1: none). "track": set on the track at u (at the
+    start, back from parking or repair); "parking": into the parking area reached through u;
+    "off": taken off the track where it stood. "charger_wait": asked at u for a charger at
+    start_s and got charger v at end_s ("": none, it failed first).
+    """
+
+    agv: int
+    kind: str
+    start_s: float
+    end_s: float
+    u: str
+    v: str = ""
+    other: int = -1
+    hop_s: float = 0.0
+    driven_s: float = 0.0
+    v_in_mps: float = 0.0
+    v_out_mps: float = 0.0
+    curve_m: float = 0.0
+    curve_mps: float = 0.0
+    limit_mps: float = 0.0
+    accel_mps2: float = 0.0
+    decel_mps2: float = 0.0
+
+
+MOVE_COLUMNS = MoveRecord._fields
+
+
 class ErrorRecord(NamedTuple):
     """An AGV entering Error (RSS-AGV-001 6.1): when, which AGV, the code and its level."""
 
@@ -74,6 +111,33 @@ class Order:
     """Error code of the fault that lost a loaded order."""
     reassigned: int = 0
     """Times the order went back to the queue because its AGV failed before loading."""
+    stops: tuple[str, ...] = ()
+    """A multi-stop order's chain (fleet_sim.config.chains): `pickup` is its first stop,
+    `dropoff` its last; the timestamps above are those of the first pickup (pickup_arrival_s,
+    picked_s) and the last dropoff (dropoff_arrival_s, delivered_s). Empty: a plain order."""
+    stop_handling_s: tuple[float, ...] = ()
+    """Transfer time at each stop of `stops`."""
+    stop_nodes: list[str | None] = field(default_factory=list)
+    """The docking node of each stop of `stops`, chosen when the order is assigned."""
+    stops_done: int = 0
+    """Stops whose transfer is complete (a chain taken back after a failure resumes here)."""
+
+    @property
+    def chain(self) -> tuple[str, ...]:
+        """The order's stops: `stops`, or (pickup, dropoff) for a plain order."""
+        return self.stops or (self.pickup, self.dropoff)
+
+    def stop_node(self, index: int) -> str | None:
+        """The docking node of stop `index` (plain orders: pickup_node, dropoff_node)."""
+        if self.stops:
+            return self.stop_nodes[index]
+        return self.pickup_node if index == 0 else self.dropoff_node
+
+    def stop_handling(self, index: int) -> float:
+        """The transfer time at stop `index`."""
+        if self.stops:
+            return self.stop_handling_s[index]
+        return self.pickup_handling_s if index == 0 else self.dropoff_handling_s
 
 
 @dataclass
@@ -104,6 +168,17 @@ class Recorder:
     warnings: Counter[str] = field(default_factory=Counter)
     soc_samples: list[tuple[float, int, float]] = field(default_factory=list)
     """(time_s, agv, soc_pct) at every state change, for battery plots."""
+    zone_wait_s: dict[str, float] = field(default_factory=dict)
+    """Mutex zone id -> AGV-seconds spent (in the window) waiting to enter it; the engine
+    lists every mutex zone of the layout (none: no zone_wait_s KPI)."""
+    record_moves: bool = False
+    moves: list[MoveRecord] = field(default_factory=list)
+    """Drives, lock waits and placements of every AGV, when traced (record_moves): the
+    replay's data."""
+
+    def zone_waited(self, zone_id: str, start_s: float, end_s: float) -> None:
+        self.zone_wait_s[zone_id] = self.zone_wait_s.get(zone_id, 0.0) \
+            + self.window(start_s, end_s)
 
     def warning(self, code: str) -> None:
         self.warnings[code] += 1
@@ -133,3 +208,7 @@ class Recorder:
     def occupied(self, kind: str, key: str, agv: int, start_s: float, end_s: float) -> None:
         if self.record_occupancy:
             self.occupancy.append(OccupancySpell(kind, key, agv, start_s, end_s))
+
+    def moved(self, record: MoveRecord) -> None:
+        if self.record_moves:
+            self.moves.append(record)

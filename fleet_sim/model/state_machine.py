@@ -112,6 +112,10 @@ TRANSITIONS: tuple[Transition, ...] = (
       "stopped within +/-10 mm", "", "4.2.7"),
     T(S.UNLOADING, "Event_Unload_Complete", S.IDLE, lambda f, p: not f.load_on,
       "load sensor OFF", "go to the waiting position or stay idle here", "4.2.8"),
+    T(S.UNLOADING, "Event_Next_Stop", S.MOVING, lambda f, p: not f.load_on,
+      "load sensor OFF and the order has another pickup", "set the route to the next pickup",
+      None, "multi-stop orders (fleet_sim.config.chains): after a dropoff that is not the "
+      "chain's last, drive on to its next pickup without passing through Idle"),
     T(S.IDLE, "Event_Go_Charge", S.MOVING, lambda f, p: f.charger_assigned,
       "a charger is free (FMS)", "drive to the charger", "4.2.9",
       "travel to the charger is recorded as Moving (DESIGN reading)"),

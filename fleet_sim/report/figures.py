@@ -15,9 +15,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
 
 from fleet_sim.config.experiment import Target
 from fleet_sim.config.layout import Layout
+from fleet_sim.model.states import VehicleState
 
 KPI_LABELS = {
     "throughput_per_hour": "throughput [orders/h]",
@@ -35,6 +37,10 @@ STATE_COLOURS = {
     "maintenance": "#a142f4", "safe_mode": "#5f6368",
 }
 SERIES_COLOURS = ["#1a73e8", "#d93025", "#188038", "#f9ab00", "#a142f4", "#12b5cb"]
+LEAD_COLOURS = {"wait_assign_s": "#bdc1c6", "drive_empty_s": "#8ab4f8", "load_s": "#34a853",
+                "drive_loaded_s": "#1a73e8", "unload_s": "#0f9d58", "blocked_s": "#d93025"}
+"""The parts of an order's lead time (fleet_sim.analysis.replay.LEAD_PARTS), here and in the
+replay page."""
 
 
 def label(kpi: str) -> str:
@@ -173,6 +179,48 @@ def soc_curves(curves: pd.DataFrame, title: str) -> Figure:
     ax.set_ylim(0, 100)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+    ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def gantt(spells: pd.DataFrame, agvs: Sequence[int], title: str) -> Figure:
+    """One row per AGV, a bar per spell in a state (columns agv, start_s, end_s, state)."""
+    keys = {s.value: s.key for s in VehicleState}
+    fig, ax = plt.subplots(figsize=(11, max(2.5, 0.22 * len(agvs) + 1.2)))
+    for row, agv in enumerate(agvs):
+        mine = spells[spells["agv"] == agv]
+        for state, group in mine.groupby("state", sort=True):
+            starts = group["start_s"].to_numpy(dtype=float) / 3600.0
+            widths = group["end_s"].to_numpy(dtype=float) / 3600.0 - starts
+            ax.broken_barh(list(zip(starts, widths, strict=True)), (row - 0.4, 0.8),
+                           facecolors=STATE_COLOURS.get(keys.get(str(state), ""), "#80868b"),
+                           linewidth=0)
+    ax.set_yticks(range(len(agvs)), [f"AGV {a}" for a in agvs], fontsize=6)
+    ax.invert_yaxis()
+    ax.set_xlabel("time [h]")
+    handles = [Rectangle((0, 0), 1, 1, color=STATE_COLOURS[s.key]) for s in VehicleState]
+    ax.legend(handles, [s.value for s in VehicleState], loc="upper left",
+              bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False)
+    ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def lead_breakdown(leads: pd.DataFrame, labels: Mapping[str, str], title: str) -> Figure:
+    """One stacked bar per order (in order of creation): the parts of its lead time."""
+    fig, ax = plt.subplots(figsize=(11, 3.6))
+    xs = np.arange(len(leads))
+    bottom = np.zeros(len(leads))
+    for part, label_text in labels.items():
+        values = leads[part].fillna(0).to_numpy(dtype=float)
+        ax.bar(xs, values, bottom=bottom, width=1.0, color=LEAD_COLOURS[part],
+               label=label_text, linewidth=0)
+        bottom += values
+    ax.set_xlabel("orders delivered after the warm-up, in order of creation")
+    ax.set_ylabel("lead time [s]")
+    ax.set_xlim(-0.5, max(len(leads), 1) - 0.5)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False)
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
     return fig

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from matplotlib.patches import Rectangle
 
 from fleet_sim.config.layout import Layout
 
@@ -20,6 +22,29 @@ KIND_STYLE = {
 }
 PLACE_COLOUR = {"pickup": "#1a73e8", "dropoff": "#d93025", "charger": "#f9ab00",
                 "parking": "#188038"}
+
+
+ZONE_COLOUR = {"mutex": "#a142f4", "ban": "#d93025"}
+ZONE_MARGIN_M = 0.8
+"""How far a traffic zone's outline stands off its nodes."""
+
+
+def _draw_traffic_zones(ax: Any, layout: Layout) -> None:
+    """Each traffic zone as a dashed rectangle round its nodes, labelled with its id and rule
+    (mutex: at most N AGVs; ban: the banned types)."""
+    for zone in layout.traffic_zones:
+        pts = [layout.position(n) for n in sorted(zone.nodes)]
+        x0 = min(p[0] for p in pts) - ZONE_MARGIN_M
+        y0 = min(p[1] for p in pts) - ZONE_MARGIN_M
+        x1 = max(p[0] for p in pts) + ZONE_MARGIN_M
+        y1 = max(p[1] for p in pts) + ZONE_MARGIN_M
+        colour = ZONE_COLOUR[zone.kind]
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=True, alpha=0.08,
+                               facecolor=colour, edgecolor=colour, lw=1.2, ls="--", zorder=0))
+        rule = f"max {zone.capacity}" if zone.kind == "mutex" \
+            else "no " + ", ".join(sorted(zone.banned_types))
+        ax.annotate(f"{zone.id} ({rule})", (x0, y1), xytext=(2, 2), textcoords="offset points",
+                    fontsize=6, color=colour, zorder=3)
 
 
 def draw_layout(layout: Layout, path: Path, title: str | None = None) -> Path:
@@ -53,6 +78,7 @@ def draw_layout(layout: Layout, path: Path, title: str | None = None) -> Path:
         label = place.id if place.kind != "parking" else f"{place.id} ({place.capacity})"
         ax.annotate(label, (x, y), xytext=(3, 3), textcoords="offset points", fontsize=6,
                     color=PLACE_COLOUR[place.kind], zorder=3)
+    _draw_traffic_zones(ax, layout)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")

@@ -28,9 +28,13 @@ from fleet_sim.report.report import Report, build_report
 @cache
 def environment() -> Environment:
     """The report's Jinja2 environment: templates from the package, autoescape on."""
-    return Environment(loader=PackageLoader("fleet_sim.report", "templates"),
-                       autoescape=True, undefined=StrictUndefined, trim_blocks=True,
-                       lstrip_blocks=True, keep_trailing_newline=True)
+    env = Environment(loader=PackageLoader("fleet_sim.report", "templates"),
+                      autoescape=True, undefined=StrictUndefined, trim_blocks=True,
+                      lstrip_blocks=True, keep_trailing_newline=True)
+    # `tojson` (the replay page's data): keys sorted for identical bytes, no spaces for size
+    env.policies["json.dumps_kwargs"] = {"sort_keys": True, "separators": (",", ":"),
+                                         "allow_nan": False}
+    return env
 
 
 def render_html(report: Report) -> str:

@@ -7,7 +7,8 @@ else from the sweep's grid with the same rule: the smallest fleet whose 95 % int
 target); the scenario and the layout; throughput and p95 lead time (and every target's KPI)
 against fleet size with 95 % bands and the targets; utilisation by state as stacked bars;
 charging and battery; congestion (blocked time, and a heat map of where AGVs waited on the layout
-drawing); incidents (deadlocks, reroutes, give-way circulations); statistics per design point,
+drawing); AGVs standing Idle while orders waited, by reason, and the runs' settings warnings;
+incidents (deadlocks, reroutes, give-way circulations); statistics per design point,
 wide-interval warnings and paired differences; failed runs.
 
 Decisions, where the issue is silent:
@@ -22,6 +23,18 @@ Decisions, where the issue is silent:
 * The heat map shows the mean seconds per hour that AGVs with work to do stood waiting at each
   node (fleet_sim.study.sweep.node_waits), over the replications of the recommended fleet (else the
   largest fleet run).
+* A run in detail: the first replication of the recommended fleet (of the first series; else
+  of its largest fleet run) is simulated again from its config.resolved.yaml with the AGVs'
+  moves recorded (fleet_sim.analysis.replay.load_run: the re-run must reproduce the run's
+  events), for its per-AGV timeline (an inline SVG: hover shows the order and the reason, no
+  script) and the breakdown of its orders' lead times (orders delivered after the warm-up).
+  If the run cannot be reproduced, the timeline is drawn from its events and the lead times
+  keep the blocked time inside the drives; the section says so. The PDF gets the same as
+  matplotlib figures.
+* Idle with orders waiting (work conservation): a table of the design points where the mean
+  ``idle_with_orders_waiting_pct`` is above zero, with its reasons (the reasons above zero
+  somewhere), and the setup warnings the runs recorded (kpis.json ``setup_warnings``), each
+  once with the number of runs. Where it is zero everywhere, one sentence says so.
 * Charging: the runs' charging KPIs (``state_charging_pct``, ``charges``, the charger queue wait
   and any ``charger_*``/``soc_*`` KPI) against fleet size, and SOC curves of a few AGVs from the
   run's ``soc.parquet``. A run without charging says so instead of drawing empty axes.
@@ -31,6 +44,7 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -41,11 +55,15 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from fleet_sim.analysis.kpis import BY_REASON
+from fleet_sim.analysis.replay import LEAD_LABELS, LEAD_PARTS, lead_times, load_run, state_spells
 from fleet_sim.analysis.stats import check_targets, kpi_columns, paired_differences, point_stats
 from fleet_sim.config.experiment import FLEET, Target, layout_for
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario, load_scenario
 from fleet_sim.errors import InputError
+from fleet_sim.model.not_dispatched import NotDispatched
+from fleet_sim.model.states import VehicleState
 from fleet_sim.report import figures as figs
 from fleet_sim.study.sweep import read_summary
 
@@ -79,6 +97,8 @@ class Figure:
     caption: str
     png: bytes
     pdf_figure: Any = None
+    in_html: bool = True
+    """False: for the PDF only (the page shows the same otherwise, such as an inline SVG)."""
 
     @property
     def data_uri(self) -> str:
@@ -128,6 +148,20 @@ class StatesSection(Section):
 
 
 @dataclass(kw_only=True)
+class IdleWaitingSection(Section):
+    title: ClassVar[str] = "Idle AGVs while orders wait"
+    template: ClassVar[str] = "idle_waiting.html.j2"
+    runs: int
+    runs_above_zero: int
+    points: Table | None = None
+    """Design points with AGVs Idle while orders waited: mean share of AGV time, by reason."""
+    reasons: list[tuple[str, str]] = field(default_factory=list)
+    """(reason, meaning) of the reasons in the table."""
+    warnings: list[str] = field(default_factory=list)
+    """The runs' setup warnings, each once, with how many runs recorded it."""
+
+
+@dataclass(kw_only=True)
 class ChargingSection(Section):
     title: ClassVar[str] = "Charging and battery"
     template: ClassVar[str] = "charging.html.j2"
@@ -142,6 +176,48 @@ class CongestionSection(Section):
     level: str = ""
     """The design point of the heat map, as ``fleet.size = 8``."""
     top_nodes: Table | None = None
+
+
+@dataclass(frozen=True)
+class GanttBar:
+    """One spell of one AGV in the timeline: position in the SVG's units, colour, hover."""
+
+    x: float
+    y: float
+    width: float
+    colour: str
+    loaded: bool
+    title: str
+
+
+@dataclass(frozen=True)
+class Gantt:
+    """The timeline of one run as an inline SVG (drawn by the template, escaped)."""
+
+    width: int
+    height: int
+    label_width: int
+    row_height: int
+    rows: list[tuple[str, int]]
+    """(label, y) per AGV."""
+    ticks: list[tuple[float, str]]
+    """(x, label) along the time axis."""
+    bars: list[GanttBar]
+    legend: list[tuple[str, str]]
+    """(state, colour)."""
+
+
+@dataclass(kw_only=True)
+class DetailSection(Section):
+    title: ClassVar[str] = "A run in detail: timeline and lead times"
+    template: ClassVar[str] = "detail.html.j2"
+    run_id: str = ""
+    level: str = ""
+    run_dir: str = ""
+    problem: str = ""
+    gantt: Gantt | None = None
+    lead_rows: Table | None = None
+    orders: int = 0
 
 
 @dataclass(kw_only=True)
@@ -381,6 +457,46 @@ def section_states(data: ReportData) -> StatesSection:
     return sec
 
 
+IDLE_WAITING = "idle_with_orders_waiting_pct"
+
+
+def section_idle_waiting(data: ReportData) -> IdleWaitingSection:
+    ok = data.ok
+    warnings: dict[str, int] = {}
+    if "setup_warnings" in ok:
+        for text in ok["setup_warnings"].dropna().astype(str):
+            for line in filter(None, text.split("\n")):
+                warnings[line] = warnings.get(line, 0) + 1
+    shown = [f"{line} ({n} of {len(ok)} runs)" for line, n in warnings.items()]
+    if IDLE_WAITING not in ok:
+        sec = IdleWaitingSection(runs=len(ok), runs_above_zero=0, warnings=shown)
+        sec.text += ["Settings warning: " + w for w in shown]
+        return sec
+    above = ok[ok[IDLE_WAITING].fillna(0) > 0]
+    sec = IdleWaitingSection(runs=len(ok), runs_above_zero=len(above), warnings=shown)
+    sec.text += ["Settings warning: " + w for w in shown]
+    if above.empty:
+        sec.text.append("No AGV stood Idle while orders waited in any run.")
+        return sec
+    reasons = [r for r in NotDispatched if f"{BY_REASON}.{r.value}" in ok
+               and float(ok[f"{BY_REASON}.{r.value}"].fillna(0).max()) > 0]
+    columns = [IDLE_WAITING, *(f"{BY_REASON}.{r.value}" for r in reasons)]
+    keys = [*data.others, data.x] if data.x else []
+    means = ok.groupby(keys, sort=True, dropna=False)[columns].mean().reset_index() if keys \
+        else ok[columns].mean().to_frame().T
+    means = means[means[IDLE_WAITING] > 0]
+    rows = [[*(str(r[k]) for k in keys), *(fmt(float(r[c]), 3) for c in columns)]
+            for r in means.to_dict("records")]
+    sec.points = Table([*keys, "Idle with orders waiting [% of AGV time]",
+                        *(r.value for r in reasons)], rows, "stats")
+    sec.reasons = [(r.value, r.meaning) for r in reasons]
+    sec.text.append(f"AGVs stood Idle while orders waited in {len(above)} of {len(ok)} runs "
+                    "(mean % of AGV time; by reason):")
+    sec.text += [", ".join(f"{h} {c}" for h, c in zip(sec.points.header, row, strict=True))
+                 for row in rows]
+    return sec
+
+
 def section_charging(data: ReportData, series: dict[str, pd.DataFrame],
                      recommended: dict[str, int | None]) -> ChargingSection:
     ok = data.ok
@@ -467,6 +583,95 @@ def section_congestion(data: ReportData, series: dict[str, pd.DataFrame],
         sec.text.append("Most waiting at: " + ", ".join(
             f"{node} ({float(value):.0f} s/h)"
             for node, value in zip(top["node"], top["wait_s_per_h"], strict=True)))
+    return sec
+
+
+def _hms(seconds: float) -> str:
+    whole = round(seconds)
+    return f"{whole // 3600}:{whole % 3600 // 60:02d}:{whole % 60:02d}"
+
+
+def gantt_svg(spells: pd.DataFrame, agvs: list[int], start_s: float, end_s: float) -> Gantt:
+    """The state spells as SVG bars (one row per AGV) with a hover text each."""
+    label_w, plot_w, row_h, top = 58, 1000, 12, 16
+    span = max(end_s - start_s, 1e-9)
+    keys = {s.value: s.key for s in VehicleState}
+    rows = [(f"AGV {a}", top + i * row_h) for i, a in enumerate(agvs)]
+    row_of = {a: top + i * row_h for i, a in enumerate(agvs)}
+    bars = []
+    for agv, t0, t1, state, event, detail, order, loaded in zip(
+            *(spells[c].tolist() for c in ("agv", "start_s", "end_s", "state", "event", "detail",
+                                           "order_id", "loaded")), strict=True):
+        x = label_w + (float(t0) - start_s) / span * plot_w
+        width = max((float(t1) - float(t0)) / span * plot_w, 0.3)
+        title = (f"AGV {agv}: {state} {_hms(float(t0))} to {_hms(float(t1))} "
+                 f"({float(t1) - float(t0):.0f} s); order {order if order >= 0 else 'none'}, "
+                 f"{'loaded' if loaded else 'empty'}; reason: {event}"
+                 + (f": {detail}" if detail else ""))
+        bars.append(GanttBar(round(x, 2), row_of[int(agv)], round(width, 2),
+                             figs.STATE_COLOURS.get(keys.get(state, ""), "#80868b"),
+                             bool(loaded), title))
+    step = next((s for s in (300, 600, 900, 1800, 3600, 7200) if span / s <= 12), 14400)
+    first = math.ceil(start_s / step) * step
+    ticks = [(round(label_w + (t - start_s) / span * plot_w, 2), _hms(t))
+             for t in np.arange(first, end_s + 1e-9, step)]
+    legend = [(s.value, figs.STATE_COLOURS[s.key]) for s in VehicleState]
+    return Gantt(label_w + plot_w + 4, top + row_h * len(agvs) + 4, label_w, row_h, rows, ticks,
+                 bars, legend)
+
+
+def section_detail(data: ReportData, recommended: dict[str, int | None]) -> DetailSection:
+    ok = data.ok
+    sample = _sample_runs(data, recommended)
+    picked = ok[ok["run_id"].astype(str).isin(sample)]
+    if picked.empty or data.layout is None:
+        return DetailSection(problem="No finished run to show.")
+    if "replication" in picked.columns:
+        picked = picked.sort_values("replication", kind="stable")
+    row = picked.iloc[0]
+    run_id = str(row["run_id"])
+    level = f"{data.x} = {row[data.x]}" if data.x else ""
+    run_dir = data.out_dir / "runs" / run_id
+    problem = ""
+    try:
+        run = load_run(run_dir)
+    except InputError as exc:
+        problem = (f"The moves of run {run_id} could not be re-simulated ({exc}); the timeline "
+                   "is drawn from its events, and blocked time stays inside the drives.")
+        try:
+            run = load_run(run_dir, resimulate=False)
+        except InputError as again:
+            return DetailSection(run_id=run_id, level=level, problem=str(again))
+    scenario = run.scenario
+    spells = state_spells(run.events, 0.0, scenario.duration_s)
+    agvs = list(range(scenario.fleet.size))
+    leads = lead_times(run.orders, run.moves if run.resimulated or len(run.moves) else None,
+                       scenario.warmup_s, scenario.duration_s)
+    header = ["part", "mean [s]", "median [s]", "p95 [s]", "share of lead time"]
+    total = float(leads["lead_time_s"].sum()) if len(leads) else 0.0
+    rows: list[list[str]] = []
+    for part in (*LEAD_PARTS, "lead_time_s"):
+        values = leads[part].dropna().to_numpy(dtype=float)
+        name = LEAD_LABELS.get(part, "lead time (all parts)")
+        if len(values) == 0:
+            rows.append([name, "n/a", "n/a", "n/a", "n/a"])
+            continue
+        share = f"{100.0 * values.sum() / total:.1f} %" if total > 0 else "n/a"
+        rows.append([name, fmt(float(values.mean())), fmt(float(np.median(values))),
+                     fmt(float(np.percentile(values, 95))), share])
+    sec = DetailSection(run_id=run_id, level=level, run_dir=str(run_dir), problem=problem,
+                        gantt=gantt_svg(spells, agvs, 0.0, scenario.duration_s),
+                        lead_rows=Table(header, rows, "leads"), orders=len(leads))
+    title = f"Run {run_id} ({level}): every AGV's state"
+    sec.figures.append(Figure("gantt", title, b"", figs.gantt(spells, agvs, title),
+                              in_html=False))
+    lead_title = f"Run {run_id}: lead time of each order, by part"
+    sec.figures.append(_figure("leads", lead_title,
+                               figs.lead_breakdown(leads, LEAD_LABELS, lead_title)))
+    sec.text.append(f"Run {run_id} ({level}), {len(leads)} orders delivered after the warm-up; "
+                    "mean lead time by part: " + ", ".join(f"{r[0]} {r[1]} s" for r in rows))
+    if problem:
+        sec.text.append(problem)
     return sec
 
 
@@ -593,8 +798,9 @@ def build_report(out_dir: Path) -> Report:
     recommended, statements, estimates = recommendations(data)
     sections: list[Section] = [
         section_scenario(data), section_kpis(data, series, recommended), section_states(data),
-        section_charging(data, series, recommended),
-        section_congestion(data, series, recommended), section_incidents(data, recommended),
+        section_idle_waiting(data), section_charging(data, series, recommended),
+        section_congestion(data, series, recommended), section_detail(data, recommended),
+        section_incidents(data, recommended),
         section_statistics(data, stats), section_runs(data)]
     name = data.experiment.get("name", "experiment")
     n_ok = int((data.summary["status"] == "ok").sum())

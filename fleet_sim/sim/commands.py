@@ -35,6 +35,11 @@ class CommandPath:
         self.rng = rng
         self.recorder = recorder
 
+    @property
+    def immediate(self) -> bool:
+        """Commands take no time (no `fleet.command_profile`)."""
+        return self.timing is None
+
     def send(self, kind: Kind, then: Callable[[], object]) -> None:
         """Send a command; `then` runs when the AGV has it (at once without a profile)."""
         if self.timing is None:

@@ -5,6 +5,10 @@ Poisson: orders arrive at `rate_per_hour` times the profile multiplier for the t
 probability proportional to its weight. Handling times are drawn when an order is created, from a
 stream of their own, so that runs that differ only in fleet or policy see the same orders with the
 same handling times (common random numbers).
+
+Multi-stop orders (fleet_sim.config.chains): a flow or trace row with `stops` makes orders of
+that chain; handling times are drawn stop by stop, in chain order, from the same stream. A chain
+of two stops is the plain order (exactly as `from`/`to`).
 """
 
 from __future__ import annotations
@@ -24,8 +28,15 @@ from fleet_sim.model.records import Order
 def resolved_flows(demand: DemandConfig, layout: Layout) -> list[tuple[str, str, float]]:
     """(pickup, dropoff, weight) of every flow; all pickup-dropoff pairs when none are given."""
     if demand.flows:
-        return [(f.from_station, f.to_station, f.weight) for f in demand.flows]
+        return [(f.chain[0], f.chain[-1], f.weight) for f in demand.flows]
     return [(p.id, d.id, 1.0) for p in layout.pickups for d in layout.dropoffs]
+
+
+def resolved_chains(demand: DemandConfig, layout: Layout) -> list[tuple[tuple[str, ...], float]]:
+    """(stops, weight) of every flow; all pickup-dropoff pairs when none are given."""
+    if demand.flows:
+        return [(f.chain, f.weight) for f in demand.flows]
+    return [((p.id, d.id), 1.0) for p in layout.pickups for d in layout.dropoffs]
 
 
 class Demand:
@@ -41,8 +52,8 @@ class Demand:
         self.arrival_rng = arrival_rng
         self.handling_rng = handling_rng
         self.trace = trace
-        self.flows = resolved_flows(config, layout)
-        weights = np.array([w for _, _, w in self.flows], dtype=float)
+        self.flows = resolved_chains(config, layout)
+        weights = np.array([w for _, w in self.flows], dtype=float)
         self.flow_p = weights / weights.sum()
         self.created = 0
 
@@ -52,13 +63,29 @@ class Demand:
         elif self.config.rate_per_hour > 0 and self.config.max_multiplier > 0:
             self.env.process(self._poisson())
 
-    def _new_order(self, pickup: str, dropoff: str) -> None:
+    def _new_order(self, pickup: str, dropoff: str, stops: tuple[str, ...] = ()) -> None:
+        if len(stops) > 2:
+            self._new_chain(stops)
+            return
         p_handling = self.layout.places[pickup].handling
         d_handling = self.layout.places[dropoff].handling
         assert p_handling is not None and d_handling is not None
         order = Order(self.created, self.env.now, pickup, dropoff,
                       pickup_handling_s=p_handling.sample(self.handling_rng),
                       dropoff_handling_s=d_handling.sample(self.handling_rng))
+        self.created += 1
+        self.submit(order)
+
+    def _new_chain(self, stops: tuple[str, ...]) -> None:
+        handling = []
+        for station in stops:
+            spec = self.layout.places[station].handling
+            assert spec is not None
+            handling.append(spec.sample(self.handling_rng))
+        order = Order(self.created, self.env.now, stops[0], stops[-1],
+                      pickup_handling_s=handling[0], dropoff_handling_s=handling[-1],
+                      stops=stops, stop_handling_s=tuple(handling),
+                      stop_nodes=[None] * len(stops))
         self.created += 1
         self.submit(order)
 
@@ -73,11 +100,11 @@ class Demand:
             u, pick = rng.random(), rng.random()
             if u < accept:
                 flow = int(np.searchsorted(np.cumsum(self.flow_p), pick, side="right"))
-                pickup, dropoff, _ = self.flows[min(flow, len(self.flows) - 1)]
-                self._new_order(pickup, dropoff)
+                stops, _ = self.flows[min(flow, len(self.flows) - 1)]
+                self._new_order(stops[0], stops[-1], stops)
 
     def _replay(self) -> Generator[simpy.Event, Any, None]:
         for item in self.trace:
             if item.time_s > self.env.now:
                 yield self.env.timeout(item.time_s - self.env.now)
-            self._new_order(item.pickup, item.dropoff)
+            self._new_order(item.pickup, item.dropoff, item.stops)

@@ -4,6 +4,11 @@ Random streams come from one `numpy.random.SeedSequence(seed)`, spawned in a fix
 (arrivals, handling times, traffic back-off per AGV, incidents per AGV, command link jitter), so
 the same scenario and seed give the same run, and runs that differ only in fleet size still
 share their order streams.
+
+Vehicle types: a mixed fleet (`fleet.vehicles`), or a layout that opens segments or stations to
+some types only (`allowed_types`), gives each type its own routes and motion in `Traffic` and
+tells the fleet manager each AGV's type. A one-type fleet on a layout without `allowed_types`
+is built exactly as before (the same routes, the same random streams, the same results).
 """
 
 from __future__ import annotations
@@ -60,15 +65,17 @@ class RunOutput:
 
 
 def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
-                record_occupancy: bool = False) -> Model:
+                record_occupancy: bool = False, record_moves: bool = False) -> Model:
     env = simpy.Environment()
     profile = scenario.fleet.vehicle
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
                     profile.turn_speed_mps)
-    recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy)
+    recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy,
+                        record_moves=record_moves)
     costs = RouteCosts(scenario.traffic.congestion_cost_s, scenario.traffic.weak_wifi_cost_s,
                        scenario.rules.weak_rssi_dbm)
     traffic = Traffic(env, layout, motion, recorder, costs=costs)
+    recorder.zone_wait_s = {z: 0.0 for z in traffic.zone_locks}
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
         from fleet_sim.sim.motion.sumo import SumoMotion
 
@@ -79,10 +86,13 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     fleet = FleetManager(env, layout, traffic, scenario.dispatch, recorder, commands)
     vehicle_seeds = backoff.spawn(scenario.fleet.size)
     incident_seeds = incident.spawn(2 * scenario.fleet.size)
+    profiles = scenario.fleet.agv_profiles
+    if scenario.fleet.vehicles or layout.restricts_types:
+        _set_types(scenario, traffic, fleet)
     vehicles = [
         Vehicle(i, env, traffic, fleet, recorder, scenario,
                 np.random.default_rng(vehicle_seeds[i]),
-                np.random.default_rng(incident_seeds[2 * i]))
+                np.random.default_rng(incident_seeds[2 * i]), profiles[i])
         for i in range(scenario.fleet.size)
     ]
     _place(vehicles, scenario, layout, fleet)
@@ -95,6 +105,17 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
         v.start()
     demand.start()
     return Model(env, traffic, fleet, vehicles, demand, recorder, traffic.motion_backend)
+
+
+def _set_types(scenario: Scenario, traffic: Traffic, fleet: FleetManager) -> None:
+    """Each type's routes and motion in traffic, each AGV's type in traffic and dispatch."""
+    for name, p in scenario.fleet.type_profiles.items():
+        traffic.add_vehicle_type(name, Motion(p.max_speed_mps, p.accel_mps2, p.decel_mps2,
+                                              p.turn_speed_mps))
+    agv_types = dict(enumerate(scenario.fleet.agv_types))
+    for agv, name in agv_types.items():
+        traffic.assign_type(agv, name)
+    fleet.set_types(agv_types)
 
 
 def _place(vehicles: list[Vehicle], scenario: Scenario, layout: Layout,
@@ -111,16 +132,22 @@ def _place(vehicles: list[Vehicle], scenario: Scenario, layout: Layout,
 
 
 def simulate(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
-             progress: ProgressCallback | None = None, record_occupancy: bool = False) -> RunOutput:
-    """Run the scenario to its end and return what it recorded."""
+             progress: ProgressCallback | None = None, record_occupancy: bool = False,
+             record_moves: bool = False) -> RunOutput:
+    """Run the scenario to its end and return what it recorded. `record_moves`: also every
+    drive, lock wait and placement of every AGV (the replay's data; it changes nothing else)."""
     wall_start = time.perf_counter()
-    model = build_model(scenario, layout, trace, record_occupancy)
+    model = build_model(scenario, layout, trace, record_occupancy, record_moves)
     end = scenario.duration_s
     try:
         for step in range(1, PROGRESS_STEPS + 1):
             model.env.run(until=end * step / PROGRESS_STEPS)
             if progress is not None:
                 progress(model.env.now, end)
+        if record_moves:  # what is under way at the end, as far as it got; then nothing more
+            for vehicle in model.vehicles:
+                vehicle.end_of_run()
+            model.recorder.record_moves = False
     finally:
         model.close()
     sim_events = next(model.env._eid)  # SimPy's count of scheduled events

@@ -2,6 +2,9 @@
 the vehicle's internal links, random critical faults (MTBF), scripted faults, scripted segment
 blocks and scheduled charging. What an AGV does about each is in fleet_sim.sim.agents.vehicle.
 
+Scheduled charging calls go out only when charging is on and the vehicle has a battery model
+(with either off, a call to charge has nothing to do).
+
 Heartbeats are not simulated message by message: a loss is noticed `heartbeat_timeout_s` after it
 starts (a loss shorter than that goes unnoticed, like an obstacle seen for less than 300 ms).
 """
@@ -41,8 +44,10 @@ def start_incidents(env: simpy.Environment, scenario: Scenario, vehicles: list[V
             env.process(_random_internal_losses(env, scenario, vehicle, recorder, rng))
         if incidents.mtbf_h > 0:
             env.process(_random_faults(env, scenario, vehicle, rng))
-    for hour in scenario.charging.schedule_h:
-        env.process(_charging_call(env, scenario, vehicles, fleet, hour))
+    if scenario.charging.enabled and any(p.battery is not None
+                                         for p in scenario.fleet.type_profiles.values()):
+        for hour in scenario.charging.schedule_h:
+            env.process(_charging_call(env, scenario, vehicles, fleet, hour))
 
 
 def _link_loss(env: simpy.Environment, scenario: Scenario, vehicle: Vehicle,
@@ -114,6 +119,7 @@ def _charging_call(env: simpy.Environment, scenario: Scenario, vehicles: list[Ve
     yield env.timeout(first)
     while True:
         for vehicle in vehicles:
-            fleet.commands.send("stop", vehicle.call_to_charge)
+            if vehicle.has_battery:  # a type without a battery model never charges
+                fleet.commands.send("stop", vehicle.call_to_charge)
         yield env.timeout(24 * 3600.0)
 

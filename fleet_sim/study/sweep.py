@@ -702,6 +702,8 @@ def collect_summary(out_dir: Path, factor_names: Sequence[str]) -> pd.DataFrame:
             for key, value in figures.items():
                 if isinstance(value, dict):  # errors_by_code -> errors_by_code.E_101, ...
                     row.update({f"{key}.{k}": v for k, v in value.items()})
+                elif isinstance(value, list):  # setup_warnings: one line each
+                    row[key] = "\n".join(str(v) for v in value)
                 elif key not in row:
                     row[key] = value
             row["error"] = ""

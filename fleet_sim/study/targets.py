@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import difflib
 
-from fleet_sim.analysis.kpis import kpi_names
+from fleet_sim.analysis.kpis import is_kpi_name, kpi_names
 from fleet_sim.config.experiment import Experiment
 from fleet_sim.errors import InputError
 
@@ -18,7 +18,7 @@ def check_targets_known(experiment: Experiment) -> None:
     """Raise InputError naming the first target whose KPI no run reports."""
     known = sorted(kpi_names())
     for i, target in enumerate(experiment.spec.targets):
-        if target.kpi in known:
+        if target.kpi in known or is_kpi_name(target.kpi):  # per-type: by_type.<type>.<kpi>
             continue
         closest = difflib.get_close_matches(target.kpi, known, n=1)
         hint = f" (closest: {closest[0]})" if closest else ""

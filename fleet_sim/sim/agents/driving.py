@@ -13,6 +13,9 @@ claims are behind it and how far). A deadlock victim is told so by a `DeadlockVi
 cause; any other interrupt cause (a fault) makes it let go of the claim it waited for and passes
 the interrupt on.
 
+Mutex zones: before it takes its first node in a zone, the AGV takes the zone (waiting outside
+when it is full, the wait counted in `zone_wait_s`); it lets go once it holds no node in it.
+
 `Driver` is the base of `fleet_sim.sim.agents.vehicle.Vehicle`; the hooks `_speed_cap_mps`,
 `_travel` and `_arrived` let the vehicle add markers, obstacles, battery use and slow modes to
 each hop.
@@ -33,7 +36,7 @@ from fleet_sim.config.scenario import TrafficConfig
 from fleet_sim.config.vehicle import VehicleProfile
 from fleet_sim.errors import SimulationError
 from fleet_sim.model.kinematics import Piece, traverse
-from fleet_sim.model.records import Order, Recorder
+from fleet_sim.model.records import MoveRecord, Order, Recorder
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.traffic.control import Traffic
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim
@@ -86,9 +89,20 @@ class Driver:
         """The motion backend's event for the hop under way."""
         self._moved = 0.0
         """Share of the hop under way already driven (see `_move`)."""
+        self._plan: tuple[tuple[Piece, ...], float, float, float] | None = None
+        """With moves recorded: the hop under way's pieces, entry and exit speed and time."""
+        self._drive_open: tuple[str, str, float, float] | None = None
+        """With moves recorded: the stretch being driven (u, v, since_s, driven_s)."""
+        self._wait_open: tuple[float, str, int] | None = None
+        """With moves recorded: the lock wait under way (since_s, lock, holder)."""
         traffic.register(self)
+        self.routes = traffic.routes_of(agv_id)
+        """Routes and hop kinematics of this AGV's vehicle type."""
         self._corridors = traffic.corridors_of(self.id)
         """The corridors traffic has given this AGV (its view of the table, read-only)."""
+        self._zones = traffic.zones_of(self.id)
+        """The mutex zones traffic has given this AGV (read-only view)."""
+        self._zone_since: dict[str, float] = {}
 
     def note(self, event: str, detail: str = "") -> None:
         """Record an event that changes no state (deadlock, reroute, assignment...)."""
@@ -127,7 +141,12 @@ class Driver:
         """Drive on until `share` of the hop u -> v is behind the AGV."""
         backend = self.traffic.motion_backend
         if backend is None:
-            yield self.env.timeout(time_s * (share - self._moved))
+            if self._plan is not None:
+                self._drive_open = (u, v, self.env.now, time_s * self._moved)
+            try:
+                yield self.env.timeout(time_s * (share - self._moved))
+            finally:  # also when a fault interrupts the hop: the AGV stops where it is
+                self._close_drive()
         elif share >= 1.0:
             assert self._leg is not None
             yield self._leg
@@ -167,15 +186,22 @@ class Driver:
             if not claim.triggered:
                 raise SimulationError(f"AGV {self.id} starts in corridor {corridor.id}, "
                                       "which another AGV already occupies")
+        for zone in traffic.layout.mutex_zones_at.get(node, ()):
+            if not traffic.request(self.id, traffic.zone_locks[zone.id]).triggered:
+                raise SimulationError(f"AGV {self.id} starts on node {node} in zone {zone.id}, "
+                                      "which is full")
+            self._zone_since[zone.id] = self.env.now
         claim = traffic.request(self.id, traffic.node_locks[node])
         if not claim.triggered:
             raise SimulationError(f"AGV {self.id} starts on node {node}, already occupied")
         self.held = [Held(node, claim, self.env.now)]
         self.node = node
+        self._placed("track", node)
 
     def place_in_parking(self, place: Place) -> None:
         self.parked_in = place
         self.node = place.nodes[0]
+        self._placed("parking", self.node)
 
     # ---- on and off the track -------------------------------------------------------------
     def _enter_parking(self, place: Place) -> None:
@@ -185,10 +211,12 @@ class Driver:
         self.held = []
         for cid in list(self._corridors):
             self._release_corridor(cid)
+        self._release_left_zones()
         self.parked_in = place
         self.prev = None
         if self.traffic.motion_backend is not None:
             self.traffic.motion_backend.off_track(self.id)
+        self._placed("parking", place.nodes[0])
 
     def _leave_track(self) -> None:
         """Off the tape (into a parking bay, or taken off by an operator): let go of all."""
@@ -197,9 +225,11 @@ class Driver:
         self.held, self.ahead = [], []
         for cid in list(self._corridors):
             self._release_corridor(cid)
+        self._release_left_zones()
         self.prev, self.speed_mps = None, 0.0
         if self.traffic.motion_backend is not None:
             self.traffic.motion_backend.off_track(self.id)
+        self._placed("off", self.node)
 
     def _reenter_track(self, access: str) -> Proc:
         """Back onto the tape at `access`, once it (and its corridor) is free."""
@@ -209,18 +239,22 @@ class Driver:
             lock = traffic.corridor_locks[corridor.id]
             claim = traffic.request(self.id, lock)
             yield from self._wait(lock, claim, may_escape=False)
+        for zone in traffic.layout.mutex_zones_at.get(access, ()):
+            gate = traffic.zone_locks[zone.id]
+            yield from self._wait_zone(zone.id, gate, traffic.request(self.id, gate), False)
         lock = traffic.node_locks[access]
         claim = traffic.request(self.id, lock)
         yield from self._wait(lock, claim, may_escape=False)
         self.held = [Held(access, claim, self.env.now)]
         self.node = access
+        self._placed("track", access)
 
     # ---- driving ------------------------------------------------------------------------------
     def drive(self, goal: str, stop_early: Callable[[], bool] | None = None) -> Proc:
         """Drive to `goal` and stop there, holding it. When `stop_early()` turns true, stop at
         the first node where the AGV can instead."""
         self.goal = goal
-        path = self.traffic.route(self.node, goal)
+        path = self.traffic.route(self.node, goal, self.id)
         i = 0
         while self.node != self.goal:
             nxt = path[i + 1]
@@ -238,7 +272,7 @@ class Driver:
                 w = path[i + 2]
                 x = path[i + 3] if i + 3 < len(path) else None
                 if self._try_take(nxt, w, x):
-                    v_end_max = self.traffic.routes.pass_speed_mps(self.node, nxt, w)
+                    v_end_max = self.routes.pass_speed_mps(self.node, nxt, w)
             yield from self._hop(nxt, v_end_max)
             i += 1
             if stop_early is not None and stop_early():
@@ -263,16 +297,19 @@ class Driver:
             self._leg = backend.hop(self.id, self.prev, u, nxt, after, cap)
             time_s = v_end = 0.0
         elif cap is None:
-            time_s, v_end = traffic.routes.hop(self.prev, u, nxt, self.speed_mps, v_end_max)
+            time_s, v_end = self.routes.hop(self.prev, u, nxt, self.speed_mps, v_end_max)
         else:
             pieces: tuple[Piece, ...] = tuple(
                 (length, min(limit, cap))
-                for length, limit in traffic.routes.pieces(self.prev, u, nxt))
-            motion = traffic.motion
+                for length, limit in self.routes.pieces(self.prev, u, nxt))
+            motion = self.routes.motion
             time_s, v_end = traverse(pieces, self.speed_mps, min(v_end_max, cap),
                                      motion.accel_mps2, motion.decel_mps2)
+        if self.recorder.record_moves and backend is None:
+            self._plan = (self._pieces(u, nxt, cap), self.speed_mps, v_end, time_s)
         start = self.env.now
         yield from self._travel(u, nxt, time_s)
+        self._plan = None
         if self._leg is not None:
             if self._moved < 1.0:  # a _travel override that did not drive to the end
                 yield from self._move(u, nxt, time_s, 1.0)
@@ -294,6 +331,8 @@ class Driver:
         if corridor is not None:
             traffic.entered_corridor(self.id, corridor.id)
         self._release_left_corridors()
+        if self._zones:
+            self._release_left_zones()
         yield from self._arrived(nxt, length)
 
     def _take(self, node: str, after: str | None) -> Generator[simpy.Event, Any, bool]:
@@ -313,12 +352,23 @@ class Driver:
                     self._release_corridor(cid)
                 return False
             taken_corridors.append(corridor.id)
+        for zone in traffic.layout.mutex_zones_at.get(node, ()):
+            if zone.id in self._zones:
+                continue
+            gate = traffic.zone_locks[zone.id]
+            ok = yield from self._wait_zone(zone.id, gate, traffic.request(self.id, gate))
+            if not ok:
+                for cid in taken_corridors:
+                    self._release_corridor(cid)
+                self._release_left_zones()
+                return False
         lock = traffic.node_locks[node]
         claim = traffic.request(self.id, lock)
         ok = yield from self._wait(lock, claim)
         if not ok:
             for cid in taken_corridors:
                 self._release_corridor(cid)
+            self._release_left_zones()
             return False
         self.ahead.append(Held(node, claim, self.env.now))
         return True
@@ -337,6 +387,13 @@ class Driver:
         lock = traffic.node_locks[node]
         if not lock.is_free:
             return False
+        zones = [z.id for z in traffic.layout.mutex_zones_at.get(node, ())
+                 if z.id not in self._zones]
+        if any(not traffic.zone_locks[z].is_free for z in zones):
+            return False
+        for zone_id in zones:
+            traffic.request(self.id, traffic.zone_locks[zone_id])
+            self._zone_since[zone_id] = self.env.now
         for cid, entry in needed:
             traffic.request(self.id, traffic.corridor_locks[cid], entry=entry)
         self.ahead.append(Held(node, traffic.request(self.id, lock), self.env.now))
@@ -352,6 +409,9 @@ class Driver:
         traffic = self.traffic
         start = env.now
         traffic.start_waiting(self.id, lock)
+        if self.recorder.record_moves:
+            holder = lock.holder
+            self._wait_open = (start, str(lock.key), -1 if holder is None else holder)
         looked_at: tuple[int, bool, bool] | None = None
         try:
             while True:
@@ -384,12 +444,26 @@ class Driver:
         finally:
             traffic.stop_waiting(self.id)
             self.recorder.blocked(start, env.now)
+            self._close_wait()
+
+    def _wait_zone(self, zone_id: str, gate: Lock, claim: Claim,
+                   may_escape: bool = True) -> Generator[simpy.Event, Any, bool]:
+        """`_wait` for a mutex zone, its waiting time counted for the zone."""
+        start = self.env.now
+        ok = yield from self._wait(gate, claim, may_escape)
+        if start < self.env.now:
+            self.recorder.zone_waited(zone_id, start, self.env.now)
+        if ok:
+            self._zone_since[zone_id] = self.env.now
+        return ok
 
     def _get_out(self) -> Generator[simpy.Event, Any, list[str]]:
         """After giving up a wait: take the escape (another route, or one hop back), or wait a
         little and try the usual route again. Returns the new path from the current node."""
         escape = self.traffic.take_escape(self.id) or self.traffic.escape_for(self)
         self._drop_pending_corridors()
+        if self._zones:
+            self._release_left_zones()
         assert self.goal is not None
         if escape is not None and escape.kind in ("reroute", "circulate"):
             self.note(escape.kind, " ".join(escape.path[:4]) + (" ..." if len(escape.path) > 4
@@ -400,9 +474,49 @@ class Driver:
             if self._try_take(self.node, step, None):
                 self.note("backoff", f"{self.node} -> {step}")
                 yield from self._hop(step, 0.0)
-                return self.traffic.route(self.node, self.goal)
+                return self.traffic.route(self.node, self.goal, self.id)
         yield self.env.timeout(float(self.rng.exponential(self.config.backoff_s)))
-        return self.traffic.route(self.node, self.goal)
+        return self.traffic.route(self.node, self.goal, self.id)
+
+    # ---- the replay's record (moves) ----------------------------------------------------------
+    def _pieces(self, u: str, v: str, cap: float | None) -> tuple[Piece, ...]:
+        pieces = self.routes.pieces(self.prev, u, v)
+        if cap is None:
+            return pieces
+        return tuple((length, min(limit, cap)) for length, limit in pieces)
+
+    def _placed(self, kind: str, node: str) -> None:
+        if self.recorder.record_moves:
+            now = self.env.now
+            self.recorder.moved(MoveRecord(self.id, kind, now, now, node))
+
+    def _close_drive(self) -> None:
+        if self._drive_open is None or self._plan is None:
+            return
+        u, v, since, driven = self._drive_open
+        self._drive_open = None
+        now = self.env.now
+        if now <= since or not self.recorder.record_moves:
+            return
+        pieces, v_in, v_out, hop_s = self._plan
+        curve_m, curve_mps = pieces[0] if len(pieces) > 1 else (0.0, 0.0)
+        motion = self.routes.motion
+        self.recorder.moved(MoveRecord(self.id, "drive", since, now, u, v, -1, hop_s, driven,
+                                       v_in, v_out, curve_m, curve_mps, pieces[-1][1],
+                                       motion.accel_mps2, motion.decel_mps2))
+
+    def _close_wait(self) -> None:
+        if self._wait_open is None:
+            return
+        since, lock, holder = self._wait_open
+        self._wait_open = None
+        self.recorder.moved(MoveRecord(self.id, "wait", since, self.env.now, self.node, lock,
+                                       holder))
+
+    def end_of_run(self) -> None:
+        """The run ends: record the stretch or the wait under way, as far as it got."""
+        self._close_drive()
+        self._close_wait()
 
     # ---- releasing ------------------------------------------------------------------------------
     def _release(self, held: Held) -> None:
@@ -433,6 +547,17 @@ class Driver:
             if any((a, b) in corridor.segments for a, b in itertools.pairwise(nodes)):
                 continue
             self._release_corridor(cid)
+
+    def _release_left_zones(self) -> None:
+        """Let go of the mutex zones in which the AGV holds no node (and is not driving to
+        one)."""
+        spots = {h.node for h in self.held} | {h.node for h in self.ahead}
+        zones = {z.id: z for z in self.traffic.layout.traffic_zones}
+        for zone_id, claim in list(self._zones.items()):
+            if claim.triggered and not spots & zones[zone_id].nodes:
+                self.traffic.free(self.id, claim)
+                self.recorder.occupied("zone", zone_id, self.id,
+                                       self._zone_since.pop(zone_id, self.env.now), self.env.now)
 
     def _drop_pending_corridors(self) -> None:
         for cid, (_, entry) in list(self._corridors.items()):

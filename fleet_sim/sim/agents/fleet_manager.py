@@ -15,6 +15,30 @@ Chargers: an AGV asks for one; the fleet manager gives it the nearest free charg
 Orders of a failed AGV: one not yet loaded goes back to the front of the queue; a loaded one is
 recorded as failed (its load is with the broken AGV).
 
+Work conservation (fleet_sim.model.not_dispatched): AGVs tell the fleet manager of every change
+of state or link (`status_changed`), so it knows which stand Idle. Whenever orders wait, it
+records for each Idle AGV why it is not given one (`_reason`: a command on its way, waiting for
+a charger, battery low with charging off, no FMS link, the status poll not yet come), as
+`not_dispatched` events on changes only. It looks once per simulated instant, after every
+other event of that instant (`EndOfInstant`), so what it records is the settled state, not the
+steps an AGV takes within one instant. An Idle AGV with orders waiting and none of these
+reasons would be a dispatching bug: the run stops with a SimulationError naming it.
+
+Vehicle types (mixed fleets, or a layout whose stations have `allowed_types`; `set_types`): an
+order goes only to an AGV whose type may serve both its stations, oldest order first; an order
+that no idle AGV may serve waits while younger ones are served (no head-of-line blocking). An
+Idle AGV that may serve none of the waiting orders is recorded as not dispatched for the reason
+``type_not_allowed`` (work conservation). An
+order that no type of the fleet may serve (from a trace; flows are checked when the scenario is
+read) fails when it is created, with failure ``type_not_allowed``.
+
+Multi-stop orders (fleet_sim.config.chains): an order goes only to an AGV whose type may serve
+every stop; the docking node of each stop is chosen when the order is assigned, and the AGV is
+chosen by its travel time to the next stop. An AGV that fails while it carries no load (before
+a pickup, or between a dropoff and the next pickup) gives the order back: it returns to the
+front of the queue with the stops not yet done (a shorter chain, the same order id; stops done
+stay done). One that fails loaded loses the order, as a plain one (`order_failed`).
+
 Admission (scenario `dispatch.max_active_agvs`, off by default: RSS-AGV-001 has no such rule):
 at most N AGVs on the track at once; the others wait in parking. An AGV holds an admission from
 the moment the fleet manager gives a parked AGV work (an order or a charger) until it has driven
@@ -37,11 +61,15 @@ from functools import partial
 from typing import Any, Protocol
 
 import simpy
+from simpy.events import EventPriority
 
 from fleet_sim.config.layout import Layout, Place
 from fleet_sim.config.scenario import DispatchConfig
+from fleet_sim.errors import SimulationError
+from fleet_sim.model.not_dispatched import NOT_DISPATCHED, NOT_DISPATCHED_END, NotDispatched
 from fleet_sim.model.records import Order, Recorder
-from fleet_sim.sim.agents.dispatch import POLICIES, DispatchPolicy
+from fleet_sim.model.states import VehicleState
+from fleet_sim.sim.agents.dispatch import POLICIES, Candidate, DispatchPolicy, TravelTime
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.traffic.control import Traffic
 
@@ -66,6 +94,11 @@ class FleetAgv(Protocol):
         ...
 
     @property
+    def state(self) -> VehicleState:
+        """Its RSS-AGV-001 state, as its status reports it."""
+        ...
+
+    @property
     def in_parking(self) -> bool:
         """The AGV stands in a parking area, off the track."""
         ...
@@ -77,7 +110,20 @@ class FleetAgv(Protocol):
         """The assign command with `order` has reached the AGV."""
 
 
+END_OF_INSTANT = EventPriority(2)
+"""SimPy priority after URGENT (0) and NORMAL (1): processed after every other event of the same
+simulated time, including those scheduled later within it."""
 
+
+class EndOfInstant(simpy.Event):
+    """An event that fires at the current time, after every other event of this instant (like
+    simpy.Timeout(0), at a lower priority)."""
+
+    def __init__(self, env: simpy.Environment) -> None:
+        super().__init__(env)
+        self._ok = True
+        self._value = None
+        env.schedule(self, priority=END_OF_INSTANT)
 
 
 class FleetManager:
@@ -101,15 +147,55 @@ class FleetManager:
         self.bound_for: Counter[str] = Counter()
         self.chargers_free: list[Place] = list(layout.chargers)
         self.charger_queue: deque[tuple[FleetAgv, simpy.Event]] = deque()
+        self.charger_cancelled: set[simpy.Event] = set()
+        """Charger requests given up while their charger's assign command was on its way."""
         self.max_active = config.max_active_agvs
         """Admission: most AGVs on the track at once (None: no limit)."""
         self.admitted: set[int] = set()
         """AGVs holding an admission (on the track, or given work to leave parking for)."""
         recorder.queue_lengths.append((env.now, 0))
+        # work conservation: who stands Idle, and what holds each back
+        self.standing: dict[int, FleetAgv] = {}
+        """AGVs in state Idle, by id, in the order they became Idle."""
+        self.held_back: dict[int, NotDispatched] = {}
+        """Reasons AGVs gave when they withdrew (battery low)."""
+        self.polling: set[int] = set()
+        """AGVs that are free but not yet noticed (the next status poll)."""
+        self.resuming: set[int] = set()
+        """AGVs a resume command is on its way to."""
+        self.charger_wait: set[int] = set()
+        """AGVs that asked for a charger and do not have it yet."""
+        self.not_dispatched: dict[int, tuple[FleetAgv, NotDispatched]] = {}
+        """The open not_dispatched spells: AGV id -> (AGV, reason)."""
+        self._review_due = False
+        self.agv_types: dict[int, str] = {}
+        """AGV id -> its vehicle type; empty: every AGV may serve every order."""
+
+    # ---- vehicle types ----------------------------------------------------------------------
+    def set_types(self, agv_types: dict[int, str]) -> None:
+        """The vehicle type of each AGV: orders go only to types their stations allow."""
+        self.agv_types = dict(agv_types)
+
+    def may_serve(self, agv: FleetAgv, order: Order) -> bool:
+        """May `agv`'s type serve both stations of `order`?"""
+        kind = self.agv_types.get(agv.id)
+        if kind is None:
+            return True
+        places = self.layout.places
+        if order.stops:
+            return all(places[s].serves(kind) for s in order.stops)
+        return places[order.pickup].serves(kind) and places[order.dropoff].serves(kind)
+
+    def _travel_of(self, agv: Candidate) -> TravelTime:
+        return partial(self.traffic.travel_time_s, client_id=agv.id)
 
     # ---- orders -----------------------------------------------------------------------------
     def submit(self, order: Order) -> None:
         self.recorder.orders.append(order)
+        if self.agv_types and not self._servable(order):
+            order.failed_s = self.env.now
+            order.failure = "type_not_allowed"
+            return
         self.waiting.append(order)
         self._dispatch()
 
@@ -119,10 +205,13 @@ class FleetManager:
             return
         offer = self.offers.get(agv.id, 0) + 1
         self.offers[agv.id] = offer
+        self.held_back.pop(agv.id, None)
         delay = self.commands.notice_delay_s(agv.id)
         if delay <= 0:
             self._take_offer(agv, offer)
         else:
+            self.polling.add(agv.id)
+            self._changed()
             self.env.process(self._notice(agv, offer, delay))
 
     def _notice(self, agv: FleetAgv, offer: int,
@@ -131,18 +220,51 @@ class FleetManager:
         self._take_offer(agv, offer)
 
     def _take_offer(self, agv: FleetAgv, offer: int) -> None:
-        if self.offers.get(agv.id) == offer and agv not in self.idle:
-            self.idle.append(agv)
+        if self.offers.get(agv.id) == offer:
+            self.polling.discard(agv.id)
+            if agv not in self.idle:
+                self.idle.append(agv)
             self._dispatch()
 
-    def withdraw(self, agv: FleetAgv) -> None:
-        """The AGV is no longer available for orders (charging, failed...)."""
+    def withdraw(self, agv: FleetAgv, reason: NotDispatched | None = None) -> None:
+        """The AGV is no longer available for orders (charging, failed...); `reason`: why, if
+        it stands Idle meanwhile for a reason of its own (battery low)."""
         self.offers[agv.id] = self.offers.get(agv.id, 0) + 1
+        self.polling.discard(agv.id)
+        if reason is None:
+            self.held_back.pop(agv.id, None)
+        else:
+            self.held_back[agv.id] = reason
         if agv in self.idle:
             self.idle.remove(agv)
+        self._changed()
 
     def link_restored(self) -> None:
         self._dispatch()
+
+    def status_changed(self, agv: FleetAgv) -> None:
+        """The AGV's state or FMS link changed (its status says so)."""
+        if agv.state is VehicleState.IDLE:
+            self.standing[agv.id] = agv
+        elif agv.id in self.standing:
+            del self.standing[agv.id]
+            self.held_back.pop(agv.id, None)
+        else:
+            return
+        self._changed()
+
+    def resume(self, agv: FleetAgv) -> Generator[simpy.Event, Any, None]:
+        """Send the AGV the resume command after its link is back (for its process to yield
+        from); it stands Idle until the command arrives."""
+        if self.commands.immediate:
+            return
+        self.resuming.add(agv.id)
+        self._changed()
+        try:
+            yield from self.commands.wait("resume")
+        finally:
+            self.resuming.discard(agv.id)
+            self._changed()
 
     @property
     def park_idle(self) -> bool:
@@ -150,7 +272,20 @@ class FleetManager:
         return self.config.park_idle
 
     def requeue(self, agv: FleetAgv, order: Order) -> None:
-        """An order its AGV cannot carry out goes back to the front of the queue."""
+        """An order its AGV cannot carry out goes back to the front of the queue (a chain with
+        the stops not yet done)."""
+        if order.stops:
+            self._undock_chain(order)
+            if order.stops_done == 0:
+                order.pickup_node = None
+            order.dropoff_node = None
+            order.agv = None
+            order.assigned_s = None
+            order.reassigned += 1
+            agv.note("order_reassigned", f"order {order.id} from stop {order.stops_done + 1}")
+            self.waiting.appendleft(order)
+            self._dispatch()
+            return
         for node in (order.pickup_node, order.dropoff_node):
             if node is not None:
                 self.bound_for[node] -= 1
@@ -166,6 +301,9 @@ class FleetManager:
     def order_failed(self, order: Order, code: str) -> None:
         order.failed_s = self.env.now
         order.failure = code
+        if order.stops:
+            self._undock_chain(order)
+            return
         if order.pickup_node is not None and order.picked_s is None:
             self.bound_for[order.pickup_node] -= 1
         if order.dropoff_node is not None:
@@ -180,12 +318,27 @@ class FleetManager:
         self.withdraw(agv)
         event = self.env.event()
         self.charger_queue.append((agv, event))
+        self.charger_wait.add(agv.id)
         self._assign_chargers()
         return event
 
-    def cancel_charger_request(self, agv: FleetAgv) -> None:
-        self.charger_queue = deque((v, e) for v, e in self.charger_queue if v is not agv)
+    def cancel_charger_request(self, agv: FleetAgv, request: simpy.Event) -> None:
+        """`agv` no longer waits for the charger `request` stands for (its battery died, or it
+        failed while waiting): out of the queue if still in it; a charger already given to it
+        goes back at once, one whose assign command is on its way goes back when it arrives.
+        Without this a charger would stay given to an AGV that never comes."""
+        if any(e is request for _, e in self.charger_queue):
+            self.charger_queue = deque((v, e) for v, e in self.charger_queue
+                                       if e is not request)
+        elif request.triggered:
+            place = request.value
+            assert isinstance(place, Place)
+            self.release_charger(place)
+        else:
+            self.charger_cancelled.add(request)
+        self.charger_wait.discard(agv.id)
         self._release_if_parked(agv)
+        self._changed()
 
     def release_charger(self, place: Place) -> None:
         self.chargers_free.append(place)
@@ -201,26 +354,54 @@ class FleetManager:
             agv, event = queued
             self._admit(agv)
             place = min(self.chargers_free, key=lambda c: (
-                self.traffic.travel_time_s(agv.dispatch_node, c.nodes[0]), c.id))
+                self.traffic.travel_time_s(agv.dispatch_node, c.nodes[0], agv.id), c.id))
             self.chargers_free.remove(place)
-            self.commands.send("assign", partial(event.succeed, place))
+            self.commands.send("assign", partial(self._charger_delivered, agv, event, place))
+
+    def _charger_delivered(self, agv: FleetAgv, event: simpy.Event, place: Place) -> None:
+        """The charger's assign command has reached the AGV (or, if it gave up meanwhile, the
+        charger goes back)."""
+        if event in self.charger_cancelled:
+            self.charger_cancelled.discard(event)
+            self.release_charger(place)
+            return
+        self.charger_wait.discard(agv.id)
+        event.succeed(place)
+        self._changed()
 
     def left_station(self, node: str) -> None:
         self.bound_for[node] -= 1
 
+    def _servable(self, order: Order) -> bool:
+        places = self.layout.places
+        if order.stops:
+            return any(all(places[s].serves(t) for s in order.stops)
+                       for t in set(self.agv_types.values()))
+        return any(places[order.pickup].serves(t) and places[order.dropoff].serves(t)
+                   for t in set(self.agv_types.values()))
+
     def _dispatch(self) -> None:
         changed = False
-        while self.waiting and self.idle:
-            order = self.waiting[0]
-            pickup = self.layout.places[order.pickup]
-            agv = self._choose(min(pickup.nodes, key=lambda n: self.bound_for[n]))
+        skipped = 0  # orders at the head that no idle AGV's type may serve (types only)
+        while len(self.waiting) > skipped and self.idle:
+            order = self.waiting[skipped]
+            pickup = self.layout.places[order.chain[order.stops_done]]
+            agv = self._choose(min(pickup.nodes, key=lambda n: self.bound_for[n]), order)
             if agv is None:
+                if self.agv_types and any(v.fms_link for v in self.idle):
+                    skipped += 1  # ready AGVs, none of a type that may serve it: the next
+                    continue
                 break
-            self.waiting.popleft()
-            order.pickup_node = self._docking_node(pickup)
-            self.idle.remove(agv)
-            self._admit(agv)
-            order.dropoff_node = self._docking_node(self.layout.places[order.dropoff])
+            del self.waiting[skipped]
+            if order.stops:
+                self.idle.remove(agv)
+                self._admit(agv)
+                self._dock_chain(order)
+            else:
+                order.pickup_node = self._docking_node(pickup)
+                self.idle.remove(agv)
+                self._admit(agv)
+                order.dropoff_node = self._docking_node(self.layout.places[order.dropoff])
             order.agv = agv.id
             order.assigned_s = self.env.now
             self.assigning.add(agv.id)
@@ -229,22 +410,95 @@ class FleetManager:
         if changed or not self.recorder.queue_lengths \
                 or self.recorder.queue_lengths[-1][1] != len(self.waiting):
             self.recorder.queue_lengths.append((self.env.now, len(self.waiting)))
+        self._changed()
 
     def _deliver(self, agv: FleetAgv, order: Order) -> None:
         """The assign command has reached the AGV."""
         self.assigning.discard(agv.id)
         agv.assign(order)
+        self._changed()
 
-    def _choose(self, pickup_node: str) -> FleetAgv | None:
+    def _choose(self, pickup_node: str, order: Order | None = None) -> FleetAgv | None:
         ready = [v for v in self.idle if v.fms_link and self._may_admit(v)]
         if not ready:
             return None
+        if self.agv_types and order is not None:
+            allowed = [v for v in ready if self.may_serve(v, order)]
+            if not allowed:
+                return None  # recorded as not_dispatched type_not_allowed by _review
+            return self.policy.choose(allowed, pickup_node, self.traffic.travel_time_s,
+                                      self._travel_of)
         return self.policy.choose(ready, pickup_node, self.traffic.travel_time_s)
+
+    def _dock_chain(self, order: Order) -> None:
+        """Choose the docking node of every stop of a chain not yet done."""
+        for k in range(order.stops_done, len(order.stops)):
+            order.stop_nodes[k] = self._docking_node(self.layout.places[order.stops[k]])
+        if order.stops_done == 0:
+            order.pickup_node = order.stop_nodes[0]
+        order.dropoff_node = order.stop_nodes[-1]
+
+    def _undock_chain(self, order: Order) -> None:
+        """Let go of the docking nodes of the stops of a chain not yet done."""
+        for k in range(order.stops_done, len(order.stops)):
+            node = order.stop_nodes[k]
+            if node is not None:
+                self.bound_for[node] -= 1
+            order.stop_nodes[k] = None
 
     def _docking_node(self, place: Place) -> str:
         node = min(place.nodes, key=lambda n: self.bound_for[n])
         self.bound_for[node] += 1
         return node
+
+    # ---- work conservation ----------------------------------------------------------------------
+    def _changed(self) -> None:
+        """Something that may start, change or end a not_dispatched spell happened: look again
+        at the end of this instant (once, however many things changed)."""
+        if self._review_due or not (self.waiting or self.not_dispatched):
+            return
+        self._review_due = True
+        EndOfInstant(self.env).callbacks.append(self._review)
+
+    def _review(self, _event: simpy.Event | None = None) -> None:
+        """Record, for every Idle AGV, why it has no order while orders wait (on changes)."""
+        self._review_due = False
+        for agv_id, (agv, ended) in list(self.not_dispatched.items()):
+            if not self.waiting or agv_id not in self.standing:
+                del self.not_dispatched[agv_id]
+                agv.note(NOT_DISPATCHED_END, ended.value)
+        if not self.waiting:
+            return
+        for agv in self.standing.values():
+            reason = self._reason(agv)
+            if reason is None:
+                raise SimulationError(
+                    f"work conservation broken at t={self.env.now:.3f} s: AGV {agv.id} stands "
+                    f"Idle at {agv.node} while {len(self.waiting)} orders wait, and nothing "
+                    "holds it back (a new reason for not dispatching needs a NotDispatched "
+                    "member, fleet_sim.model.not_dispatched)")
+            current = self.not_dispatched.get(agv.id)
+            if current is None or current[1] is not reason:
+                self.not_dispatched[agv.id] = (agv, reason)
+                agv.note(NOT_DISPATCHED, reason.value)
+
+    def _reason(self, agv: FleetAgv) -> NotDispatched | None:
+        """Why the Idle AGV `agv` has no order while orders wait; None if nothing holds it."""
+        if agv.id in self.assigning or agv.id in self.resuming:
+            return NotDispatched.COMMAND_IN_TRANSIT
+        if agv.id in self.charger_wait:
+            return NotDispatched.WAITING_FOR_CHARGER
+        if agv.id in self.held_back:
+            return self.held_back[agv.id]
+        if not agv.fms_link:
+            return NotDispatched.LINK_LOST
+        if agv.id in self.polling:
+            return NotDispatched.STATUS_POLL
+        if not self._may_admit(agv):
+            return NotDispatched.ADMISSION_FULL
+        if self.agv_types and not any(self.may_serve(agv, order) for order in self.waiting):
+            return NotDispatched.TYPE_NOT_ALLOWED
+        return None
 
     # ---- admission ----------------------------------------------------------------------------
     def _may_admit(self, agv: FleetAgv) -> bool:
@@ -280,8 +534,8 @@ class FleetManager:
         free = [p for p in self.layout.parking if self.parking_free[p.id] > 0]
         if not free:
             return None
-        place = min(free, key=lambda p: (self.traffic.travel_time_s(agv.node, p.nodes[0]),
-                                         p.id))
+        place = min(free, key=lambda p: (
+            self.traffic.travel_time_s(agv.node, p.nodes[0], agv.id), p.id))
         self.parking_free[place.id] -= 1
         return place
 

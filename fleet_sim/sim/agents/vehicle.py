@@ -6,11 +6,16 @@ sensor, link, obstacle timing...) and records the transition. The behaviours:
 
 * Orders: Idle -> Moving -> Loading (L_Approach, L_Handshake, L_Transfer, L_Verify) -> Moving ->
   Unloading (U_Approach, U_Handshake, U_Transfer, U_Verify) -> Idle. L_Transfer is the station's
-  handling time; the other sub-states take the vehicle profile's times.
+  handling time; the other sub-states take the vehicle profile's times. A multi-stop order
+  (fleet_sim.config.chains) repeats Moving -> Loading -> Moving -> Unloading stop by stop,
+  Unloading -> Moving (Event_Next_Stop) between a drop-off and the next pickup (`_serve_chain`).
 * Battery: drained per metre (more when loaded), by handling and by idling. An AGV at or below the
   charging threshold (or P_050, Event_Low_Battery) asks the fleet manager for a charger, drives
   there (Moving, purpose to_charger), docks, charges along the charge curve until SOC > 95 %,
-  undocks. Below P_051 it shuts down with E_201.
+  undocks. Below P_051 it shuts down with E_201. With charging off, an AGV at P_050 withdraws
+  from the orders (reason battery_low) and stands until E_201. With no battery model
+  (``fleet.vehicle.battery: off``) SOC stays at 100 %, nothing drains it, the AGV never charges
+  and its SOC is not recorded.
 * Obstacles (4.2.3/4.2.4): met while driving; seen for < 300 ms they only slow the AGV (the
   P_005/P_006 zone), otherwise it pauses until the path has been clear for 2000 ms; E_101 after
   5 minutes paused. Scripted blocks stop AGVs in front of the blocked segment.
@@ -27,13 +32,16 @@ sensor, link, obstacle timing...) and records the transition. The behaviours:
 
 The AGV knows the fleet manager only through `FleetManagerLink` (declared here); the fleet
 manager hands it work by calling `assign`, and a scheduled charging call by `call_to_charge`.
-Both wake the AGV if it waits idle; nothing outside writes its attributes.
+Both wake the AGV if it waits idle; nothing outside writes its attributes. The AGV tells the
+fleet manager of every change of state or FMS link (`status_changed`), which is how the fleet
+manager knows which AGVs stand Idle while orders wait (fleet_sim.model.not_dispatched).
 """
 
 from __future__ import annotations
 
 import math
-from typing import NoReturn, Protocol
+from collections.abc import Generator
+from typing import Any, NoReturn, Protocol
 
 import networkx as nx
 import numpy as np
@@ -41,9 +49,11 @@ import simpy
 
 from fleet_sim.config.layout import MARKER_SPEED_MPS, Place
 from fleet_sim.config.scenario import ChargingConfig, IncidentsConfig, Rules, Scenario
+from fleet_sim.config.vehicle import BatteryProfile, VehicleProfile
 from fleet_sim.model.battery import StateOfCharge, charge_time_s
 from fleet_sim.model.error_codes import describe
-from fleet_sim.model.records import Order, Recorder
+from fleet_sim.model.not_dispatched import NotDispatched
+from fleet_sim.model.records import MoveRecord, Order, Recorder
 from fleet_sim.model.state_machine import transition_for
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.agents.driving import Driver, Proc
@@ -62,7 +72,11 @@ class FleetManagerLink(Protocol):
 
     def vehicle_idle(self, agv: Vehicle) -> None: ...
 
-    def withdraw(self, agv: Vehicle) -> None: ...
+    def withdraw(self, agv: Vehicle, reason: NotDispatched | None = None) -> None: ...
+
+    def status_changed(self, agv: Vehicle) -> None: ...
+
+    def resume(self, agv: Vehicle) -> Generator[simpy.Event, Any, None]: ...
 
     def requeue(self, agv: Vehicle, order: Order) -> None: ...
 
@@ -80,9 +94,14 @@ class FleetManagerLink(Protocol):
 
     def request_charger(self, agv: Vehicle) -> simpy.Event: ...
 
-    def cancel_charger_request(self, agv: Vehicle) -> None: ...
+    def cancel_charger_request(self, agv: Vehicle, request: simpy.Event) -> None: ...
 
     def release_charger(self, place: Place) -> None: ...
+
+
+NO_BATTERY = BatteryProfile(initial_soc_pct=100.0, drive_wh_per_m=0.0, drive_loaded_wh_per_m=0.0,
+                            handling_w=0.0, idle_w=0.0)
+"""The battery of an AGV without a battery model: full, and nothing drains it."""
 
 
 class Failure:
@@ -96,15 +115,19 @@ class Failure:
 class Vehicle(Driver):
     def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
                  fleet: FleetManagerLink, recorder: Recorder, scenario: Scenario,
-                 rng: np.random.Generator, incident_rng: np.random.Generator) -> None:
-        super().__init__(agv_id, env, traffic, recorder, scenario.fleet.vehicle,
-                         scenario.traffic, rng)
+                 rng: np.random.Generator, incident_rng: np.random.Generator,
+                 profile: VehicleProfile | None = None) -> None:
+        """`profile`: the AGV's vehicle (mixed fleets); default `scenario.fleet.vehicle`."""
+        profile = profile if profile is not None else scenario.fleet.vehicle
+        super().__init__(agv_id, env, traffic, recorder, profile, scenario.traffic, rng)
         self.fleet = fleet
         self.rules: Rules = scenario.rules
         self.charging: ChargingConfig = scenario.charging
         self.incidents: IncidentsConfig = scenario.incidents
         self.incident_rng = incident_rng
-        self.battery = StateOfCharge(scenario.fleet.vehicle.battery, env.now)
+        self.has_battery = profile.battery is not None
+        """False with ``battery: off``: no drain, no charging, no SOC record."""
+        self.battery = StateOfCharge(profile.battery or NO_BATTERY, env.now)
         self._wake_up: simpy.Event = env.event()
         """Succeeds when an order or a charging call comes for the AGV waiting idle."""
         self.loaded = False
@@ -121,6 +144,8 @@ class Vehicle(Driver):
         self.charge_due = False
         self.marker_speed_mps: float | None = None
         self.parking_target: Place | None = None
+        self._charger_asked_s: float | None = None
+        """With moves recorded: when the AGV asked for the charger it waits for."""
 
     # ---- facts the guards read (fleet_sim.model.state_machine.Facts) -----------------------
     @property
@@ -178,8 +203,10 @@ class Vehicle(Driver):
         now = self.env.now
         self.recorder.event(now, self.id, event, self.state.value, transition.target.value,
                             self.node, detail)
-        self.recorder.soc_samples.append((now, self.id, self.soc_pct))
+        if self.has_battery:
+            self.recorder.soc_samples.append((now, self.id, self.soc_pct))
         self.state = transition.target
+        self.fleet.status_changed(self)
         return True
 
     def start(self) -> None:
@@ -200,7 +227,9 @@ class Vehicle(Driver):
     def assign(self, order: Order) -> None:
         """The assign command with `order` has reached the AGV."""
         self.order = order
-        self.note("order_assigned", f"order {order.id} {order.pickup} -> {order.dropoff}")
+        self.note("order_assigned", f"order {order.id} {order.pickup} -> {order.dropoff}"
+                  if not order.stops else
+                  f"order {order.id} {' -> '.join(order.stops[order.stops_done:])}")
         self._wake()
 
     def call_to_charge(self) -> None:
@@ -228,7 +257,7 @@ class Vehicle(Driver):
                 yield from self._recover(interrupt.cause)
 
     def needs_charge(self) -> bool:
-        if not self.charging.enabled:
+        if not self.charging.enabled or not self.has_battery:
             return False
         soc = self.soc_pct
         if soc <= max(self.charging.threshold_pct, self.rules.bat_low_pct):
@@ -245,6 +274,7 @@ class Vehicle(Driver):
             return
         if self.soc_pct <= self.rules.bat_low_pct:
             # may not start moving (P_050) and may not charge: stand until the battery dies
+            self.fleet.withdraw(self, NotDispatched.BATTERY_LOW)
             yield self.env.timeout(
                 self.battery.seconds_until(self.env.now, self.rules.bat_critical_pct) + 1e-6)
             self.fail_now("E_201")
@@ -276,9 +306,10 @@ class Vehicle(Driver):
                         return
                 if self.order is not None:
                     return
-        # wait for work, a charging call, the battery running down, or (no link) 10 minutes
+        # wait for work, a charging call, the battery running down (to the charging threshold, or
+        # with charging off to P_050, below which it may not move), or (no link) 10 minutes
         threshold = max(self.charging.threshold_pct, self.rules.bat_low_pct) \
-            if self.charging.enabled else self.rules.bat_critical_pct
+            if self.charging.enabled else self.rules.bat_low_pct
         until_low = self.battery.seconds_until(self.env.now, threshold)
         events = [self._wake_up]
         if math.isfinite(until_low):
@@ -305,6 +336,9 @@ class Vehicle(Driver):
         return self.order is not None or self.charge_due or not self.fms_link
 
     def _serve(self, order: Order) -> Proc:
+        if order.stops:
+            yield from self._serve_chain(order)
+            return
         if not self.fire("Event_Transport_Order", f"to_pickup order {order.id}"):
             self.fleet.requeue(self, order)
             self.order = None
@@ -330,11 +364,58 @@ class Vehicle(Driver):
         self.order = None
         self.fire("Event_Unload_Complete", f"order {order.id}")
 
+    def _serve_chain(self, order: Order) -> Proc:
+        """A multi-stop order, from the first stop not yet done: at each pickup the Loading
+        sub-states, at each dropoff the Unloading ones; after a dropoff that is not the last,
+        Unloading -> Moving on to the next pickup (Event_Next_Stop). The details of the arrival
+        and completion events name the stop: ``order 7 stop 2/4 DROP_B``."""
+        stops, n = order.stops, len(order.stops)
+
+        def tag(k: int) -> str:
+            return f"order {order.id} stop {k + 1}/{n} {stops[k]}"
+
+        if not self.fire("Event_Transport_Order", f"to_pickup {tag(order.stops_done)}"):
+            self.fleet.requeue(self, order)
+            self.order = None
+            return
+        if self.parked_in is not None:
+            yield from self._unpark()
+        for k in range(order.stops_done, n):
+            node = order.stop_nodes[k]
+            assert node is not None
+            yield from self._drive_to(node)
+            if k % 2 == 0:  # a pickup
+                if k == 0:
+                    order.pickup_arrival_s = self.env.now
+                self.fire("Event_Arrived_Pickup", tag(k))
+                yield from self._handle("L", order.stop_handling_s[k], order)
+                self.loaded = True
+                if k == 0:
+                    order.picked_s = self.env.now
+                order.stops_done = k + 1
+                self.fleet.left_station(node)
+                self.fire("Event_Load_Complete", f"to_dropoff {tag(k + 1)}")
+                continue
+            last = k == n - 1
+            if last:
+                order.dropoff_arrival_s = self.env.now
+            self.fire("Event_Arrived_Dropoff", tag(k))
+            yield from self._handle("U", order.stop_handling_s[k], order)
+            self.loaded = False
+            order.stops_done = k + 1
+            self.fleet.left_station(node)
+            if last:
+                order.delivered_s = self.env.now
+                self.order = None
+                self.fire("Event_Unload_Complete", tag(k))
+            else:
+                self.fire("Event_Next_Stop", f"to_pickup {tag(k + 1)}")
+
     def _handle(self, prefix: str, transfer_s: float, order: Order) -> Proc:
         """The four sub-states of Loading (4.3) or Unloading: approach, handshake, transfer,
         verify. A failed transfer raises E_102."""
         profile = self.profile
-        self.battery.draw(self.env.now, profile.battery.handling_w)
+        self.battery.draw(self.env.now, self.battery.profile.handling_w)
         for name, seconds in (("Approach", profile.approach_s),
                               ("Handshake", profile.handshake_s),
                               ("Transfer", transfer_s), ("Verify", profile.verify_s)):
@@ -342,9 +423,9 @@ class Vehicle(Driver):
             yield self.env.timeout(seconds)
             if name == "Transfer" and self.incidents.transfer_failure_prob > 0 \
                     and self.incident_rng.random() < self.incidents.transfer_failure_prob:
-                self.battery.draw(self.env.now, profile.battery.idle_w)
+                self.battery.draw(self.env.now, self.battery.profile.idle_w)
                 self.fail_now("E_102")
-        self.battery.draw(self.env.now, profile.battery.idle_w)
+        self.battery.draw(self.env.now, self.battery.profile.idle_w)
 
     def _unpark(self) -> Proc:
         place = self.parked_in
@@ -363,9 +444,17 @@ class Vehicle(Driver):
         events: list[simpy.Event] = [request]
         if math.isfinite(until_dead):
             events.append(self.env.timeout(until_dead + 1e-6))
-        yield self.env.any_of(events)
+        if self.recorder.record_moves:
+            self._charger_asked_s = asked
+        try:
+            yield self.env.any_of(events)
+        except simpy.Interrupt:  # failed while waiting: the charger must not wait for it
+            self.fleet.cancel_charger_request(self, request)
+            raise
+        finally:
+            self._close_charger_wait(request)
         if not request.triggered:
-            self.fleet.cancel_charger_request(self)
+            self.fleet.cancel_charger_request(self, request)
             self.fail_now("E_201")
         place = request.value
         assert isinstance(place, Place)
@@ -387,10 +476,24 @@ class Vehicle(Driver):
         self.battery.set_soc(self.env.now, max(start, target))
         yield self.env.timeout(place.docking_s)  # undocking
         self.docked = False
-        self.battery.draw(self.env.now, self.profile.battery.idle_w)
+        self.battery.draw(self.env.now, self.battery.profile.idle_w)
         self.fire("Event_Charge_Complete", f"{place.id} soc {self.soc_pct:.1f}")
         self.charger = None
         self.fleet.release_charger(place)
+
+    def _close_charger_wait(self, request: simpy.Event | None) -> None:
+        asked = self._charger_asked_s
+        if asked is None:
+            return
+        self._charger_asked_s = None
+        got = request.value.id if request is not None and request.triggered \
+            and isinstance(request.value, Place) else ""
+        self.recorder.moved(MoveRecord(self.id, "charger_wait", asked, self.env.now, self.node,
+                                       got))
+
+    def end_of_run(self) -> None:
+        super().end_of_run()
+        self._close_charger_wait(None)
 
     # ---- driving with the link, markers, obstacles and the battery -----------------------------
     def _drive_to(self, goal: str) -> Proc:
@@ -416,7 +519,7 @@ class Vehicle(Driver):
             if left <= 0:
                 self.fail_now("E_301")
             yield self.link_changed | self.env.timeout(left)
-        yield from self.fleet.commands.wait("resume")
+        yield from self.fleet.resume(self)
         if not self.fire("Event_Heartbeat_Restored", "link back"):
             # may not move on (SOC at or below P_050): charge first, then resume the trip
             yield from self._charge()
@@ -426,6 +529,7 @@ class Vehicle(Driver):
         """An FMS link loss starts (+1) or ends (-1); wakes an AGV waiting for the link."""
         self.links_down += down_delta
         self._link_changed()
+        self.fleet.status_changed(self)
 
     def _link_changed(self) -> None:
         if not self.link_changed.triggered:
@@ -483,7 +587,7 @@ class Vehicle(Driver):
         paused for 5 minutes, it raises E_101.
         """
         rules = self.rules
-        motion = self.traffic.motion
+        motion = self.routes.motion
         v = max(self.speed_mps, min(self.profile.max_speed_mps, 1.0))
         self._obstacle_near_s = seen_s
         if self.traffic.motion_backend is not None:
@@ -558,7 +662,7 @@ class Vehicle(Driver):
 
         if has_link(self.node):
             return self.node
-        times = nx.single_source_dijkstra_path_length(graph, self.node, weight="free_time_s")
+        times = nx.single_source_dijkstra_path_length(graph, self.node, weight=self.routes.weight)
         good = [n for n in sorted(times, key=lambda n: (times[n], n)) if has_link(n)]
         return good[0] if good else self.node
 

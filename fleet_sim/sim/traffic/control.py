@@ -33,6 +33,8 @@ Rules (see docs/engine.md for why):
   wait (`_suspects`): before, every blocked AGV walked its whole chain every `deadlock_check_s`
   when anything had changed anywhere, which in a long queue cost (queue length)^2 per check
   period, the largest cost of a congested run with 200 AGVs.
+* Mutex zones (the layout's `traffic_zones`, fleet_sim.sim.traffic.zones): at most N AGVs
+  inside; an AGV takes the zone's lock (a `Gate`) before its first node in it.
 * Giving way: an AGV that has waited `give_way_after_s` for a corridor or a side track while
   another AGV queues behind it drives on and comes back round (circulates) instead of blocking
   the main loop. This keeps loops flowing, which avoids most deadlocks by construction.
@@ -61,8 +63,9 @@ from fleet_sim.sim.traffic.deadlock import (
     KnownCycles,
     find_cycle,
 )
-from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock
+from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock, ZoneLock
 from fleet_sim.sim.traffic.routing import Routes
+from fleet_sim.sim.traffic.zones import Gate
 
 
 @dataclass(frozen=True)
@@ -149,6 +152,16 @@ class Traffic:
         self._escapes: dict[int, Escape] = {}
         """Escapes chosen for clients that have not taken them yet."""
         self._cycles = KnownCycles()
+        self._type_routes: dict[str, Routes] = {}
+        """Vehicle type -> its routes (mixed fleets, layouts with `allowed_types`)."""
+        self._client_routes: dict[int, Routes] = {}
+        """Client id -> its type's routes; clients not listed use `routes`."""
+        self.zone_locks: dict[str, Gate] = {
+            z.id: Gate(env, ZoneLock(z.id), z.capacity) for z in layout.traffic_zones
+            if z.kind == "mutex"}
+        """Mutex zone id -> its lock."""
+        self._zones: dict[int, dict[str, Claim]] = {}
+        """Client id -> zone id -> its zone claims (granted or waiting)."""
         self.costs = costs if costs is not None else RouteCosts()
         self._weak: dict[tuple[str, str], float] = {
             (u, v): self.costs.weak_wifi_s for u, v, d in self.graph.edges(data=True)
@@ -158,11 +171,27 @@ class Traffic:
         """Clients found in a wait-for cycle that may still stand: they look again while they
         wait; nobody else needs to (see the module docstring)."""
 
+    # ---- vehicle types ----------------------------------------------------------------------
+    def add_vehicle_type(self, name: str, motion: Motion) -> None:
+        """Route AGVs of type `name` on the segments open to it, at its own top speed."""
+        self._type_routes[name] = Routes(self.layout, motion, name)
+
+    def assign_type(self, client_id: int, name: str) -> None:
+        """Client `client_id` is an AGV of type `name` (added with `add_vehicle_type`)."""
+        self._client_routes[client_id] = self._type_routes[name]
+
+    def routes_of(self, client_id: int | None) -> Routes:
+        """The routes and hop kinematics of a client's vehicle type."""
+        if client_id is None:
+            return self.routes
+        return self._client_routes.get(client_id, self.routes)
+
     # ---- clients and the table --------------------------------------------------------------
     def register(self, client: TrafficClient) -> None:
         self._clients[client.id] = client
         self._nodes[client.id] = set()
         self._corridors[client.id] = {}
+        self._zones[client.id] = {}
 
     def request(self, client_id: int, lock: Lock, entry: str | None = None) -> Claim:
         """Ask for `lock`: the claim is granted (`triggered`) at once if the lock is free, else
@@ -172,6 +201,8 @@ class Traffic:
         key = lock.key
         if isinstance(key, NodeLock):
             self._nodes[client_id].add(claim)
+        elif isinstance(key, ZoneLock):
+            self._zones[client_id][key.zone_id] = claim
         else:
             self._corridors[client_id][key.corridor_id] = (claim, entry)
         self.version += 1
@@ -199,6 +230,9 @@ class Traffic:
         key = lock.key
         if isinstance(key, NodeLock):
             self._nodes[client_id].discard(claim)
+        elif isinstance(key, ZoneLock):
+            if self._zones[client_id].get(key.zone_id) is claim:
+                del self._zones[client_id][key.zone_id]
         else:
             hold = self._corridors[client_id].get(key.corridor_id)
             if hold is not None and hold[0] is claim:
@@ -213,6 +247,10 @@ class Traffic:
     def corridors_of(self, client_id: int) -> Mapping[int, CorridorHold]:
         """The client's corridor claims (corridor id -> claim, entry node), oldest first."""
         return self._corridors[client_id]
+
+    def zones_of(self, client_id: int) -> Mapping[str, Claim]:
+        """The client's mutex zone claims (zone id -> claim)."""
+        return self._zones[client_id]
 
     def holds_corridor(self, client_id: int, corridor_id: int) -> bool:
         hold = self._corridors[client_id].get(corridor_id)
@@ -238,9 +276,9 @@ class Traffic:
                 yield node, holder
 
     # ---- routes -----------------------------------------------------------------------------
-    def travel_time_s(self, src: str, dest: str) -> float:
-        """Free-flow travel time from src to dest."""
-        return self.routes.travel_time_s(src, dest)
+    def travel_time_s(self, src: str, dest: str, client_id: int | None = None) -> float:
+        """Free-flow travel time from src to dest (for client `client_id`'s vehicle type)."""
+        return self.routes_of(client_id).travel_time_s(src, dest)
 
     def block(self, u: str, v: str, from_s: float, until_s: float) -> None:
         for key in ((u, v), (v, u)):
@@ -255,26 +293,28 @@ class Traffic:
                 return end
         return None
 
-    def route(self, src: str, dest: str) -> list[str]:
+    def route(self, src: str, dest: str, client_id: int | None = None) -> list[str]:
         """Nodes from src to dest by shortest free-flow travel time (plus the route costs, if
-        any), src included; around segments reported blocked when there is a way round."""
+        any), src included; around segments reported blocked when there is a way round (for
+        client `client_id`'s vehicle type)."""
+        routes = self.routes_of(client_id)
         if self.known_blocks:
             now = self.env.now
             self.known_blocks = {k: t for k, t in self.known_blocks.items() if t > now}
         if self.costs.active:
             if self.known_blocks:
-                around = self.routes.route_costed(src, dest, self._extra_cost,
-                                                  frozenset(self.known_blocks))
+                around = routes.route_costed(src, dest, self._extra_cost,
+                                             frozenset(self.known_blocks))
                 if around is not None:
                     return around
-            path = self.routes.route_costed(src, dest, self._extra_cost)
+            path = routes.route_costed(src, dest, self._extra_cost)
             assert path is not None  # the layout is strongly connected
             return path
         if self.known_blocks:
-            around = self.routes.route_avoiding(src, dest, set(), set(self.known_blocks))
+            around = routes.route_avoiding(src, dest, set(), set(self.known_blocks))
             if around is not None:
                 return around
-        return self.routes.route(src, dest)
+        return routes.route(src, dest)
 
     def _extra_cost(self, u: str, v: str) -> float:
         cost = self._weak.get((u, v), 0.0)
@@ -361,18 +401,27 @@ class Traffic:
             if hold is None or not hold[0].triggered or hold[1] is not None:
                 return Escape("yield", (node,))
             inside = self.layout.corridors[cid]
+        if must_free is not None and isinstance(must_free.key, ZoneLock):
+            zone = next(z for z in self.layout.traffic_zones if z.id == must_free.key.zone_id)
+            if not any(c.triggered and cast(Lock, c.resource).key in
+                       {NodeLock(n) for n in zone.nodes} for c in self._nodes[client_id]):
+                return Escape("yield", (node,))  # holds the zone, not yet inside: give it up
         avoid_nodes: set[str] = set()
         avoid_edges: set[tuple[str, str]] = set()
         if waited is not None:
             key = waited.key
             if isinstance(key, NodeLock):
                 avoid_nodes.add(key.node)
+            elif isinstance(key, ZoneLock):
+                avoid_nodes |= next(z.nodes for z in self.layout.traffic_zones
+                                    if z.id == key.zone_id)
             else:
                 corridor = self.layout.corridors[key.corridor_id]
                 avoid_nodes |= corridor.members
                 avoid_edges |= corridor.segments
+        routes = self.routes_of(client_id)
         if goal is not None and (avoid_nodes or avoid_edges):
-            path = self.routes.route_avoiding(node, goal, avoid_nodes, avoid_edges)
+            path = routes.route_avoiding(node, goal, avoid_nodes, avoid_edges)
             if path is not None and len(path) > 1 \
                     and self._free_to_enter(client_id, node, path[1]) \
                     and (inside is None or any(n not in inside.members for n in path[1:])):
@@ -386,6 +435,8 @@ class Traffic:
                 continue
             if inside is not None and nxt in inside.members:
                 continue
+            if not routes.allows(node, nxt):
+                continue
             if self._free_to_enter(client_id, node, nxt):
                 return Escape("backoff", (node, nxt))
         return None
@@ -394,17 +445,22 @@ class Traffic:
                    avoid_edges: set[tuple[str, str]]) -> Escape | None:
         """Drive on two hops past what blocks the way (a busy corridor, a full siding) and come
         back round by the usual route: a loop's answer to waiting in everyone's way."""
+        routes = self.routes_of(client_id)
         for first in sorted(self.graph.successors(node)):
             if first in avoid_nodes or (node, first) in avoid_edges:
+                continue
+            if not routes.allows(node, first):
                 continue
             if not self._free_to_enter(client_id, node, first):
                 continue
             for second in sorted(self.graph.successors(first)):
                 if second in avoid_nodes or (first, second) in avoid_edges or second == node:
                     continue
+                if not routes.allows(first, second):
+                    continue
                 if self.layout.corridor_of(first, second) is not None:
                     continue  # circulate on one-way track only
-                back = self.route(second, goal)
+                back = self.route(second, goal, client_id)
                 return Escape("circulate", (node, first, *back))
         return None
 
@@ -416,11 +472,17 @@ class Traffic:
         for claim, _ in self._corridors[client_id].values():
             if claim.triggered and claim.resource.put_queue:
                 return True
+        for claim in self._zones[client_id].values():
+            if claim.triggered and claim.resource.put_queue:
+                return True
         return False
 
     def _free_to_enter(self, client_id: int, node: str, nxt: str) -> bool:
         if not self.node_locks[nxt].is_free:
             return False
+        for zone in self.layout.mutex_zones_at.get(nxt, ()):
+            if zone.id not in self._zones[client_id] and not self.zone_locks[zone.id].is_free:
+                return False
         corridor = self.layout.corridor_of(node, nxt)
         if corridor is None or self.holds_corridor(client_id, corridor.id):
             return True

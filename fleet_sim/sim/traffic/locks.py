@@ -36,7 +36,17 @@ class CorridorLock:
         return f"corridor {self.corridor_id}"
 
 
-LockKey = NodeLock | CorridorLock
+@dataclass(frozen=True, slots=True)
+class ZoneLock:
+    """The lock on one mutex zone (fleet_sim.sim.traffic.zones.Gate)."""
+
+    zone_id: str
+
+    def __str__(self) -> str:
+        return f"zone {self.zone_id}"
+
+
+LockKey = NodeLock | CorridorLock | ZoneLock
 
 
 class Claim(Request):

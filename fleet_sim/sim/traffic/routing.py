@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -40,6 +41,7 @@ from fleet_sim.config.layout import Layout
 from fleet_sim.model.kinematics import Motion, Piece, stop_entry_speed, traverse
 
 Detour = tuple[str, str, frozenset[str], frozenset[tuple[str, str]]]
+Weight = str | Callable[[str, str, dict[str, Any]], float | None]
 ExtraCost = Callable[[str, str], float]
 """Seconds added to the route cost of segment u -> v (>= 0)."""
 NO_EDGES: frozenset[tuple[str, str]] = frozenset()
@@ -48,13 +50,28 @@ NO_EDGES: frozenset[tuple[str, str]] = frozenset()
 class Routes:
     """Route tables, detours and the hop kinematics cache of one layout and vehicle type."""
 
-    def __init__(self, layout: Layout, motion: Motion) -> None:
+    def __init__(self, layout: Layout, motion: Motion, vehicle_type: str | None = None) -> None:
         self.layout = layout
         self.graph = layout.graph
         self.motion = motion
-        for _, _, data in self.graph.edges(data=True):
-            data["free_time_s"] = data["length_m"] / min(data["speed_limit_mps"],
-                                                         motion.max_speed_mps)
+        self.vehicle_type = vehicle_type
+        """None: every segment, the graph's `free_time_s`. A type (mixed fleets, layouts
+        with `allowed_types`): only the segments open to it, at its own top speed."""
+        self.weight: Weight = "free_time_s"
+        """The edge weight of routes (networkx: an attribute name or a function)."""
+        self._reverse_weight: Weight = "free_time_s"
+        self._times: dict[tuple[str, str], float] = {}
+        if vehicle_type is None:
+            for _, _, data in self.graph.edges(data=True):
+                data["free_time_s"] = data["length_m"] / min(data["speed_limit_mps"],
+                                                             motion.max_speed_mps)
+        else:
+            times = {(u, v): data["length_m"] / min(data["speed_limit_mps"],
+                                                    motion.max_speed_mps)
+                     for u, v, data in layout.type_graph(vehicle_type).edges(data=True)}
+            self._times = times
+            self.weight = self._type_weight
+            self._reverse_weight = self._type_weight_reversed
         self._to_dest: dict[str, tuple[dict[str, float], dict[str, str]]] = {}
         self._pieces: dict[tuple[str | None, str, str], tuple[Piece, ...]] = {}
         self._stop_entry: dict[tuple[str, str, str], float] = {}
@@ -65,15 +82,32 @@ class Routes:
         """Segment u -> v's attributes (length_m, speed_limit_mps, rssi_dbm...)."""
         self._succ: dict[str, tuple[tuple[str, float], ...]] = {
             u: tuple((v, d["free_time_s"]) for v, d in self.graph.succ[u].items())
+            for u in self.graph.nodes} if vehicle_type is None else {
+            u: tuple((v, self._times[(u, v)]) for v in self.graph.succ[u] if (u, v) in self._times)
             for u in self.graph.nodes}
-        """Successors and free-flow hop times, in the graph's order (A* of the detours)."""
+        """Successors and free-flow hop times, in the graph's order (A* of the detours); for a
+        vehicle type only the segments open to it, at its own speed."""
+
+    def _type_weight(self, u: str, v: str, _data: dict[str, Any]) -> float | None:
+        """Free-flow time of u -> v for this type; None (closed) off its segments."""
+        return self._times.get((u, v))
+
+    def _type_weight_reversed(self, u: str, v: str, _data: dict[str, Any]) -> float | None:
+        """The same on the reversed graph, whose edge u -> v is the segment v -> u."""
+        return self._times.get((v, u))
+
+    def allows(self, u: str, v: str) -> bool:
+        """May an AGV of this type drive u -> v?"""
+        if self.vehicle_type is None:
+            return True
+        return (u, v) in self._times
 
     # ---- routes ---------------------------------------------------------------------------
     def _table(self, dest: str) -> tuple[dict[str, float], dict[str, str]]:
         table = self._to_dest.get(dest)
         if table is None:
             dist, paths = nx.single_source_dijkstra(self.graph.reverse(copy=False), dest,
-                                                    weight="free_time_s")
+                                                    weight=self._reverse_weight)
             next_hop = {n: p[-2] for n, p in paths.items() if len(p) > 1}
             table = (dist, next_hop)
             self._to_dest[dest] = table
@@ -81,7 +115,9 @@ class Routes:
 
     def travel_time_s(self, src: str, dest: str) -> float:
         """Free-flow travel time from src to dest (cached per destination)."""
-        return self._table(dest)[0][src]
+        if self.vehicle_type is None:
+            return self._table(dest)[0][src]
+        return self._table(dest)[0].get(src, math.inf)  # no way there for this type
 
     def route(self, src: str, dest: str) -> list[str]:
         """Nodes from src to dest by shortest free-flow travel time, src included."""

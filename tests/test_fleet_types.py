@@ -1,0 +1,221 @@
+"""Mixed fleets: vehicle types from profiles, per-type routes and speeds, segments and stations
+open to some types only, dispatch by type, and the per-type KPIs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from agv_model.profile import load_profile
+from fleet_sim.analysis.kpis import compute_kpis, is_kpi_name, kpi_value
+from fleet_sim.config.layout import load_layout
+from fleet_sim.config.profile_factsheet import import_factsheet
+from fleet_sim.config.scenario import (
+    check_against_layout,
+    load_layout_for,
+    load_scenario,
+    parse_scenario,
+    resolved,
+)
+from fleet_sim.config.trace import TraceOrder
+from fleet_sim.errors import InputError
+from fleet_sim.sim.engine import build_model, simulate
+from tests.conftest import DATA, LAYOUTS
+
+AISLE_NODES = {"A1", "Q", "A3"}
+
+
+def aisle_layout(folder: Path) -> Path:
+    """The tiny loop with a side aisle under its south side (S1 -> A1 -> Q -> A3 -> S3) that
+    only type `narrow` may drive, and a pickup station PICK2 at Q that only `narrow` serves."""
+    data: dict[str, Any] = yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text("utf-8"))
+    data["name"] = "aisle_loop"
+    data["nodes"] += [{"id": "A1", "x": 4, "y": -4}, {"id": "Q", "x": 8, "y": -4,
+                                                      "kind": "station"},
+                      {"id": "A3", "x": 12, "y": -4}]
+    data["segments"] += [{"from": a, "to": b, "allowed_types": ["narrow"]}
+                         for a, b in (("S1", "A1"), ("A1", "Q"), ("Q", "A3"), ("A3", "S3"))]
+    data["stations"].append({"id": "PICK2", "kind": "pickup", "nodes": ["Q"],
+                             "handling": {"dist": "fixed", "mean_s": 10},
+                             "allowed_types": ["narrow"]})
+    path = folder / "aisle_loop.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return path
+
+
+def mixed(folder: Path, **fields: Any) -> dict[str, Any]:
+    aisle_layout(folder)
+    return {"name": "mixed", "layout": "aisle_loop.yaml", "duration_h": 4, "warmup_h": 0.2,
+            "seed": 3,
+            "fleet": {"vehicles": [{"type": "narrow", "count": 2},
+                                   {"type": "wide", "count": 2,
+                                    "vehicle": {"max_speed_mps": 0.5, "length_m": 1.5}}]},
+            "demand": {"rate_per_hour": 50,
+                       "flows": [{"from": "PICK", "to": "DROP"}, {"from": "PICK2", "to": "DROP"}]},
+            "charging": {"enabled": False}, **fields}
+
+
+def run_mixed(folder: Path, **fields: Any) -> Any:
+    scenario = parse_scenario(mixed(folder, **fields), "<test>", folder)
+    layout = load_layout_for(scenario, "<test>")
+    model = build_model(scenario, layout, record_occupancy=True)
+    model.env.run(until=scenario.duration_s)
+    return scenario, layout, model
+
+
+def test_a_type_never_enters_an_aisle_closed_to_it(tmp_path: Path) -> None:
+    _, _, model = run_mixed(tmp_path)
+    wide = {2, 3}
+    for spell in model.recorder.occupancy:
+        if spell.agv in wide:
+            nodes = set(spell.key.split(">"))
+            assert not nodes & AISLE_NODES, spell
+    for event in model.recorder.events:
+        if event.agv in wide:
+            assert event.node not in AISLE_NODES, event
+    orders = model.recorder.orders
+    at_pick2 = [o for o in orders if o.pickup == "PICK2" and o.delivered_s is not None]
+    assert len(at_pick2) > 20  # the aisle is used, by the narrow type only
+    assert {o.agv for o in at_pick2} <= {0, 1}
+    assert any(o.agv in wide for o in orders if o.delivered_s is not None)  # wide AGVs work
+
+
+def test_each_type_drives_at_its_own_top_speed(tmp_path: Path) -> None:
+    _, layout, model = run_mixed(tmp_path)
+    fastest = {0: 1.0, 1: 1.0, 2: 0.5, 3: 0.5}
+    hops = 0
+    for spell in model.recorder.occupancy:
+        if spell.kind != "segment":
+            continue
+        u, v = spell.key.split(">")
+        length = layout.graph.edges[u, v]["length_m"]
+        assert spell.end_s - spell.start_s >= length / fastest[spell.agv] - 1e-9, spell
+        hops += 1
+    assert hops > 1000
+    wide_spells = [s for s in model.recorder.occupancy if s.kind == "segment" and s.agv >= 2]
+    assert min(s.end_s - s.start_s for s in wide_spells) > 4 / 1.0  # never at 1 m/s
+
+
+def test_kpis_per_type_add_up(tmp_path: Path) -> None:
+    scenario, layout, model = run_mixed(tmp_path)
+    figures = compute_kpis(model.recorder, scenario, layout.name)
+    by_type = figures["by_type"]
+    assert list(by_type)[:2] == ["narrow.agvs", "narrow.orders_completed"]
+    assert by_type["narrow.agvs"] + by_type["wide.agvs"] == figures["agvs"] == 4
+    assert by_type["narrow.orders_completed"] + by_type["wide.orders_completed"] \
+        == figures["orders_completed"]
+    assert by_type["narrow.throughput_per_hour"] + by_type["wide.throughput_per_hour"] \
+        == pytest.approx(figures["throughput_per_hour"], abs=1e-5)
+    utilisation = (by_type["narrow.agv_utilisation_pct"] + by_type["wide.agv_utilisation_pct"]) / 2
+    assert utilisation == pytest.approx(figures["agv_utilisation_pct"], abs=1e-4)
+    assert kpi_value(figures, "by_type.wide.throughput_per_hour") \
+        == by_type["wide.throughput_per_hour"]
+    assert is_kpi_name("by_type.wide.throughput_per_hour")
+    assert not is_kpi_name("by_type.wide.speed")
+
+
+def test_an_idle_agv_of_the_wrong_type_is_recorded_not_dispatched(tmp_path: Path) -> None:
+    _, _, model = run_mixed(tmp_path)
+    passed = [e for e in model.recorder.events
+              if e.event == "not_dispatched" and e.detail == "type_not_allowed"]
+    assert passed and {e.agv for e in passed} <= {2, 3}
+    for e in passed:  # every order waiting then was one the AGV's type may not serve
+        waiting = [o for o in model.recorder.orders if o.created_s <= e.time_s
+                   and (o.assigned_s is None or o.assigned_s > e.time_s)]
+        assert waiting and {o.pickup for o in waiting} == {"PICK2"}
+
+
+def test_an_order_no_type_may_serve_fails_when_created(tmp_path: Path) -> None:
+    data = mixed(tmp_path, demand={"kind": "trace", "trace_csv": "orders.csv"})
+    data["fleet"] = {"vehicles": [{"type": "wide", "count": 2}]}
+    scenario = parse_scenario(data, "<test>", tmp_path)
+    layout = load_layout(tmp_path / "aisle_loop.yaml")
+    model = build_model(scenario, layout, [TraceOrder(10.0, "PICK2", "DROP"),
+                                           TraceOrder(20.0, "PICK", "DROP")])
+    model.env.run(until=600)
+    lost, served = model.recorder.orders
+    assert (lost.failed_s, lost.failure, lost.agv) == (10.0, "type_not_allowed", None)
+    assert served.delivered_s is not None
+
+
+def test_a_flow_no_type_may_serve_is_refused(tmp_path: Path) -> None:
+    data = mixed(tmp_path)
+    data["fleet"] = {"vehicles": [{"type": "wide", "count": 2}, {"type": "odd", "count": 1}]}
+    scenario = parse_scenario(data, "<test>", tmp_path)
+    with pytest.raises(InputError, match=r"demand.flows\[1\]: got 'PICK2 -> DROP'"):
+        load_layout_for(scenario, "<test>")
+
+
+def test_a_type_cut_off_from_parking_is_refused(tmp_path: Path) -> None:
+    scenario = parse_scenario(mixed(tmp_path), "<test>", tmp_path)
+    layout = load_layout(tmp_path / "aisle_loop.yaml")
+    spec = layout.spec.model_copy(update={"segments": tuple(
+        s.model_copy(update={"allowed_types": ("narrow",)}) if s.from_node == "NW" else s
+        for s in layout.spec.segments)})
+    from fleet_sim.config.layout import layout_from_spec
+    closed = layout_from_spec(spec, "<layout>")
+    with pytest.raises(InputError, match=r"fleet.vehicles\[1\].type: got 'wide'.*parking PARK"):
+        check_against_layout(scenario, closed, "<test>")
+
+
+def test_a_profile_fills_the_vehicle_and_the_resolved_config_reloads(tmp_path: Path) -> None:
+    imported = import_factsheet(DATA / "tugger.factsheet.json")
+    (tmp_path / "profiles").mkdir()
+    (tmp_path / "profiles" / "tugger.yaml").write_text(imported.text(), encoding="utf-8")
+    data = mixed(tmp_path)
+    data["fleet"]["vehicles"][1] = {"type": "tugger", "count": 1,
+                                    "profile": "profiles/tugger.yaml",
+                                    "vehicle": {"min_gap_m": 0.8, "battery": {"idle_w": 5}}}
+    data["fleet"]["vehicles"].append({"type": "carriro", "count": 1,
+                                      "profile": "carriro-ad-plus"})
+    path = tmp_path / "mixed.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    scenario = load_scenario(path)
+    tugger = scenario.fleet.type_profiles["tugger"]
+    kin = imported.data["kinematics"]
+    assert tugger.max_speed_mps == kin["max_speed_mmps"] / 1000
+    assert tugger.length_m == kin["length_mm"] / 1000
+    assert tugger.min_gap_m == 0.8 and tugger.battery.idle_w == 5  # the vehicle's own win
+    carriro = load_profile("carriro-ad-plus")
+    bridged = scenario.fleet.type_profiles["carriro"].battery
+    per_m = carriro.battery.moving_w / (carriro.kinematics.max_speed_mps * 3600)
+    assert bridged.drive_wh_per_m == pytest.approx(per_m)
+    assert bridged.drive_loaded_wh_per_m == pytest.approx(1.5 * per_m)
+    assert bridged.capacity_wh == carriro.battery.capacity_wh
+    assert scenario.fleet.size == 4
+    assert scenario.fleet.agv_types == ("narrow", "narrow", "tugger", "carriro")
+    plain = resolved(scenario)
+    assert "size" not in plain["fleet"] and "vehicle" not in plain["fleet"]
+    elsewhere = tmp_path / "results"
+    elsewhere.mkdir()
+    again = elsewhere / "config.resolved.yaml"
+    again.write_text(yaml.safe_dump(plain, sort_keys=False), encoding="utf-8")
+    assert resolved(load_scenario(again)) == plain  # the profile named by absolute path
+    assert load_scenario(again).fleet.agv_profiles == scenario.fleet.agv_profiles
+
+
+def test_a_one_type_fleet_is_written_and_reported_as_before(tmp_path: Path) -> None:
+    scenario = parse_scenario({"layout": "tiny_loop.yaml", "duration_h": 0.5, "warmup_h": 0.1,
+                               "fleet": {"size": 2}}, "<test>", LAYOUTS)
+    assert "vehicles" not in resolved(scenario)["fleet"]
+    run = simulate(scenario, load_layout(LAYOUTS / "tiny_loop.yaml"))
+    assert "by_type" not in compute_kpis(run.recorder, scenario, "tiny_loop")
+
+
+@pytest.mark.parametrize(("fleet", "message"), [
+    ({"size": 3, "vehicles": [{"type": "a", "count": 2}]},
+     r"fleet.size: got 3; expected the sum of fleet.vehicles' counts \(2\)"),
+    ({"vehicle": {"max_speed_mps": 1}, "vehicles": [{"type": "a", "count": 2}]},
+     r"fleet.vehicle: .*no fleet.vehicle with fleet.vehicles"),
+    ({"vehicles": [{"type": "a", "count": 1}, {"type": "a", "count": 1}]},
+     r"fleet.vehicles\[1\].type: got 'a'; expected a type named once"),
+    ({"vehicles": [{"type": "a", "count": 1, "profile": "nowhere"}]},
+     r"fleet.vehicles\[0\].profile: got 'nowhere'; expected a bundled profile"),
+    ({"vehicles": [{"type": "a", "count": 0}]}, r"fleet.vehicles\[0\].count"),
+])
+def test_bad_fleets_are_named(fleet: dict[str, Any], message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        parse_scenario({"layout": "tiny_loop.yaml", "fleet": fleet}, "<test>", LAYOUTS)
