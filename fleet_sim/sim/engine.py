@@ -4,6 +4,11 @@ Random streams come from one `numpy.random.SeedSequence(seed)`, spawned in a fix
 (arrivals, handling times, traffic back-off per AGV, incidents per AGV, command link jitter), so
 the same scenario and seed give the same run, and runs that differ only in fleet size still
 share their order streams.
+
+What a run records stays in its `Recorder` (in memory) unless `simulate` is handed a
+`RecordSink`: then the recorder streams its rows to the sink as the run goes and closes it when
+the run has reached its end (fleet_sim.model.records). A run that raises leaves the sink open:
+its owner decides what a half-written sink becomes.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.model.kinematics import Motion, MotionBackend
-from fleet_sim.model.records import Recorder
+from fleet_sim.model.records import BATCH_ROWS, Recorder, RecordSink
 from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.agents.vehicle import Vehicle
 from fleet_sim.sim.commands import CommandPath
@@ -60,12 +65,14 @@ class RunOutput:
 
 
 def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
-                record_occupancy: bool = False) -> Model:
+                record_occupancy: bool = False, sink: RecordSink | None = None,
+                batch_rows: int = BATCH_ROWS) -> Model:
     env = simpy.Environment()
     profile = scenario.fleet.vehicle
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
                     profile.turn_speed_mps)
-    recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy)
+    recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy,
+                        sink=sink, batch_rows=batch_rows)
     traffic = Traffic(env, layout, motion, recorder)
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
         from fleet_sim.sim.motion.sumo import SumoMotion
@@ -108,10 +115,13 @@ def _place(vehicles: list[Vehicle], scenario: Scenario, layout: Layout,
 
 
 def simulate(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
-             progress: ProgressCallback | None = None, record_occupancy: bool = False) -> RunOutput:
-    """Run the scenario to its end and return what it recorded."""
+             progress: ProgressCallback | None = None, record_occupancy: bool = False,
+             sink: RecordSink | None = None, batch_rows: int = BATCH_ROWS) -> RunOutput:
+    """Run the scenario to its end and return what it recorded: everything in memory, or,
+    with a `sink`, streamed to it in batches of `batch_rows` rows of a kind (the sink is
+    closed at the end; the recorder keeps the running totals)."""
     wall_start = time.perf_counter()
-    model = build_model(scenario, layout, trace, record_occupancy)
+    model = build_model(scenario, layout, trace, record_occupancy, sink, batch_rows)
     end = scenario.duration_s
     try:
         for step in range(1, PROGRESS_STEPS + 1):
@@ -120,6 +130,7 @@ def simulate(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (
                 progress(model.env.now, end)
     finally:
         model.close()
+    model.recorder.finish()
     sim_events = next(model.env._eid)  # SimPy's count of scheduled events
     return RunOutput(scenario, layout, model.recorder, model.vehicles, sim_events,
                      time.perf_counter() - wall_start)

@@ -83,11 +83,13 @@ class FleetManager:
         self.bound_for: Counter[str] = Counter()
         self.chargers_free: list[Place] = list(layout.chargers)
         self.charger_queue: deque[tuple[FleetAgv, simpy.Event]] = deque()
-        recorder.queue_lengths.append((env.now, 0))
+        self.queue_recorded = 0
+        """The queue length last recorded (`recorder.queue_length`)."""
+        recorder.queue_length(env.now, 0)
 
     # ---- orders -----------------------------------------------------------------------------
     def submit(self, order: Order) -> None:
-        self.recorder.orders.append(order)
+        self.recorder.order_created(order)
         self.waiting.append(order)
         self._dispatch()
 
@@ -143,6 +145,7 @@ class FleetManager:
     def order_failed(self, order: Order, code: str) -> None:
         order.failed_s = self.env.now
         order.failure = code
+        self.recorder.order_finished(order)
         if order.pickup_node is not None and order.picked_s is None:
             self.bound_for[order.pickup_node] -= 1
         if order.dropoff_node is not None:
@@ -195,9 +198,9 @@ class FleetManager:
             self.assigning.add(agv.id)
             self.commands.send("assign", partial(self._deliver, agv, order))
             changed = True
-        if changed or not self.recorder.queue_lengths \
-                or self.recorder.queue_lengths[-1][1] != len(self.waiting):
-            self.recorder.queue_lengths.append((self.env.now, len(self.waiting)))
+        if changed or self.queue_recorded != len(self.waiting):
+            self.queue_recorded = len(self.waiting)
+            self.recorder.queue_length(self.env.now, self.queue_recorded)
 
     def _deliver(self, agv: FleetAgv, order: Order) -> None:
         """The assign command has reached the AGV."""
