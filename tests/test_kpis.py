@@ -28,9 +28,19 @@ from .conftest import LAYOUTS, ROOT, make_scenario, write_yaml
 START_S, END_S = 900.0, 3600.0
 
 
+def record_orders(rec: Recorder, orders: list[Order]) -> None:
+    """Create the orders, then finish the delivered and failed ones in the order they finished,
+    as a run does."""
+    for order in orders:
+        rec.order_created(order)
+    done = [o for o in orders if o.delivered_s is not None or o.failed_s is not None]
+    for order in sorted(done, key=lambda o: o.delivered_s or o.failed_s or 0.0):
+        rec.order_finished(order)
+
+
 def hand_made_recorder() -> Recorder:
     rec = Recorder(START_S, END_S)
-    rec.orders = [
+    record_orders(rec, [
         Order(1, 100.0, "PICK", "DROP", agv=0, assigned_s=200.0, delivered_s=1000.0),
         Order(2, 1000.0, "PICK", "DROP", agv=0, assigned_s=1200.0, delivered_s=2000.0),
         Order(3, 1500.0, "PICK", "DROP", agv=1, assigned_s=1600.0, delivered_s=3000.0),
@@ -39,7 +49,7 @@ def hand_made_recorder() -> Recorder:
         Order(5, 3500.0, "PICK", "DROP"),  # never assigned
         Order(6, 500.0, "PICK", "DROP", agv=1, assigned_s=600.0, delivered_s=800.0,
               reassigned=1),  # all in the warm-up
-    ]
+    ])
     for event in [(0.0, 0, "boot", "Booting", "Idle"), (0.0, 1, "boot", "Booting", "Idle"),
                   (1200.0, 0, "go", "Idle", "Moving"),
                   (1500.0, 0, "order_assigned", "Idle", "Idle"),  # no change of state
@@ -48,11 +58,13 @@ def hand_made_recorder() -> Recorder:
                   (2400.0, 1, "manual", "Error", "Maintenance"),
                   (3000.0, 1, "auto", "Maintenance", "Idle")]:
         rec.event(*event, node="P")
-    rec.queue_lengths = [(0.0, 0), (500.0, 3), (900.0, 2), (1800.0, 1), (2700.0, 0)]
+    for time_s, waiting in [(0.0, 0), (500.0, 3), (900.0, 2), (1800.0, 1), (2700.0, 0)]:
+        rec.queue_length(time_s, waiting)
     rec.blocked_s = 270.0
     rec.distance_m = 12_345.0
     rec.deadlocks = 2
-    rec.charge_waits = [(100.0, 160.0), (2000.0, 2020.0)]
+    rec.charge_wait(100.0, 160.0)
+    rec.charge_wait(2000.0, 2020.0)
     rec.error(1800.0, 1, "E_999", "Fatal")
     rec.error(2500.0, 0, "E_101", "Error")
     rec.error(2600.0, 0, "E_101", "Error")
@@ -104,16 +116,16 @@ def test_every_kpi_of_a_hand_made_run() -> None:
 def test_throughput_pct_of_demand_uses_the_rounded_throughput() -> None:
     rec = Recorder(0.0, 3600.0)
     # 3 orders created in 1 h, 2 delivered: 2/3 of demand
-    rec.orders = [Order(i, 10.0 * i, "PICK", "DROP", assigned_s=10.0 * i,
-                        delivered_s=20.0 * i if i < 2 else None) for i in range(3)]
+    record_orders(rec, [Order(i, 10.0 * i, "PICK", "DROP", assigned_s=10.0 * i,
+                              delivered_s=20.0 * i if i < 2 else None) for i in range(3)])
     scenario = make_scenario(duration_h=1.0, warmup_h=0.0, fleet={"size": 1})
     figures = compute_kpis(rec, scenario, "tiny_loop")
     assert figures["demand_per_hour"] == 3.0
     assert figures["throughput_pct_of_demand"] == 66.666667
     # 9 orders created in 3 h, 7 delivered: 2.333333 /h of 3 /h, 77.777767 % (not 77.777778)
     rec = Recorder(0.0, 3 * 3600.0)
-    rec.orders = [Order(i, 1.0, "PICK", "DROP", delivered_s=2.0) for i in range(7)] + \
-        [Order(i, 3.0, "PICK", "DROP") for i in (7, 8)]
+    record_orders(rec, [Order(i, 1.0, "PICK", "DROP", delivered_s=2.0) for i in range(7)]
+                  + [Order(i, 3.0, "PICK", "DROP") for i in (7, 8)])
     scenario = make_scenario(duration_h=3.0, warmup_h=0.0, fleet={"size": 1})
     figures = compute_kpis(rec, scenario, "tiny_loop")
     assert figures["throughput_per_hour"] == 2.333333 and figures["demand_per_hour"] == 3.0

@@ -1,10 +1,13 @@
 """The KPIs of a run: the one place that names them, says what they mean, and computes them.
 
-KPIs are computed in memory from what a run recorded (its `Recorder`) and its scenario, the same
-way for `fleet-sim run`, every run of a sweep and every run of a sizing search; nothing is read
-back from disk. Unless said otherwise a KPI is measured over the window from the end of the
-warm-up to the end of the run. `CATALOGUE` lists them with unit and meaning, without running
-anything, so that an experiment's targets can be checked before its runs start.
+KPIs are computed from what a run recorded and its scenario, the same way for `fleet-sim run`,
+every run of a sweep and every run of a sizing search; nothing is read back from disk. The
+records pass once through `KpiSums`, which keeps the running sums (a state's seconds, busy
+seconds, the queue's integral...): while a streamed run goes (it is one of its record sinks),
+or at the end for a run kept in memory. `KpiSums` is the one definition of each KPI. Unless
+said otherwise a KPI is measured over the window from the end of the warm-up to the end of the
+run. `CATALOGUE` lists them with unit and meaning, without running anything, so that an
+experiment's targets can be checked before its runs start.
 
 Decisions, where the issue is silent:
 
@@ -25,6 +28,8 @@ Decisions, where the issue is silent:
 from __future__ import annotations
 
 import math
+from array import array
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -33,7 +38,15 @@ import numpy as np
 
 from fleet_sim.config.scenario import Scenario
 from fleet_sim.model.error_codes import CODES
-from fleet_sim.model.records import EventRecord, Order, Recorder
+from fleet_sim.model.records import (
+    ChargeWait,
+    ErrorRecord,
+    EventRecord,
+    Order,
+    QueueLength,
+    Recorder,
+    SocSample,
+)
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.engine import RunOutput
 
@@ -122,117 +135,183 @@ def kpi_value(figures: Mapping[str, Any], name: str) -> Any:
 # ---- computing them ------------------------------------------------------------------------
 
 
-def run_kpis(run: RunOutput) -> dict[str, Any]:
+class KpiSums:
+    """The running sums every KPI is computed from, fed with a run's records as they come: a
+    `RecordSink` (fleet_sim.model.records). A streamed run feeds it batch by batch while it
+    runs; an in-memory run is handed over to it at the end (`compute_kpis`), in the same
+    order, so both give the same figures to the last bit.
+
+    Memory: fixed but for the lead times of the orders delivered in the window, kept one float
+    each (an `array('d')`, 8 bytes an order: 6 MB for a year of 90 orders/h) because their 95th
+    percentile needs them all. Everything else is a running sum or count, so a KPI's float
+    sums run in the order the records come (events in time order; orders in the order they
+    finished, then the open ones) rather than, as before streaming, in order id or AGV order:
+    figures may differ from those in the last bits, never in kpis.json's 6 decimals (checked
+    on the bundled scenarios when this was introduced)."""
+
+    def __init__(self, start_s: float, end_s: float) -> None:
+        self.start_s, self.end_s = start_s, end_s
+        self.orders_created = 0
+        self.orders_delivered = 0
+        self.orders_failed = 0
+        self.orders_reassigned = 0
+        self.created_in_window = 0
+        self.lead_s = array("d")
+        """Creation to delivery, for the orders delivered in the window."""
+        self.busy_s = 0.0
+        self.wait_sum_s = 0.0
+        self.waits = 0
+        self.state_s = {s.value: 0.0 for s in VehicleState}
+        self._state_since: dict[int, tuple[str, float]] = {}
+        """Per AGV, the state it last changed to and when."""
+        self.queue_integral = 0.0
+        self._queue_last: tuple[float, int] | None = None
+        self.charges = 0
+        self.charge_wait_sum_s = 0.0
+        self.errors_by_code: Counter[str] = Counter()
+
+    # ---- RecordSink ------------------------------------------------------------------------
+    def events(self, rows: Sequence[EventRecord]) -> None:
+        """Time in each state: an AGV is in the state it last changed to until its next change
+        (or the end of the run); events that change no state do not count."""
+        start, end = self.start_s, self.end_s
+        since = self._state_since
+        for e in rows:
+            if e.from_state == e.to_state:
+                continue
+            last = since.get(e.agv)
+            if last is not None:
+                self.state_s[last[0]] += _clip(e.time_s, start, end) - _clip(last[1], start, end)
+            since[e.agv] = (e.to_state, e.time_s)
+
+    def orders(self, rows: Sequence[Order]) -> None:
+        """Each order once, with its final timestamps. Busy: from its assignment to its
+        delivery, or its failure, or the end of the run."""
+        start, end = self.start_s, self.end_s
+        for o in rows:
+            self.orders_created += 1
+            if start <= o.created_s <= end:
+                self.created_in_window += 1
+            self.orders_reassigned += o.reassigned
+            if o.failed_s is not None:
+                self.orders_failed += 1
+            if o.delivered_s is not None:
+                self.orders_delivered += 1
+                if start <= o.delivered_s <= end:
+                    self.lead_s.append(o.delivered_s - o.created_s)
+            if o.assigned_s is not None:
+                self.wait_sum_s += o.assigned_s - o.created_s
+                self.waits += 1
+                done = o.delivered_s if o.delivered_s is not None else o.failed_s
+                self.busy_s += _clip(end if done is None else done, start, end) \
+                    - _clip(o.assigned_s, start, end)
+
+    def soc_samples(self, rows: Sequence[SocSample]) -> None:
+        """No KPI reads the state of charge (soc.parquet is for plots)."""
+
+    def queue_lengths(self, rows: Sequence[QueueLength]) -> None:
+        """The integral of the waiting-order count over the window (a step function, zero
+        before its first change)."""
+        start, end = self.start_s, self.end_s
+        last = self._queue_last
+        for t1, value in rows:
+            if last is not None:
+                t0, held = last
+                self.queue_integral += held * max(0.0, min(t1, end) - max(t0, start))
+            last = (t1, value)
+        self._queue_last = last
+
+    def charge_waits(self, rows: Sequence[ChargeWait]) -> None:
+        for asked, assigned in rows:
+            self.charges += 1
+            self.charge_wait_sum_s += assigned - asked
+
+    def errors(self, rows: Sequence[ErrorRecord]) -> None:
+        self.errors_by_code.update(e.code for e in rows)
+
+    def close(self) -> None:
+        """Nothing to release: the figures are read with `figures`."""
+
+    # ---- the KPIs --------------------------------------------------------------------------
+    def figures(self, recorder: Recorder, scenario: Scenario,
+                layout_name: str) -> dict[str, Any]:
+        """The run fields and every KPI of the catalogue but wall_s, from these sums and the
+        recorder's running totals, once every record has been fed."""
+        start, end = self.start_s, self.end_s
+        window_h = (end - start) / 3600.0
+        n_agvs = scenario.fleet.size
+        agv_s = n_agvs * (end - start)
+        states = dict(self.state_s)
+        for agv in sorted(self._state_since):  # each AGV's last state lasts to the end
+            last, since = self._state_since[agv]
+            states[last] += end - _clip(since, start, end)
+        queue = self.queue_integral
+        if self._queue_last is not None:
+            t0, held = self._queue_last
+            queue += held * max(0.0, end - max(t0, start))
+        lead = np.frombuffer(self.lead_s, dtype=float) if self.lead_s else np.empty(0)
+        throughput = _round(len(lead) / window_h)
+        out: dict[str, Any] = {
+            "scenario": scenario.name,
+            "layout": layout_name,
+            "agvs": n_agvs,
+            "seed": scenario.seed,
+            "duration_h": scenario.duration_h,
+            "warmup_h": scenario.warmup_h,
+            "orders_created": self.orders_created,
+            "orders_completed": self.orders_delivered,
+            "throughput_per_hour": throughput,
+            "lead_time_mean_s": _round(float(lead.mean())) if len(lead) else None,
+            "lead_time_p95_s": _round(float(np.percentile(lead, 95))) if len(lead) else None,
+            "agv_utilisation_pct": _round(100.0 * self.busy_s / agv_s),
+            "blocked_time_pct": _round(100.0 * recorder.blocked_s / agv_s),
+            "deadlocks_detected": recorder.deadlocks,
+            "distance_km": _round(recorder.distance_m / 1000.0),
+            "order_wait_mean_s": _round(self.wait_sum_s / self.waits) if self.waits else None,
+            "order_queue_mean": _round(queue / (end - start)),
+        }
+        for state in VehicleState:
+            out[f"state_{state.key}_pct"] = _round(100.0 * states[state.value] / agv_s)
+        down = sum(states[s.value] for s in DOWN_STATES)
+        demand = self.created_in_window / window_h
+        out.update({
+            "availability_pct": _round(100.0 * (1.0 - down / agv_s)),
+            "orders_failed": self.orders_failed,
+            "orders_reassigned": self.orders_reassigned,
+            "charges": self.charges,
+            "charging_queue_wait_mean_s": _round(self.charge_wait_sum_s / self.charges)
+            if self.charges else None,
+            "commands_sent": recorder.commands_sent,
+            "command_retries": recorder.command_retries,
+            "obstacle_pauses": recorder.obstacle_pauses,
+            "comm_losses": recorder.comm_losses,
+            "errors_by_code": dict(sorted(self.errors_by_code.items())),
+            "warnings_by_code": dict(sorted(recorder.warnings.items())),
+            "demand_per_hour": _round(demand),
+            "throughput_pct_of_demand": _round(100.0 * throughput / demand) if demand > 0
+            else None,
+            "orders_open_at_end": self.orders_created - self.orders_delivered,
+        })
+        return out
+
+
+def run_kpis(run: RunOutput, sums: KpiSums | None = None) -> dict[str, Any]:
     """The KPIs of a finished run (see compute_kpis)."""
-    return compute_kpis(run.recorder, run.scenario, run.layout.name)
+    return compute_kpis(run.recorder, run.scenario, run.layout.name, sums)
 
 
-def compute_kpis(recorder: Recorder, scenario: Scenario, layout_name: str) -> dict[str, Any]:
-    """The run fields and every KPI of the catalogue but wall_s, from the run's records."""
-    start, end = scenario.warmup_s, scenario.duration_s
-    window_h = (end - start) / 3600.0
-    n_agvs = scenario.fleet.size
-    agv_s = n_agvs * (end - start)
-    orders = recorder.orders
-    delivered = [o for o in orders if o.delivered_s is not None]
-    lead = np.array([o.delivered_s - o.created_s for o in delivered
-                     if o.delivered_s is not None and start <= o.delivered_s <= end],
-                    dtype=float)
-    waits = np.array([_nan(o.assigned_s) - o.created_s for o in orders], dtype=float)
-    states = state_seconds(recorder.events, start, end)
-    throughput = _round(len(lead) / window_h)
-    out: dict[str, Any] = {
-        "scenario": scenario.name,
-        "layout": layout_name,
-        "agvs": n_agvs,
-        "seed": scenario.seed,
-        "duration_h": scenario.duration_h,
-        "warmup_h": scenario.warmup_h,
-        "orders_created": len(orders),
-        "orders_completed": len(delivered),
-        "throughput_per_hour": throughput,
-        "lead_time_mean_s": _round(float(lead.mean())) if len(lead) else None,
-        "lead_time_p95_s": _round(float(np.percentile(lead, 95))) if len(lead) else None,
-        "agv_utilisation_pct": _round(100.0 * busy_seconds(orders, start, end) / agv_s),
-        "blocked_time_pct": _round(100.0 * recorder.blocked_s / agv_s),
-        "deadlocks_detected": recorder.deadlocks,
-        "distance_km": _round(recorder.distance_m / 1000.0),
-        "order_wait_mean_s": _round(float(np.nanmean(waits)))
-        if not np.isnan(waits).all() else None,
-        "order_queue_mean": _round(queue_mean(recorder.queue_lengths, start, end)),
-    }
-    for state in VehicleState:
-        out[f"state_{state.key}_pct"] = _round(100.0 * states[state.value] / agv_s)
-    down = sum(states[s.value] for s in DOWN_STATES)
-    charge_waits = [got - asked for asked, got in recorder.charge_waits]
-    errors: dict[str, int] = {}
-    for error in recorder.errors:
-        errors[error.code] = errors.get(error.code, 0) + 1
-    created = sum(1 for o in orders if start <= o.created_s <= end)
-    demand = created / window_h
-    out.update({
-        "availability_pct": _round(100.0 * (1.0 - down / agv_s)),
-        "orders_failed": sum(1 for o in orders if o.failed_s is not None),
-        "orders_reassigned": sum(o.reassigned for o in orders),
-        "charges": len(charge_waits),
-        "charging_queue_wait_mean_s": _round(float(np.mean(charge_waits))) if charge_waits
-        else None,
-        "commands_sent": recorder.commands_sent,
-        "command_retries": recorder.command_retries,
-        "obstacle_pauses": recorder.obstacle_pauses,
-        "comm_losses": recorder.comm_losses,
-        "errors_by_code": dict(sorted(errors.items())),
-        "warnings_by_code": dict(sorted(recorder.warnings.items())),
-        "demand_per_hour": _round(demand),
-        "throughput_pct_of_demand": _round(100.0 * throughput / demand) if demand > 0 else None,
-        "orders_open_at_end": len(orders) - len(delivered),
-    })
-    return out
-
-
-def state_seconds(events: Sequence[EventRecord], start_s: float,
-                  end_s: float) -> dict[str, float]:
-    """Total AGV-seconds in each state within [start_s, end_s], from the state changes: each
-    AGV is in the state it last changed to until its next change (or the end)."""
-    changes: dict[int, list[EventRecord]] = {}
-    for e in events:
-        if e.from_state != e.to_state:
-            changes.setdefault(e.agv, []).append(e)
-    totals = {s.value: 0.0 for s in VehicleState}
-    for agv in sorted(changes):
-        spells = changes[agv]
-        for change, until in zip(spells, [*(e.time_s for e in spells[1:]), end_s], strict=True):
-            totals[change.to_state] += _clip(until, start_s, end_s) \
-                - _clip(change.time_s, start_s, end_s)
-    return totals
-
-
-def busy_seconds(orders: Sequence[Order], start_s: float, end_s: float) -> float:
-    """AGV-seconds within [start_s, end_s] spent on an order: from its assignment to its
-    delivery, or its failure, or the end of the run."""
-    assigned = np.array([_nan(o.assigned_s) for o in orders], dtype=float)
-    done = np.array([_nan(o.delivered_s if o.delivered_s is not None else o.failed_s)
-                     for o in orders], dtype=float)
-    done = np.where(np.isnan(done), end_s, done)
-    busy = np.clip(done, start_s, end_s) - np.clip(assigned, start_s, end_s)
-    return float(np.nansum(busy))
-
-
-def queue_mean(lengths: Sequence[tuple[float, int]], start_s: float, end_s: float) -> float:
-    """Time-average of a step function given as (time, value) changes, over [start_s, end_s];
-    zero before its first change."""
-    total = 0.0
-    for (t0, value), (t1, _) in zip(lengths, [*lengths[1:], (end_s, 0)], strict=False):
-        total += value * max(0.0, min(t1, end_s) - max(t0, start_s))
-    return total / (end_s - start_s)
+def compute_kpis(recorder: Recorder, scenario: Scenario, layout_name: str,
+                 sums: KpiSums | None = None) -> dict[str, Any]:
+    """The run fields and every KPI of the catalogue but wall_s. A streamed run passes the
+    `sums` its sink fed; an in-memory recorder is handed over to fresh ones here."""
+    if sums is None:
+        sums = KpiSums(scenario.warmup_s, scenario.duration_s)
+        recorder.hand_over(sums)
+    return sums.figures(recorder, scenario, layout_name)
 
 
 def _clip(value: float, low: float, high: float) -> float:
     return min(max(value, low), high)
-
-
-def _nan(value: float | None) -> float:
-    return math.nan if value is None else value
 
 
 def _round(value: float) -> float:
