@@ -1,0 +1,230 @@
+"""A run's tables streamed to Parquet as it goes: the same rows and dtypes as the run kept in
+memory, the same bytes for the same seed, at most a batch of rows held, no half-written table
+left by a failed run, and KPIs from the running sums equal to KPIs worked out from the full
+tables."""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+import yaml
+
+from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.tables import (
+    TABLES,
+    events_table,
+    orders_frame,
+    orders_table,
+    read_tables,
+    soc_table,
+    stream_run,
+    write_run,
+)
+from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.config.scenario import Scenario
+from fleet_sim.model.records import (
+    ChargeWait,
+    ErrorRecord,
+    EventRecord,
+    Order,
+    QueueLength,
+    SocSample,
+)
+from fleet_sim.sim.engine import build_model, simulate
+
+from .conftest import LAYOUTS, make_scenario, write_yaml
+
+
+@pytest.fixture(scope="module")
+def charger_loop(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The tiny loop with a charger spur west of N1."""
+    data = yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text())
+    data["nodes"].append({"id": "C", "x": 4, "y": 12, "kind": "charger"})
+    data["segments"].append({"from": "N1", "to": "C", "direction": "two_way"})
+    data["chargers"] = [{"id": "CHG", "node": "C", "power_kw": 1.0, "docking_s": 10}]
+    return write_yaml(tmp_path_factory.mktemp("layout") / "tiny_charger.yaml", data)
+
+
+def eventful(layout_file: Path, seed: int = 4, duration_h: float = 6.0) -> Scenario:
+    """3 AGVs with small batteries (they charge) and every kind of incident."""
+    return make_scenario(
+        str(layout_file), duration_h=duration_h, warmup_h=0.5, seed=seed,
+        fleet={"size": 3, "vehicle": {"battery": {"capacity_wh": 150.0,
+                                                  "initial_soc_pct": 60.0}}},
+        demand={"rate_per_hour": 40}, charging={"threshold_pct": 40},
+        incidents={"obstacle_rate_per_km": 2.0, "transfer_failure_prob": 0.05,
+                   "mtbf_h": 2.0, "link_loss_rate_per_h": 0.5, "line_loss_per_km": 0.3})
+
+
+def test_streamed_tables_equal_the_in_memory_tables(tmp_path: Path, charger_loop: Path) -> None:
+    """Several flushes (batches of 500 rows) or one (the default 50,000): the rows and dtypes
+    of the run kept in memory, orders in the order they finished."""
+    scenario = eventful(charger_loop)
+    layout = load_layout(charger_loop)
+    memory = simulate(scenario, layout)
+    recorder = memory.recorder
+    assert len(recorder.events) > 5 * 500 and len(recorder.orders) > 150
+    for folder, batch_rows in (("small", 500), ("default", 50_000)):
+        stream_run(scenario, layout, tmp_path / folder, batch_rows=batch_rows)
+        streamed = read_tables(tmp_path / folder)
+        pd.testing.assert_frame_equal(streamed.events, events_table(recorder), check_exact=True)
+        pd.testing.assert_frame_equal(streamed.soc, soc_table(recorder), check_exact=True)
+        pd.testing.assert_frame_equal(streamed.orders, orders_table(recorder), check_exact=True)
+        # in order id order, the table of every order as recorded (its creation order)
+        by_id = streamed.orders.sort_values("order_id").reset_index(drop=True)
+        pd.testing.assert_frame_equal(by_id, orders_frame(recorder.orders), check_exact=True)
+    groups = {name: pq.ParquetFile(tmp_path / "small" / f"{name}.parquet").num_row_groups
+              for name in TABLES}
+    assert groups["events"] == -(-len(recorder.events) // 500) > 5
+    assert pq.ParquetFile(tmp_path / "default" / "events.parquet").num_row_groups == 1
+    dtypes = dict(read_tables(tmp_path / "small").orders.dtypes.astype(str))
+    assert dtypes["agv"] == "Int64" and dtypes["pickup"] == "string"
+    assert dtypes["delivered_s"] == "float64" and dtypes["order_id"] == "int64"
+
+
+def test_same_seed_same_bytes_streamed_or_written_from_memory(tmp_path: Path,
+                                                              charger_loop: Path) -> None:
+    layout = load_layout(charger_loop)
+    scenario = eventful(charger_loop, duration_h=2.0)
+    stream_run(scenario, layout, tmp_path / "a", batch_rows=300)
+    stream_run(scenario, layout, tmp_path / "b", batch_rows=300)
+    memory = simulate(scenario, layout, batch_rows=300)
+    write_run(memory, tmp_path / "c", run_kpis(memory))
+    stream_run(eventful(charger_loop, seed=5, duration_h=2.0), layout, tmp_path / "d",
+               batch_rows=300)
+    for name in ("events.parquet", "orders.parquet", "soc.parquet", "kpis.json",
+                 "config.resolved.yaml"):
+        a = (tmp_path / "a" / name).read_bytes()
+        assert a == (tmp_path / "b" / name).read_bytes() == (tmp_path / "c" / name).read_bytes()
+    assert (tmp_path / "a" / "orders.parquet").read_bytes() \
+        != (tmp_path / "d" / "orders.parquet").read_bytes()
+
+
+class CountingSink:
+    """Counts what it is handed, and the largest batch."""
+
+    def __init__(self) -> None:
+        self.rows: Counter[str] = Counter()
+        self.largest: Counter[str] = Counter()
+        self.closed = 0
+
+    def _take(self, kind: str, rows: Sequence[Any]) -> None:
+        self.rows[kind] += len(rows)
+        self.largest[kind] = max(self.largest[kind], len(rows))
+
+    def events(self, rows: Sequence[EventRecord]) -> None:
+        self._take("events", rows)
+
+    def orders(self, rows: Sequence[Order]) -> None:
+        self._take("orders", rows)
+
+    def soc_samples(self, rows: Sequence[SocSample]) -> None:
+        self._take("soc", rows)
+
+    def queue_lengths(self, rows: Sequence[QueueLength]) -> None:
+        self._take("queue", rows)
+
+    def charge_waits(self, rows: Sequence[ChargeWait]) -> None:
+        self._take("charge", rows)
+
+    def errors(self, rows: Sequence[ErrorRecord]) -> None:
+        self._take("errors", rows)
+
+    def close(self) -> None:
+        self.closed += 1
+
+
+def test_a_streaming_recorder_holds_at_most_a_batch(charger_loop: Path) -> None:
+    """Checked every simulated 10 minutes of a day: fewer than `batch_rows` rows of each kind
+    held, and no more open orders than are waiting or in hand; every row reaches the sink."""
+    batch_rows = 200
+    scenario = eventful(charger_loop, duration_h=24.0)
+    layout: Layout = load_layout(charger_loop)
+    sink = CountingSink()
+    model = build_model(scenario, layout, sink=sink, batch_rows=batch_rows)
+    rec = model.recorder
+    held: dict[str, int] = Counter()
+    for step in range(1, 24 * 6 + 1):
+        model.env.run(until=step * 600.0)
+        for kind, rows in (("events", rec.events), ("finished", rec.finished),
+                           ("soc", rec.soc_samples), ("queue", rec.queue_lengths),
+                           ("charge", rec.charge_waits), ("errors", rec.errors)):
+            held[kind] = max(held[kind], len(rows))
+        assert len(rec.open_orders) <= len(model.fleet.waiting) + scenario.fleet.size
+        assert rec.orders == []
+    rec.finish()
+    assert rec.rows_held() == 0 and sink.closed == 1
+    assert max(held.values()) < batch_rows and max(sink.largest.values()) <= batch_rows
+    memory = simulate(scenario, layout).recorder  # the same run, kept in memory
+    assert sink.rows["events"] == len(memory.events) > 50 * batch_rows
+    assert sink.rows["orders"] == len(memory.orders) > 3 * batch_rows
+    assert sink.rows["soc"] == len(memory.soc_samples)
+    assert sink.rows["queue"] == len(memory.queue_lengths)
+    assert sink.rows["charge"] == len(memory.charge_waits) > 0
+    assert sink.rows["errors"] == len(memory.errors) > 0
+
+
+def kpis_from_tables(events: pd.DataFrame, orders: pd.DataFrame,
+                     scenario: Scenario) -> dict[str, float]:
+    """The order and state KPIs worked out again, with pandas, from the full tables."""
+    start, end = scenario.warmup_s, scenario.duration_s
+    agv_s = scenario.fleet.size * (end - start)
+    delivered = orders[orders["delivered_s"].notna()]
+    lead = delivered.loc[delivered["delivered_s"].between(start, end), "lead_time_s"]
+    done = orders["delivered_s"].fillna(orders["failed_s"]).fillna(end)
+    busy = (done.clip(start, end) - orders["assigned_s"].clip(start, end)).sum()
+    changes = events[events["from_state"] != events["to_state"]] \
+        .sort_values(["agv", "time_s"], kind="stable")
+    until = changes.groupby("agv")["time_s"].shift(-1).fillna(end)
+    spent = (until.clip(start, end) - changes["time_s"].clip(start, end)) \
+        .groupby(changes["to_state"]).sum()
+    out = {
+        "orders_created": len(orders), "orders_completed": len(delivered),
+        "throughput_per_hour": len(lead) / ((end - start) / 3600),
+        "lead_time_mean_s": lead.mean(), "lead_time_p95_s": lead.quantile(0.95),
+        "agv_utilisation_pct": 100 * busy / agv_s,
+        "order_wait_mean_s": (orders["assigned_s"] - orders["created_s"]).mean(),
+        "orders_failed": int(orders["failed_s"].notna().sum()),
+        "orders_reassigned": int(orders["reassigned"].sum()),
+        "demand_per_hour": orders["created_s"].between(start, end).sum() / ((end - start) / 3600),
+        "availability_pct": 100 * (1 - spent.reindex(["Error", "Maintenance", "SafeMode"])
+                                   .fillna(0).sum() / agv_s),
+    }
+    for state in ("Idle", "Moving", "Loading", "Charging", "Paused", "Error", "Maintenance"):
+        out[f"state_{state.lower()}_pct"] = 100 * spent.get(state, 0.0) / agv_s
+    return out
+
+
+def test_kpis_from_running_sums_equal_kpis_from_the_full_tables(tmp_path: Path,
+                                                                 charger_loop: Path) -> None:
+    """A run with charging, failed and reassigned orders, errors and link losses."""
+    scenario = eventful(charger_loop, seed=6)
+    layout = load_layout(charger_loop)
+    _, figures = stream_run(scenario, layout, tmp_path / "run", batch_rows=400)
+    assert figures["charges"] > 0 and figures["orders_failed"] > 0
+    assert figures["orders_reassigned"] > 0 and figures["errors_by_code"]
+    assert figures["state_error_pct"] > 0 and figures["state_charging_pct"] > 0
+    tables = read_tables(tmp_path / "run")
+    expected = kpis_from_tables(tables.events, tables.orders, scenario)
+    for name, value in expected.items():
+        assert figures[name] == pytest.approx(value, rel=1e-9, abs=1e-6), name
+    # the run kept in memory gives the same figures to the last bit
+    assert run_kpis(simulate(scenario, layout)) == figures
+
+
+def test_a_failed_run_leaves_no_table_behind(tmp_path: Path, charger_loop: Path) -> None:
+    def fail_half_way(now_s: float, end_s: float) -> None:
+        if now_s >= end_s / 2:
+            raise RuntimeError("stopped")
+
+    out = tmp_path / "run"
+    with pytest.raises(RuntimeError, match="stopped"):
+        stream_run(eventful(charger_loop, duration_h=1.0), load_layout(charger_loop), out,
+                   progress=fail_half_way, batch_rows=100)
+    assert list(out.iterdir()) == []
