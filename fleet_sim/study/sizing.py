@@ -16,6 +16,13 @@ Two answers side by side:
 Every run goes through fleet_sim.study.sweep with the experiment's seeds, so a sizing search over a
 folder that already holds a sweep reuses its runs, and an interrupted search resumes.
 Other factors of the experiment (say, two demand levels) each get their own search.
+
+The search is held to the run limit of one experiment (MAX_RUNS, fleet_sim.config.experiment),
+as a sweep is when its file is read: it counts the distinct runs it uses over all its groups,
+reused ones included, and before asking for runs that would take it over the limit it stops
+with `SizingLimit`, naming the limit. What was decided so far is kept: sizing.json is written
+with every evaluation done (the stopped group says so; groups not reached are left out), the
+runs stay in the folder, and the summary tables are refreshed as after any search.
 """
 
 from __future__ import annotations
@@ -33,8 +40,16 @@ import numpy as np
 from fleet_sim.analysis.estimate import Estimate, analytic_estimate
 from fleet_sim.analysis.kpis import kpi_value
 from fleet_sim.analysis.stats import TargetCheck, target_check
-from fleet_sim.config.experiment import FLEET, Experiment, Target, layout_for, load_trace_for
-from fleet_sim.errors import InputError
+from fleet_sim.config.experiment import (
+    FLEET,
+    MAX_RUNS,
+    Experiment,
+    RunSpec,
+    Target,
+    layout_for,
+    load_trace_for,
+)
+from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.sweep import DaskPool, LocalPool, execute, folder_lock, prepare, tables_written
 
@@ -42,6 +57,31 @@ DEFAULT_MAX_AGVS = 50
 
 
 # ---- the search ----------------------------------------------------------------------------
+
+
+class SizingLimit(FleetSimError):
+    """The search would need more runs than one experiment may have."""
+
+
+class RunBudget:
+    """The distinct runs a search has used, at most `limit` of them."""
+
+    def __init__(self, limit: int = MAX_RUNS) -> None:
+        self.limit = limit
+        self.used: set[str] = set()
+
+    def take(self, runs: Sequence[RunSpec]) -> None:
+        """Count `runs` in, or raise SizingLimit (counting none of them) if they would take
+        the search over the limit."""
+        new = {r.run_id for r in runs} - self.used
+        if len(self.used) + len(new) > self.limit:
+            raise SizingLimit(
+                f"the sizing search stopped: it needs more than {self.limit} runs, the limit "
+                f"of one experiment (it has used {len(self.used)} and asked for {len(new)} "
+                "more); sizing.json keeps what was decided so far. Narrow sizing.min_agvs / "
+                "sizing.max_agvs or lower sizing.max_replications")
+        self.used |= new
+
 
 
 @dataclass
@@ -81,11 +121,17 @@ class GroupResult:
     recommended: int | None = None
     min_agvs: int = 1
     max_agvs: int = DEFAULT_MAX_AGVS
+    stopped: str | None = None
+    """Why the search stopped before an answer (the run limit), if it did."""
 
     def statement(self) -> str:
         """The recommendation in a planner's words, with its confidence."""
         where = ", ".join(f"{k} = {v}" for k, v in self.fixed.items())
         head = f"{where}: " if where else ""
+        if self.stopped is not None:
+            done = ", ".join(f"{n} AGVs {self.evaluations[n].verdict}"
+                             for n in sorted(self.evaluations)) or "no fleet evaluated"
+            return f"{head}no answer ({done}): {self.stopped}"
         if self.recommended is None:
             tried = self.evaluations.get(self.max_agvs)
             why = _why_not(tried) if tried else ""
@@ -107,7 +153,8 @@ class GroupResult:
     def as_dict(self) -> dict[str, Any]:
         return {"fixed": self.fixed, "estimate": self.estimate.as_dict(),
                 "recommended": self.recommended, "min_agvs": self.min_agvs,
-                "max_agvs": self.max_agvs, "statement": self.statement(),
+                "max_agvs": self.max_agvs, "stopped": self.stopped,
+                "statement": self.statement(),
                 "evaluations": [self.evaluations[n].as_dict() for n in sorted(self.evaluations)]}
 
 
@@ -129,8 +176,10 @@ class Sizer:
     """Runs the search for one group of fixed factor values."""
 
     def __init__(self, experiment: Experiment, out_dir: Path, fixed: dict[str, Any],
-                 pool: LocalPool | DaskPool, progress: Progress) -> None:
+                 pool: LocalPool | DaskPool, progress: Progress,
+                 budget: RunBudget | None = None) -> None:
         self.experiment = experiment
+        self.budget = budget if budget is not None else RunBudget()
         self.out_dir = out_dir
         self.fixed = fixed
         self.pool = pool
@@ -144,16 +193,17 @@ class Sizer:
         while True:
             factors = {**self.fixed, FLEET: agvs}
             runs = [self.experiment.run(factors, r) for r in range(reps)]
+            self.budget.take(runs)
             execute(runs, self.out_dir, quiet=True, pool=self.pool)
             values, failed = self._values(runs)
             checks = [target_check(factors, t, values[t.kpi]) for t in self.targets]
             ev = Evaluation(agvs, reps, checks, failed)
+            result.evaluations[agvs] = ev  # kept if the run limit stops the search
             if ev.verdict != "undecided" or reps >= cap:
                 break
             wanted = [c.needed for c in checks if c.decision == "undecided" and c.needed]
             grow = max(wanted) if wanted else reps + 1
             reps = min(cap, max(reps + 1, min(grow, 2 * reps)))
-        result.evaluations[agvs] = ev
         note = " (undecided at the replication limit: counted as not meeting)" \
             if ev.verdict == "undecided" else ""
         self.progress.note(f"{_where(self.fixed)}{agvs} AGVs, {ev.replications} "
@@ -175,8 +225,16 @@ class Sizer:
         return {k: np.array(v, dtype=float) for k, v in values.items()}, failed
 
     def search(self, estimate: Estimate, lo_limit: int, hi_limit: int) -> GroupResult:
+        """The search; stopped (result.stopped) where the run budget runs out."""
         result = GroupResult(self.fixed, estimate, min_agvs=lo_limit, max_agvs=hi_limit)
+        try:
+            self._search(result, estimate, lo_limit, hi_limit)
+        except SizingLimit as exc:
+            result.stopped = str(exc)
+        return result
 
+    def _search(self, result: GroupResult, estimate: Estimate, lo_limit: int,
+                hi_limit: int) -> None:
         def meets(n: int) -> bool:
             ev = result.evaluations.get(n) or self.evaluate(n, result)
             return ev.verdict == "meets"
@@ -202,7 +260,7 @@ class Sizer:
                     break
                 lo, step = probe, step * 2
         if hi is None:
-            return result
+            return
         while hi - lo > 1:
             mid = (lo + hi) // 2
             if meets(mid):
@@ -210,7 +268,6 @@ class Sizer:
             else:
                 lo = mid
         result.recommended = hi
-        return result
 
 
 def groups(experiment: Experiment) -> list[dict[str, Any]]:
@@ -232,9 +289,10 @@ def groups(experiment: Experiment) -> list[dict[str, Any]]:
 
 def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
                scheduler: str | None = None, quiet: bool = False,
-               stream: IO[str] | None = None) -> list[GroupResult]:
+               stream: IO[str] | None = None, max_runs: int = MAX_RUNS) -> list[GroupResult]:
     """Search every group; write sizing.json and refresh the summary tables (holding the
-    results folder: see fleet_sim.study.sweep.folder_lock)."""
+    results folder: see fleet_sim.study.sweep.folder_lock). Raises SizingLimit, after writing
+    them, if the search would need more than `max_runs` runs."""
     spec = experiment.spec
     if not spec.targets:
         raise InputError(str(experiment.file), "targets", [],
@@ -251,20 +309,30 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
         n_workers = workers or os.cpu_count() or 1
         pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers) if scheduler \
             else LocalPool(n_workers)
+        budget = RunBudget(max_runs)
+        stopped: str | None = None
         with pool, Progress(stream=stream, quiet=quiet) as progress:
             for fixed in groups(experiment):
-                results.append(_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool,
-                                           progress))
+                if stopped is not None:
+                    break
+                result = _size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool,
+                                     progress, budget)
+                results.append(result)
+                stopped = result.stopped
         document = {"experiment": experiment.name, "confidence": 0.95,
                     "targets": [t.describe() for t in spec.targets],
-                    "groups": [r.as_dict() for r in results]}
+                    "runs_used": len(budget.used), "max_runs": max_runs,
+                    "stopped": stopped, "groups": [r.as_dict() for r in results]}
         (out_dir / "sizing.json").write_text(json.dumps(document, indent=2, default=str) + "\n",
                                              encoding="utf-8")
+        if stopped is not None:
+            raise SizingLimit(stopped)
     return results
 
 
 def _size_group(experiment: Experiment, out_dir: Path, fixed: dict[str, Any], lo_limit: int,
-                hi_limit: int, pool: LocalPool | DaskPool, progress: Progress) -> GroupResult:
+                hi_limit: int, pool: LocalPool | DaskPool, progress: Progress,
+                budget: RunBudget) -> GroupResult:
     spec = experiment.spec
     scenario = experiment.scenario(fixed)
     layout = layout_for(scenario, str(experiment.scenario_file))
@@ -274,7 +342,8 @@ def _size_group(experiment: Experiment, out_dir: Path, fixed: dict[str, Any], lo
                   f"demand ({estimate.demand_per_hour:.1f} orders/h x {estimate.cycle_s:.1f} s "
                   f"per order); searching {lo_limit} to {hi_limit} AGVs from "
                   f"{min(max(estimate.minimum, lo_limit), hi_limit)}")
-    return Sizer(experiment, out_dir, fixed, pool, progress).search(estimate, lo_limit, hi_limit)
+    return Sizer(experiment, out_dir, fixed, pool, progress, budget).search(estimate, lo_limit,
+                                                                            hi_limit)
 
 
 def _where(fixed: dict[str, Any]) -> str:
