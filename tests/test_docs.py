@@ -1,8 +1,12 @@
-"""The documents' pictures and relative links point at files that exist."""
+"""The documents' pictures and relative links point at files that exist, and the README's
+DuckDB one-liner works."""
 
 from __future__ import annotations
 
 import re
+import shlex
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -25,3 +29,24 @@ def test_the_studies_page_shows_its_three_plots() -> None:
     text = (ROOT / "docs" / "agv-model-studies.md").read_text(encoding="utf-8")
     shown = re.findall(r"!\[[^\]]*\]\((img/[^)]+\.png)\)", text)
     assert sorted(shown) == sorted(f"img/{p.name}" for p in (ROOT / "docs" / "img").glob("*.png"))
+
+
+def test_the_readme_duckdb_one_liner_queries_a_sweep(tmp_path: Path) -> None:
+    """The README's query of sweep.duckdb runs as shown, from the folder `make run` is run in,
+    on a (one-run) sweep written where the README says."""
+    from fleet_sim.config.experiment import load_experiment
+    from fleet_sim.study.sweep import sweep
+
+    from .conftest import write_yaml
+
+    (line,) = [line for line in (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+               if line.startswith('.venv/bin/python -c "import duckdb')]
+    experiment = load_experiment(write_yaml(tmp_path / "e.yaml", {
+        "name": "warehouse_sizing", "scenario": str(ROOT / "experiments" / "tiny_loop.yaml"),
+        "overrides": {"duration_h": 0.5, "warmup_h": 0.1}, "factors": {"fleet.size": [1]},
+        "replications": 1}))
+    sweep(experiment, tmp_path / "results" / "warehouse_sizing", workers=1, quiet=True)
+    command = [sys.executable, *shlex.split(line)[1:]]
+    result = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "throughput_per_hour" in result.stdout and "fleet.size=1__r00" in result.stdout
