@@ -63,14 +63,14 @@ def eventful(layout_file: Path, seed: int = 4, duration_h: float = 6.0) -> Scena
 
 
 def test_streamed_tables_equal_the_in_memory_tables(tmp_path: Path, charger_loop: Path) -> None:
-    """Several flushes (batches of 500 rows) or one (the default 50,000): the rows and dtypes
-    of the run kept in memory, orders in the order they finished."""
+    """Several flushes (batches of 500 rows) or one (batches of 50,000): the rows and dtypes of
+    the run kept in memory, orders in the order they finished."""
     scenario = eventful(charger_loop)
     layout = load_layout(charger_loop)
     memory = simulate(scenario, layout)
     recorder = memory.recorder
     assert len(recorder.events) > 5 * 500 and len(recorder.orders) > 150
-    for folder, batch_rows in (("small", 500), ("default", 50_000)):
+    for folder, batch_rows in (("small", 500), ("one", 50_000)):
         stream_run(scenario, layout, tmp_path / folder, batch_rows=batch_rows)
         streamed = read_tables(tmp_path / folder)
         pd.testing.assert_frame_equal(streamed.events, events_table(recorder), check_exact=True)
@@ -82,7 +82,7 @@ def test_streamed_tables_equal_the_in_memory_tables(tmp_path: Path, charger_loop
     groups = {name: pq.ParquetFile(tmp_path / "small" / f"{name}.parquet").num_row_groups
               for name in TABLES}
     assert groups["events"] == -(-len(recorder.events) // 500) > 5
-    assert pq.ParquetFile(tmp_path / "default" / "events.parquet").num_row_groups == 1
+    assert pq.ParquetFile(tmp_path / "one" / "events.parquet").num_row_groups == 1
     dtypes = dict(read_tables(tmp_path / "small").orders.dtypes.astype(str))
     assert dtypes["agv"] == "Int64" and dtypes["pickup"] == "string"
     assert dtypes["delivered_s"] == "float64" and dtypes["order_id"] == "int64"
@@ -206,7 +206,7 @@ def test_kpis_from_running_sums_equal_kpis_from_the_full_tables(tmp_path: Path,
     """A run with charging, failed and reassigned orders, errors and link losses."""
     scenario = eventful(charger_loop, seed=6)
     layout = load_layout(charger_loop)
-    _, figures = stream_run(scenario, layout, tmp_path / "run", batch_rows=400)
+    run, figures = stream_run(scenario, layout, tmp_path / "run", batch_rows=400)
     assert figures["charges"] > 0 and figures["orders_failed"] > 0
     assert figures["orders_reassigned"] > 0 and figures["errors_by_code"]
     assert figures["state_error_pct"] > 0 and figures["state_charging_pct"] > 0
@@ -216,6 +216,8 @@ def test_kpis_from_running_sums_equal_kpis_from_the_full_tables(tmp_path: Path,
         assert figures[name] == pytest.approx(value, rel=1e-9, abs=1e-6), name
     # the run kept in memory gives the same figures to the last bit
     assert run_kpis(simulate(scenario, layout)) == figures
+    with pytest.raises(ValueError, match="its own sink"):  # no KPIs from rows handed over
+        run_kpis(run)
 
 
 def test_a_failed_run_leaves_no_table_behind(tmp_path: Path, charger_loop: Path) -> None:
