@@ -272,11 +272,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from fleet_sim.analysis.kpis import run_kpis, summary_text
-    from fleet_sim.analysis.tables import write_run
+    from fleet_sim.analysis.kpis import summary_text
+    from fleet_sim.analysis.tables import stream_run
     from fleet_sim.config.scenario import folder_name, load_layout_for, load_scenario
     from fleet_sim.config.trace import load_trace
-    from fleet_sim.sim.engine import simulate
     from fleet_sim.study.progress import Progress
 
     overrides: dict[str, object] = {}
@@ -305,17 +304,14 @@ def _run(args: argparse.Namespace) -> int:
             progress.update(now_s, f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h "
                                    f"({now_s / end_s:.0%})")
 
-        run = simulate(scenario, layout, trace, progress=simulated, record_moves=args.replay)
-    figures = run_kpis(run)
-    write_run(run, out, figures)
+        run, figures = stream_run(scenario, layout, out, trace, progress=simulated,
+                                  record_moves=args.replay)
     print(summary_text(figures))
     print(f"  run directory               {out}  ({run.wall_s:.1f} s wall, "
           f"{run.sim_events:,} events)")
-    if args.replay:
-        from fleet_sim.analysis.replay import write_moves
+    if args.replay:  # moves.parquet was streamed with the other tables
         from fleet_sim.report.replay import write_replay
 
-        write_moves(run.recorder, out)
         del run
         if not args.quiet:
             print("  writing replay.html", file=sys.stderr, flush=True)

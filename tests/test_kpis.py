@@ -10,6 +10,8 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from fleet_sim.analysis.kpis import (
     CATALOGUE,
     RUN_FIELDS,
@@ -29,9 +31,19 @@ from .conftest import LAYOUTS, ROOT, make_scenario, write_yaml
 START_S, END_S = 900.0, 3600.0
 
 
+def record_orders(rec: Recorder, orders: list[Order]) -> None:
+    """Create the orders, then finish the delivered and failed ones in the order they finished,
+    as a run does."""
+    for order in orders:
+        rec.order_created(order)
+    done = [o for o in orders if o.delivered_s is not None or o.failed_s is not None]
+    for order in sorted(done, key=lambda o: o.delivered_s or o.failed_s or 0.0):
+        rec.order_finished(order)
+
+
 def hand_made_recorder() -> Recorder:
     rec = Recorder(START_S, END_S)
-    rec.orders = [
+    record_orders(rec, [
         Order(1, 100.0, "PICK", "DROP", agv=0, assigned_s=200.0, delivered_s=1000.0),
         Order(2, 1000.0, "PICK", "DROP", agv=0, assigned_s=1200.0, delivered_s=2000.0),
         Order(3, 1500.0, "PICK", "DROP", agv=1, assigned_s=1600.0, delivered_s=3000.0),
@@ -40,7 +52,7 @@ def hand_made_recorder() -> Recorder:
         Order(5, 3500.0, "PICK", "DROP"),  # never assigned
         Order(6, 500.0, "PICK", "DROP", agv=1, assigned_s=600.0, delivered_s=800.0,
               reassigned=1),  # all in the warm-up
-    ]
+    ])
     for event in [(0.0, 0, "boot", "Booting", "Idle"), (0.0, 1, "boot", "Booting", "Idle"),
                   (500.0, 1, "not_dispatched", "Idle", "Idle", "status_poll"),
                   (800.0, 0, "not_dispatched", "Idle", "Idle", "link_lost"),
@@ -56,11 +68,13 @@ def hand_made_recorder() -> Recorder:
                   (2700.0, 0, "not_dispatched_end", "Idle", "Idle", "battery_low"),
                   (3000.0, 1, "auto", "Maintenance", "Idle")]:
         rec.event(*event[:5], node="P", detail=event[5] if len(event) > 5 else "")
-    rec.queue_lengths = [(0.0, 0), (500.0, 3), (900.0, 2), (1800.0, 1), (2700.0, 0)]
+    for time_s, waiting in [(0.0, 0), (500.0, 3), (900.0, 2), (1800.0, 1), (2700.0, 0)]:
+        rec.queue_length(time_s, waiting)
     rec.blocked_s = 270.0
     rec.distance_m = 12_345.0
     rec.deadlocks = 2
-    rec.charge_waits = [(100.0, 160.0), (2000.0, 2020.0)]
+    rec.charge_wait(100.0, 160.0)
+    rec.charge_wait(2000.0, 2020.0)
     rec.error(1800.0, 1, "E_999", "Fatal")
     rec.error(2500.0, 0, "E_101", "Error")
     rec.error(2600.0, 0, "E_101", "Error")
@@ -122,16 +136,16 @@ def test_every_kpi_of_a_hand_made_run() -> None:
 def test_throughput_pct_of_demand_uses_the_rounded_throughput() -> None:
     rec = Recorder(0.0, 3600.0)
     # 3 orders created in 1 h, 2 delivered: 2/3 of demand
-    rec.orders = [Order(i, 10.0 * i, "PICK", "DROP", assigned_s=10.0 * i,
-                        delivered_s=20.0 * i if i < 2 else None) for i in range(3)]
+    record_orders(rec, [Order(i, 10.0 * i, "PICK", "DROP", assigned_s=10.0 * i,
+                              delivered_s=20.0 * i if i < 2 else None) for i in range(3)])
     scenario = make_scenario(duration_h=1.0, warmup_h=0.0, fleet={"size": 1})
     figures = compute_kpis(rec, scenario, "tiny_loop")
     assert figures["demand_per_hour"] == 3.0
     assert figures["throughput_pct_of_demand"] == 66.666667
     # 9 orders created in 3 h, 7 delivered: 2.333333 /h of 3 /h, 77.777767 % (not 77.777778)
     rec = Recorder(0.0, 3 * 3600.0)
-    rec.orders = [Order(i, 1.0, "PICK", "DROP", delivered_s=2.0) for i in range(7)] + \
-        [Order(i, 3.0, "PICK", "DROP") for i in (7, 8)]
+    record_orders(rec, [Order(i, 1.0, "PICK", "DROP", delivered_s=2.0) for i in range(7)]
+                  + [Order(i, 3.0, "PICK", "DROP") for i in (7, 8)])
     scenario = make_scenario(duration_h=3.0, warmup_h=0.0, fleet={"size": 1})
     figures = compute_kpis(rec, scenario, "tiny_loop")
     assert figures["throughput_per_hour"] == 2.333333 and figures["demand_per_hour"] == 3.0
@@ -195,3 +209,100 @@ def test_run_and_sweep_report_the_same_kpis(tmp_path: Path) -> None:
     assert f"throughput / demand         {ran['throughput_pct_of_demand']:,.1f} %" \
         in result.stdout
 
+
+
+# ---- Idle while orders waited: streamed against the whole run -------------------------------
+
+Spells = list[tuple[float, float]]
+
+
+def _overlap(a: Spells, b: Spells) -> Spells:
+    out: Spells = []
+    i = j = 0
+    while i < len(a) and j < len(b):
+        lo, hi = max(a[i][0], b[j][0]), min(a[i][1], b[j][1])
+        if hi > lo:
+            out.append((lo, hi))
+        if a[i][1] < b[j][1]:
+            i += 1
+        else:
+            j += 1
+    return out
+
+
+def whole_run_idle_waiting(rec: Recorder, start: float,
+                           end: float) -> tuple[float, dict[NotDispatched, float]]:
+    """The reference: the computation over the whole run's lists that the KPI had before it
+    was streamed (every Idle spell, waiting spell and reason spell at once)."""
+    waiting: Spells = []
+    lengths = list(rec.queue_lengths)
+    for (t0, value), (t1, _) in zip(lengths, [*lengths[1:], (end, 0)], strict=False):
+        a, b = max(t0, start), min(t1, end)
+        if value > 0 and b > a:
+            if waiting and waiting[-1][1] == a:
+                waiting[-1] = (waiting[-1][0], b)
+            else:
+                waiting.append((a, b))
+    since: dict[int, float] = {}
+    idle: dict[int, Spells] = {}
+    open_: dict[int, tuple[NotDispatched, float]] = {}
+    reasons: dict[int, dict[NotDispatched, Spells]] = {}
+    for e in rec.events:
+        if e.event in ("not_dispatched", "not_dispatched_end") and e.agv in open_:
+            reason, t = open_.pop(e.agv)
+            reasons.setdefault(e.agv, {}).setdefault(reason, []).append((t, e.time_s))
+        if e.event == "not_dispatched":
+            open_[e.agv] = (NotDispatched(e.detail), e.time_s)
+        if e.from_state != e.to_state:
+            if e.agv in since:
+                idle.setdefault(e.agv, []).append((since.pop(e.agv), e.time_s))
+            if e.to_state == "Idle":
+                since[e.agv] = e.time_s
+    for agv, t in since.items():
+        idle.setdefault(agv, []).append((t, end))
+    for agv, (reason, t) in open_.items():
+        reasons.setdefault(agv, {}).setdefault(reason, []).append((t, end))
+    total = 0.0
+    by_reason = dict.fromkeys(NotDispatched, 0.0)
+    for agv, spells in idle.items():
+        idle_waiting = _overlap(spells, waiting)
+        total += sum(b - a for a, b in idle_waiting)
+        for reason, held in reasons.get(agv, {}).items():
+            by_reason[reason] += sum(b - a for a, b in _overlap(held, idle_waiting))
+    return total, by_reason
+
+
+def test_idle_while_waiting_streamed_in_small_batches_is_the_whole_run_figure(
+        tmp_path: Path) -> None:
+    """Two runs (charging and incidents; a mixed fleet held back by admission), their events
+    and queue lengths handed over in batches of 7 and 5,000 rows: the very seconds of the
+    whole-run computation, to the last bit, and the matched spells let go."""
+    from fleet_sim.analysis.kpis import KpiSums
+    from fleet_sim.config.layout import load_layout
+    from fleet_sim.sim.engine import build_model
+
+    from .test_tables import eventful, feature_rich
+
+    data = yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text())
+    data["nodes"].append({"id": "C", "x": 4, "y": 12, "kind": "charger"})
+    data["segments"].append({"from": "N1", "to": "C", "direction": "two_way"})
+    data["chargers"] = [{"id": "CHG", "node": "C", "power_kw": 1.0, "docking_s": 10}]
+    charger_loop = write_yaml(tmp_path / "tiny_charger.yaml", data)
+    runs = [(eventful(charger_loop, seed=9), load_layout(charger_loop)),
+            feature_rich(tmp_path)]
+    seen: set[NotDispatched] = set()
+    for scenario, layout in runs:
+        whole = build_model(scenario, layout)
+        whole.env.run(until=scenario.duration_s)
+        expected = whole_run_idle_waiting(whole.recorder, scenario.warmup_s,
+                                          scenario.duration_s)
+        assert expected[0] > 0
+        seen |= {r for r, s in expected[1].items() if s > 0}
+        for batch_rows in (7, 5000):
+            sums = KpiSums(scenario.warmup_s, scenario.duration_s)
+            model = build_model(scenario, layout, sink=sums, batch_rows=batch_rows)
+            model.env.run(until=scenario.duration_s)
+            model.recorder.finish()
+            assert sums.idle_waiting.seconds() == expected
+            assert len(sums.idle_waiting.waiting) < 200  # matched spells are let go
+    assert {NotDispatched.WAITING_FOR_CHARGER, NotDispatched.ADMISSION_FULL} <= seen

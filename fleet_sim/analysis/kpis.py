@@ -1,9 +1,13 @@
 """The KPIs of a run: the one place that names them, says what they mean, and computes them.
 
-KPIs are computed in memory from what a run recorded (its `Recorder`) and its scenario, the same
-way for `fleet-sim run`, every run of a sweep and every run of a sizing search; nothing is read
-back from disk. Unless said otherwise a KPI is measured over the window from the end of the
-warm-up to the end of the run. `CATALOGUE` lists them with unit and meaning, without running
+KPIs are computed from what a run recorded and its scenario, the same way for `fleet-sim run`,
+every run of a sweep and every run of a sizing search; nothing is read back from disk. The
+records pass once through `KpiSums`, which keeps the running sums (a state's seconds per AGV,
+busy seconds, the queue's integral, the seconds Idle while orders waited...): while a streamed
+run goes (it is one of its record sinks), or at the end for a run kept in memory. `KpiSums` is
+the one definition of each KPI; the per-type KPIs of a mixed fleet are the same definitions
+over the type's AGVs. Unless said otherwise a KPI is measured over the window from the end of
+the warm-up to the end of the run. `CATALOGUE` lists them with unit and meaning, without running
 anything, so that an experiment's targets can be checked before its runs start.
 
 Decisions, where the issue is silent:
@@ -38,12 +42,26 @@ Decisions, where the issue is silent:
   one-type fleet's kpis.json has no `by_type` (it stays as it was).
 * A layout with mutex zones adds `zone_wait_s` last: zone id -> AGV-seconds spent in the window
   waiting to enter it (``zone_wait_s.<zone>``, s; also counted in blocked_time_pct).
+* Memory (`KpiSums`): fixed but for the lead times of the orders delivered in the window, kept
+  one float and one AGV id each (12 bytes an order: 9 MB for a year of 90 orders/h) because
+  their 95th percentile needs them all, and for the Idle and waiting spells not yet matched
+  (those between the newest event and the newest queue change handed over: a batch's worth).
+  Everything else is a running sum or count per AGV. Float sums therefore run in the order the
+  records come (events in time order; orders in the order they finished, then the open ones)
+  and per AGV, where the in-memory computation before streaming summed in order id or AGV
+  order: figures may differ from those in the last bits, never in kpis.json's 6 decimals
+  (checked on the bundled scenarios, a mixed fleet, traffic zones and multi-stop orders when
+  this was merged). The seconds Idle while orders waited are matched spell by spell exactly
+  as before (the same pieces, summed in the same order), so they are the same to the last bit.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from array import array
+from bisect import bisect_right
+from collections import Counter, deque
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -52,7 +70,16 @@ import numpy as np
 from fleet_sim.config.scenario import Scenario, setup_warnings
 from fleet_sim.model.error_codes import CODES
 from fleet_sim.model.not_dispatched import NOT_DISPATCHED, NOT_DISPATCHED_END, NotDispatched
-from fleet_sim.model.records import EventRecord, Order, Recorder
+from fleet_sim.model.records import (
+    ChargeWait,
+    ErrorRecord,
+    EventRecord,
+    MoveRecord,
+    Order,
+    QueueLength,
+    Recorder,
+    SocSample,
+)
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.engine import RunOutput
 
@@ -181,249 +208,480 @@ def kpi_value(figures: Mapping[str, Any], name: str) -> Any:
 
 # ---- computing them ------------------------------------------------------------------------
 
+IDLE = VehicleState.IDLE.value
+NO_AGV = -1
+"""The AGV of an order recorded without one (hand-made records only: a run's delivered and
+assigned orders have their AGV)."""
 
-def run_kpis(run: RunOutput) -> dict[str, Any]:
+
+class KpiSums:
+    """The running sums every KPI is computed from, fed with a run's records as they come: a
+    `RecordSink` (fleet_sim.model.records). A streamed run feeds it batch by batch while it
+    runs; an in-memory run is handed over to it at the end (`compute_kpis`), in the same
+    batches and order, so both give the same figures to the last bit. `figures` reads the
+    KPIs once the sink is closed."""
+
+    def __init__(self, start_s: float, end_s: float) -> None:
+        self.start_s, self.end_s = start_s, end_s
+        self.orders_created = 0
+        self.orders_failed = 0
+        self.orders_reassigned = 0
+        self.created_in_window = 0
+        self.delivered: Counter[int] = Counter()
+        """Orders delivered over the whole run, per AGV."""
+        self.lead_s = array("d")
+        """Creation to delivery, for the orders delivered in the window ..."""
+        self.lead_agv = array("q")
+        """... and the AGV that delivered each."""
+        self.busy_s: dict[int, float] = {}
+        """Per AGV, seconds in the window with an order (assigned to delivered or failed)."""
+        self.wait_sum_s = 0.0
+        self.waits = 0
+        self.state_s: dict[int, dict[str, float]] = {}
+        """Per AGV, seconds in the window in each state."""
+        self._state_since: dict[int, tuple[str, float]] = {}
+        """Per AGV, the state it last changed to and when."""
+        self.queue_integral = 0.0
+        self._queue_last: tuple[float, int] | None = None
+        self.charges = 0
+        self.charge_wait_sum_s = 0.0
+        self.errors_by_code: Counter[str] = Counter()
+        self.idle_waiting = IdleWhileWaiting(start_s, end_s)
+        self.closed = False
+
+    # ---- RecordSink ------------------------------------------------------------------------
+    def events(self, rows: Sequence[EventRecord]) -> None:
+        """Time in each state: an AGV is in the state it last changed to until its next change
+        (or the end of the run); events that change no state do not count."""
+        start, end = self.start_s, self.end_s
+        since = self._state_since
+        for e in rows:
+            if e.from_state == e.to_state:
+                continue
+            last = since.get(e.agv)
+            if last is not None:
+                spent = self.state_s.get(e.agv)
+                if spent is None:
+                    spent = self.state_s[e.agv] = _no_state_time()
+                spent[last[0]] += _clip(e.time_s, start, end) - _clip(last[1], start, end)
+            since[e.agv] = (e.to_state, e.time_s)
+        self.idle_waiting.events(rows)
+
+    def orders(self, rows: Sequence[Order]) -> None:
+        """Each order once, with its final timestamps. Busy: from its assignment to its
+        delivery, or its failure, or the end of the run."""
+        start, end = self.start_s, self.end_s
+        for o in rows:
+            self.orders_created += 1
+            if start <= o.created_s <= end:
+                self.created_in_window += 1
+            self.orders_reassigned += o.reassigned
+            if o.failed_s is not None:
+                self.orders_failed += 1
+            agv = NO_AGV if o.agv is None else o.agv
+            if o.delivered_s is not None:
+                self.delivered[agv] += 1
+                if start <= o.delivered_s <= end:
+                    self.lead_s.append(o.delivered_s - o.created_s)
+                    self.lead_agv.append(agv)
+            if o.assigned_s is not None:
+                self.wait_sum_s += o.assigned_s - o.created_s
+                self.waits += 1
+                done = o.delivered_s if o.delivered_s is not None else o.failed_s
+                self.busy_s[agv] = self.busy_s.get(agv, 0.0) \
+                    + _clip(end if done is None else done, start, end) \
+                    - _clip(o.assigned_s, start, end)
+
+    def soc_samples(self, rows: Sequence[SocSample]) -> None:
+        """No KPI reads the state of charge (soc.parquet is for plots)."""
+
+    def queue_lengths(self, rows: Sequence[QueueLength]) -> None:
+        """The integral of the waiting-order count over the window (a step function, zero
+        before its first change), and when orders waited (idle_with_orders_waiting_pct)."""
+        start, end = self.start_s, self.end_s
+        last = self._queue_last
+        for t1, value in rows:
+            if last is not None:
+                t0, held = last
+                self.queue_integral += held * max(0.0, min(t1, end) - max(t0, start))
+            last = (t1, value)
+        self._queue_last = last
+        self.idle_waiting.queue_lengths(rows)
+
+    def charge_waits(self, rows: Sequence[ChargeWait]) -> None:
+        for asked, assigned in rows:
+            self.charges += 1
+            self.charge_wait_sum_s += assigned - asked
+
+    def errors(self, rows: Sequence[ErrorRecord]) -> None:
+        self.errors_by_code.update(e.code for e in rows)
+
+    def moves(self, rows: Sequence[MoveRecord]) -> None:
+        """No KPI reads the moves (they are the replay's)."""
+
+    def close(self) -> None:
+        """Every record is in: what was open lasts to the end of the run."""
+        if not self.closed:
+            self.closed = True
+            self.idle_waiting.close()
+
+    # ---- the KPIs --------------------------------------------------------------------------
+    def state_seconds(self, agv: int) -> dict[str, float]:
+        """AGV-seconds of `agv` in each state within the window (its last state lasts to the
+        end of the run)."""
+        spent = dict(self.state_s.get(agv, _no_state_time()))
+        last = self._state_since.get(agv)
+        if last is not None:
+            spent[last[0]] += self.end_s - _clip(last[1], self.start_s, self.end_s)
+        return spent
+
+    def group(self, agvs: Collection[int], whole_fleet: bool = False) -> dict[str, Any]:
+        """The KPIs that are sums over AGVs (`BY_TYPE` and the states), over `agvs`; for the
+        `whole_fleet` orders recorded without an AGV count too (hand-made records only)."""
+        start, end = self.start_s, self.end_s
+        window_h = (end - start) / 3600.0
+        agv_s = len(agvs) * (end - start)
+        members = sorted(agvs)
+        orders_of = [*members, NO_AGV] if whole_fleet else members
+        states = _no_state_time()
+        for agv in members:
+            for state, seconds in self.state_seconds(agv).items():
+                states[state] += seconds
+        lead = np.frombuffer(self.lead_s, dtype=float)[
+            np.isin(np.frombuffer(self.lead_agv, dtype=np.int64), orders_of)] \
+            if self.lead_s else np.empty(0)
+        down = sum(states[s.value] for s in DOWN_STATES)
+        return {
+            "agvs": len(agvs),
+            "orders_completed": sum(self.delivered[agv] for agv in orders_of),
+            "throughput_per_hour": _round(len(lead) / window_h),
+            "lead": lead,
+            "lead_time_mean_s": _round(float(lead.mean())) if len(lead) else None,
+            "agv_utilisation_pct": _round(100.0 * sum(self.busy_s.get(agv, 0.0)
+                                                      for agv in orders_of) / agv_s),
+            "availability_pct": _round(100.0 * (1.0 - down / agv_s)),
+            "states": states,
+            "agv_s": agv_s,
+        }
+
+    def figures(self, recorder: Recorder, scenario: Scenario, layout_name: str,
+                warnings: Sequence[str] = ()) -> dict[str, Any]:
+        """The run fields and every KPI of the catalogue but wall_s, from these sums and the
+        recorder's running totals, once every record has been fed (the sink closed)."""
+        if not self.closed:
+            raise ValueError("the KPIs are read once every record is in (close the sums)")
+        start, end = self.start_s, self.end_s
+        window_h = (end - start) / 3600.0
+        n_agvs = scenario.fleet.size
+        fleet = self.group(range(n_agvs), whole_fleet=True)
+        agv_s = fleet["agv_s"]
+        lead = fleet["lead"]
+        queue = self.queue_integral
+        if self._queue_last is not None:
+            t0, held = self._queue_last
+            queue += held * max(0.0, end - max(t0, start))
+        throughput = fleet["throughput_per_hour"]
+        out: dict[str, Any] = {
+            "scenario": scenario.name,
+            "layout": layout_name,
+            "agvs": n_agvs,
+            "seed": scenario.seed,
+            "duration_h": scenario.duration_h,
+            "warmup_h": scenario.warmup_h,
+            "setup_warnings": list(warnings),
+            "orders_created": self.orders_created,
+            "orders_completed": fleet["orders_completed"],
+            "throughput_per_hour": throughput,
+            "lead_time_mean_s": fleet["lead_time_mean_s"],
+            "lead_time_p95_s": _round(float(np.percentile(lead, 95))) if len(lead) else None,
+            "agv_utilisation_pct": fleet["agv_utilisation_pct"],
+            "blocked_time_pct": _round(100.0 * recorder.blocked_s / agv_s),
+            "deadlocks_detected": recorder.deadlocks,
+            "distance_km": _round(recorder.distance_m / 1000.0),
+            "order_wait_mean_s": _round(self.wait_sum_s / self.waits) if self.waits else None,
+            "order_queue_mean": _round(queue / (end - start)),
+        }
+        states = fleet["states"]
+        for state in VehicleState:
+            out[f"state_{state.key}_pct"] = _round(100.0 * states[state.value] / agv_s)
+        demand = self.created_in_window / window_h
+        idle_waiting, by_reason = self.idle_waiting.seconds()
+        out.update({
+            "availability_pct": fleet["availability_pct"],
+            "idle_with_orders_waiting_pct": _round(100.0 * idle_waiting / agv_s),
+            BY_REASON: {reason.value: _round(100.0 * by_reason[reason] / agv_s)
+                        for reason in NotDispatched},
+            "orders_failed": self.orders_failed,
+            "orders_reassigned": self.orders_reassigned,
+            "charges": self.charges,
+            "charging_queue_wait_mean_s": _round(self.charge_wait_sum_s / self.charges)
+            if self.charges else None,
+            "commands_sent": recorder.commands_sent,
+            "command_retries": recorder.command_retries,
+            "obstacle_pauses": recorder.obstacle_pauses,
+            "comm_losses": recorder.comm_losses,
+            "errors_by_code": dict(sorted(self.errors_by_code.items())),
+            "warnings_by_code": dict(sorted(recorder.warnings.items())),
+            "demand_per_hour": _round(demand),
+            "throughput_pct_of_demand": _round(100.0 * throughput / demand) if demand > 0
+            else None,
+            "orders_open_at_end": self.orders_created - fleet["orders_completed"],
+        })
+        if scenario.fleet.vehicles:
+            out["by_type"] = self.by_type(scenario)
+        if recorder.zone_wait_s:
+            out["zone_wait_s"] = {z: _round(s) for z, s in recorder.zone_wait_s.items()}
+        return out
+
+    def by_type(self, scenario: Scenario) -> dict[str, Any]:
+        """`BY_TYPE` for each type of a mixed fleet, keyed ``<type>.<kpi>``, in fleet order."""
+        agv_types = scenario.fleet.agv_types
+        out: dict[str, Any] = {}
+        for kind in scenario.fleet.type_profiles:
+            group = self.group([i for i, t in enumerate(agv_types) if t == kind])
+            out.update({f"{kind}.{k.name}": group[k.name] for k in BY_TYPE})
+        return out
+
+
+Spell = list[float]
+"""[start_s, end_s] of a spell."""
+
+
+class IdleWhileWaiting:
+    """AGV-seconds in state Idle while at least one order waited unassigned, and the part of
+    them under each not_dispatched reason, from the events and the queue lengths as they come.
+
+    Per AGV, its Idle spells are matched with the spells in which orders waited (the queue
+    above zero, clipped to the window, touching spells joined) and each piece in common with
+    the AGV's reason spells (not_dispatched opens or changes a reason, not_dispatched_end
+    closes it). The two kinds of records come as independent streams, so a piece is counted
+    only once both have gone past its end; what is not matched yet waits here. Pieces are
+    summed per AGV in time order, and the AGVs in the order their first Idle spell ended
+    (those Idle at the end last, in the order they became Idle)."""
+
+    def __init__(self, start_s: float, end_s: float) -> None:
+        self.start_s, self.end_s = start_s, end_s
+        self.event_s = -math.inf
+        """The time of the newest event: every Idle and reason spell before it is known."""
+        self.waiting: list[Spell] = []
+        """Closed spells in which orders waited, from `offset` on (the last may still grow)."""
+        self.offset = 0
+        self.queue_last: tuple[float, int] | None = None
+        """The newest change of the queue length."""
+        self.idle_since: dict[int, float] = {}
+        """AGVs Idle now, since when (in the order they became Idle)."""
+        self.idle: dict[int, deque[tuple[float, float | None]]] = {}
+        """Per AGV, Idle spells not fully matched yet (end None: still Idle)."""
+        self.cursor: dict[int, int] = {}
+        """Per AGV with Idle spells to match, the waiting spell it has reached."""
+        self.reasons: dict[int, deque[tuple[NotDispatched, float, float]]] = {}
+        """Per AGV, closed reason spells that may still meet an Idle spell."""
+        self.reason_open: dict[int, tuple[NotDispatched, float]] = {}
+        self.order: dict[int, None] = {}
+        """AGVs in the order their first Idle spell ended."""
+        self.total_s: dict[int, float] = {}
+        self.by_reason_s: dict[int, dict[NotDispatched, float]] = {}
+        self.closed = False
+
+    # ---- the streams --------------------------------------------------------------------------
+    def events(self, rows: Sequence[EventRecord]) -> None:
+        for e in rows:
+            if e.event == NOT_DISPATCHED:
+                if e.agv in self.reason_open:
+                    self._close_reason(e.agv, e.time_s)
+                self.reason_open[e.agv] = (NotDispatched(e.detail), e.time_s)
+            elif e.event == NOT_DISPATCHED_END and e.agv in self.reason_open:
+                self._close_reason(e.agv, e.time_s)
+            if e.from_state == e.to_state:
+                continue
+            if e.agv in self.idle_since:
+                self._close_idle(e.agv, e.time_s)
+            if e.to_state == IDLE:
+                self._open_idle(e.agv, e.time_s)
+        if rows:
+            self.event_s = rows[-1].time_s
+        self._match()
+
+    def queue_lengths(self, rows: Sequence[QueueLength]) -> None:
+        for t1, value in rows:
+            if self.queue_last is not None:
+                self._step_ended(*self.queue_last, t1)
+            self.queue_last = (t1, value)
+        self._match()
+
+    def close(self) -> None:
+        """The run is over: the queue's last step, the Idle spells and the reasons still open
+        last to its end."""
+        if self.closed:
+            return
+        if self.queue_last is not None:
+            self._step_ended(*self.queue_last, self.end_s)
+            self.queue_last = None
+        for agv in list(self.idle_since):
+            self._close_idle(agv, self.end_s)
+        for agv in list(self.reason_open):
+            self._close_reason(agv, self.end_s)
+        self.closed = True
+        self.event_s = math.inf
+        self._match()
+
+    def seconds(self) -> tuple[float, dict[NotDispatched, float]]:
+        """The total and the part under each reason, once closed."""
+        total = 0.0
+        by_reason = dict.fromkeys(NotDispatched, 0.0)
+        for agv in self.order:
+            total += self.total_s.get(agv, 0.0)
+            for reason, seconds in self.by_reason_s.get(agv, {}).items():
+                by_reason[reason] += seconds
+        return total, by_reason
+
+    # ---- spells -------------------------------------------------------------------------------
+    def _step_ended(self, t0: float, value: int, t1: float) -> None:
+        a, b = max(t0, self.start_s), min(t1, self.end_s)
+        if value > 0 and b > a:
+            if self.waiting and self.waiting[-1][1] == a:
+                self.waiting[-1][1] = b
+            else:
+                self.waiting.append([a, b])
+
+    def _open_idle(self, agv: int, time_s: float) -> None:
+        self.idle_since[agv] = time_s
+        spells = self.idle.setdefault(agv, deque())
+        if not spells:  # from the first waiting spell that may meet this Idle spell
+            first = bisect_right(self.waiting, time_s, key=lambda w: w[1])
+            if first == len(self.waiting) and self._may_grow():
+                first -= 1  # the last one may still grow past time_s
+            self.cursor[agv] = self.offset + first
+        spells.append((time_s, None))
+
+    def _close_idle(self, agv: int, time_s: float) -> None:
+        since = self.idle_since.pop(agv)
+        spells = self.idle[agv]
+        assert spells[-1] == (since, None)
+        spells[-1] = (since, time_s)
+        self.order.setdefault(agv, None)
+
+    def _close_reason(self, agv: int, time_s: float) -> None:
+        reason, since = self.reason_open.pop(agv)
+        self.reasons.setdefault(agv, deque()).append((reason, since, time_s))
+
+    # ---- matching ------------------------------------------------------------------------------
+    def _waiting_at(self, j: int) -> tuple[float, float, bool] | None:
+        """Waiting spell `j` (absolute index) and whether its end is final, or None if it is
+        not known yet."""
+        k = j - self.offset
+        if k >= len(self.waiting):
+            return None
+        a, b = self.waiting[k]
+        final = self.closed or k < len(self.waiting) - 1 or not self._may_grow()
+        return a, b, final
+
+    def _may_grow(self) -> bool:
+        """Can the last waiting spell still grow (the queue's open step joins it)?"""
+        if self.queue_last is None or not self.waiting:
+            return False
+        t0, value = self.queue_last
+        return value > 0 and self.waiting[-1][1] == max(t0, self.start_s)
+
+    def _next_waiting_from(self) -> float:
+        """Waiting spells not known yet start at or after this."""
+        if self.closed:
+            return math.inf
+        if self.queue_last is None:
+            return -math.inf
+        return max(self.queue_last[0], self.start_s)
+
+    def _match(self) -> None:
+        for agv, spells in self.idle.items():
+            if spells:
+                self._match_agv(agv, spells)
+        self._forget()
+
+    def _match_agv(self, agv: int, spells: deque[tuple[float, float | None]]) -> None:
+        j = self.cursor[agv]
+        while spells:
+            s, e = spells[0]
+            spell = self._waiting_at(j)
+            if spell is None:  # every known waiting spell is behind
+                if e is not None and e <= self._next_waiting_from():
+                    spells.popleft()
+                    continue
+                break
+            a, b, final = spell
+            if e is not None and (final or e <= b):
+                hi, idle_first = min(e, b), e <= b
+            elif final and b <= self.event_s:  # Idle goes on at least to the newest event
+                hi, idle_first = b, False
+            else:
+                break
+            lo = max(s, a)
+            if hi > lo:
+                self._piece(agv, lo, hi)
+            if idle_first:
+                spells.popleft()
+            else:
+                j += 1
+        self.cursor[agv] = j
+
+    def _piece(self, agv: int, lo: float, hi: float) -> None:
+        """[lo, hi]: Idle while orders waited; and its part under each reason."""
+        self.total_s[agv] = self.total_s.get(agv, 0.0) + (hi - lo)
+        held = self.reasons.get(agv)
+        spells: list[tuple[NotDispatched, float, float]] = list(held) if held else []
+        if agv in self.reason_open:  # open: lasts at least to the newest event, past hi
+            reason, since = self.reason_open[agv]
+            spells.append((reason, since, math.inf))
+        for reason, ra, rb in spells:
+            if ra >= hi:
+                break
+            piece = min(hi, rb) - max(lo, ra)
+            if piece > 0:
+                sums = self.by_reason_s.setdefault(agv, {})
+                sums[reason] = sums.get(reason, 0.0) + piece
+        while held and held[0][2] <= hi:  # no later piece (they start at hi or after) meets it
+            held.popleft()
+
+    def _forget(self) -> None:
+        """Drop what no Idle spell can meet any more: waiting spells before every AGV's cursor
+        (and, for AGVs not Idle, before the newest event); reasons of AGVs not Idle that ended
+        before the newest event."""
+        keep_from = self.offset + bisect_right(self.waiting, self.event_s, key=lambda w: w[1])
+        for agv, spells in self.idle.items():
+            if spells:
+                keep_from = min(keep_from, self.cursor[agv])
+        keep_from = min(keep_from, self.offset + max(0, len(self.waiting) - 1))
+        drop = keep_from - self.offset
+        if drop > 64 and drop * 2 > len(self.waiting):
+            del self.waiting[:drop]
+            self.offset = keep_from
+        for agv, held in self.reasons.items():
+            if not self.idle.get(agv):
+                while held and held[0][2] <= self.event_s:
+                    held.popleft()
+
+
+def run_kpis(run: RunOutput, sums: KpiSums | None = None) -> dict[str, Any]:
     """The KPIs of a finished run (see compute_kpis), with its setup warnings."""
     warnings = [w.text for w in setup_warnings(run.scenario, run.layout)]
-    return compute_kpis(run.recorder, run.scenario, run.layout.name, warnings)
+    return compute_kpis(run.recorder, run.scenario, run.layout.name, warnings, sums)
 
 
 def compute_kpis(recorder: Recorder, scenario: Scenario, layout_name: str,
-                 warnings: Sequence[str] = ()) -> dict[str, Any]:
-    """The run fields and every KPI of the catalogue but wall_s, from the run's records."""
-    start, end = scenario.warmup_s, scenario.duration_s
-    window_h = (end - start) / 3600.0
-    n_agvs = scenario.fleet.size
-    agv_s = n_agvs * (end - start)
-    orders = recorder.orders
-    delivered = [o for o in orders if o.delivered_s is not None]
-    lead = np.array([o.delivered_s - o.created_s for o in delivered
-                     if o.delivered_s is not None and start <= o.delivered_s <= end],
-                    dtype=float)
-    waits = np.array([_nan(o.assigned_s) - o.created_s for o in orders], dtype=float)
-    states = state_seconds(recorder.events, start, end)
-    throughput = _round(len(lead) / window_h)
-    out: dict[str, Any] = {
-        "scenario": scenario.name,
-        "layout": layout_name,
-        "agvs": n_agvs,
-        "seed": scenario.seed,
-        "duration_h": scenario.duration_h,
-        "warmup_h": scenario.warmup_h,
-        "setup_warnings": list(warnings),
-        "orders_created": len(orders),
-        "orders_completed": len(delivered),
-        "throughput_per_hour": throughput,
-        "lead_time_mean_s": _round(float(lead.mean())) if len(lead) else None,
-        "lead_time_p95_s": _round(float(np.percentile(lead, 95))) if len(lead) else None,
-        "agv_utilisation_pct": _round(100.0 * busy_seconds(orders, start, end) / agv_s),
-        "blocked_time_pct": _round(100.0 * recorder.blocked_s / agv_s),
-        "deadlocks_detected": recorder.deadlocks,
-        "distance_km": _round(recorder.distance_m / 1000.0),
-        "order_wait_mean_s": _round(float(np.nanmean(waits)))
-        if not np.isnan(waits).all() else None,
-        "order_queue_mean": _round(queue_mean(recorder.queue_lengths, start, end)),
-    }
-    for state in VehicleState:
-        out[f"state_{state.key}_pct"] = _round(100.0 * states[state.value] / agv_s)
-    down = sum(states[s.value] for s in DOWN_STATES)
-    charge_waits = [got - asked for asked, got in recorder.charge_waits]
-    errors: dict[str, int] = {}
-    for error in recorder.errors:
-        errors[error.code] = errors.get(error.code, 0) + 1
-    created = sum(1 for o in orders if start <= o.created_s <= end)
-    demand = created / window_h
-    idle_waiting, by_reason = idle_with_orders_waiting_s(recorder.events, recorder.queue_lengths,
-                                                         start, end)
-    out.update({
-        "availability_pct": _round(100.0 * (1.0 - down / agv_s)),
-        "idle_with_orders_waiting_pct": _round(100.0 * idle_waiting / agv_s),
-        BY_REASON: {reason.value: _round(100.0 * by_reason[reason] / agv_s)
-                    for reason in NotDispatched},
-        "orders_failed": sum(1 for o in orders if o.failed_s is not None),
-        "orders_reassigned": sum(o.reassigned for o in orders),
-        "charges": len(charge_waits),
-        "charging_queue_wait_mean_s": _round(float(np.mean(charge_waits))) if charge_waits
-        else None,
-        "commands_sent": recorder.commands_sent,
-        "command_retries": recorder.command_retries,
-        "obstacle_pauses": recorder.obstacle_pauses,
-        "comm_losses": recorder.comm_losses,
-        "errors_by_code": dict(sorted(errors.items())),
-        "warnings_by_code": dict(sorted(recorder.warnings.items())),
-        "demand_per_hour": _round(demand),
-        "throughput_pct_of_demand": _round(100.0 * throughput / demand) if demand > 0 else None,
-        "orders_open_at_end": len(orders) - len(delivered),
-    })
-    if scenario.fleet.vehicles:
-        out["by_type"] = by_type_kpis(recorder, scenario)
-    if recorder.zone_wait_s:
-        out["zone_wait_s"] = {z: _round(s) for z, s in recorder.zone_wait_s.items()}
-    return out
+                 warnings: Sequence[str] = (), sums: KpiSums | None = None) -> dict[str, Any]:
+    """The run fields and every KPI of the catalogue but wall_s. A streamed run passes the
+    `sums` its sink fed; an in-memory recorder is handed over to fresh ones here."""
+    if sums is None:
+        sums = KpiSums(scenario.warmup_s, scenario.duration_s)
+        recorder.hand_over(sums)
+    return sums.figures(recorder, scenario, layout_name, warnings)
 
 
-def by_type_kpis(recorder: Recorder, scenario: Scenario) -> dict[str, Any]:
-    """`BY_TYPE` for each type of a mixed fleet, keyed ``<type>.<kpi>``, in fleet order."""
-    start, end = scenario.warmup_s, scenario.duration_s
-    window_h = (end - start) / 3600.0
-    agv_types = scenario.fleet.agv_types
-    out: dict[str, Any] = {}
-    for kind in scenario.fleet.type_profiles:
-        agvs = {i for i, t in enumerate(agv_types) if t == kind}
-        agv_s = len(agvs) * (end - start)
-        orders = [o for o in recorder.orders if o.agv in agvs]
-        delivered = [o for o in orders if o.delivered_s is not None]
-        lead = [o.delivered_s - o.created_s for o in delivered
-                if o.delivered_s is not None and start <= o.delivered_s <= end]
-        states = state_seconds([e for e in recorder.events if e.agv in agvs], start, end)
-        down = sum(states[s.value] for s in DOWN_STATES)
-        out.update({
-            f"{kind}.agvs": len(agvs),
-            f"{kind}.orders_completed": len(delivered),
-            f"{kind}.throughput_per_hour": _round(len(lead) / window_h),
-            f"{kind}.lead_time_mean_s": _round(float(np.mean(lead))) if lead else None,
-            f"{kind}.agv_utilisation_pct": _round(100.0 * busy_seconds(orders, start, end)
-                                                  / agv_s),
-            f"{kind}.availability_pct": _round(100.0 * (1.0 - down / agv_s)),
-        })
-    return out
-
-
-def state_seconds(events: Sequence[EventRecord], start_s: float,
-                  end_s: float) -> dict[str, float]:
-    """Total AGV-seconds in each state within [start_s, end_s], from the state changes: each
-    AGV is in the state it last changed to until its next change (or the end)."""
-    changes: dict[int, list[EventRecord]] = {}
-    for e in events:
-        if e.from_state != e.to_state:
-            changes.setdefault(e.agv, []).append(e)
-    totals = {s.value: 0.0 for s in VehicleState}
-    for agv in sorted(changes):
-        spells = changes[agv]
-        for change, until in zip(spells, [*(e.time_s for e in spells[1:]), end_s], strict=True):
-            totals[change.to_state] += _clip(until, start_s, end_s) \
-                - _clip(change.time_s, start_s, end_s)
-    return totals
-
-
-Spells = list[tuple[float, float]]
-"""Disjoint time intervals [start_s, end_s) in time order."""
-
-
-def idle_with_orders_waiting_s(events: Sequence[EventRecord],
-                               queue_lengths: Sequence[tuple[float, int]], start_s: float,
-                               end_s: float) -> tuple[float, dict[NotDispatched, float]]:
-    """AGV-seconds within [start_s, end_s] in state Idle while at least one order waited
-    unassigned, and the part of them under each not_dispatched reason."""
-    waiting = waiting_spells(queue_lengths, start_s, end_s)
-    total = 0.0
-    by_reason = dict.fromkeys(NotDispatched, 0.0)
-    idle = state_spells(events, VehicleState.IDLE.value, end_s)
-    reasons = not_dispatched_spells(events, end_s)
-    for agv, spells in idle.items():
-        idle_waiting = overlap(spells, waiting)
-        total += sum(b - a for a, b in idle_waiting)
-        for reason, held in reasons.get(agv, {}).items():
-            by_reason[reason] += sum(b - a for a, b in overlap(held, idle_waiting))
-    return total, by_reason
-
-
-def waiting_spells(queue_lengths: Sequence[tuple[float, int]], start_s: float,
-                   end_s: float) -> Spells:
-    """When at least one order waited (a step function of (time, value) changes), within
-    [start_s, end_s]."""
-    out: Spells = []
-    for (t0, value), (t1, _) in zip(queue_lengths, [*queue_lengths[1:], (end_s, 0)],
-                                    strict=False):
-        a, b = max(t0, start_s), min(t1, end_s)
-        if value > 0 and b > a:
-            if out and out[-1][1] == a:
-                out[-1] = (out[-1][0], b)
-            else:
-                out.append((a, b))
-    return out
-
-
-def state_spells(events: Sequence[EventRecord], state: str, end_s: float) -> dict[int, Spells]:
-    """Per AGV, when it was in `state` (from its changes of state; the last lasts to end_s)."""
-    since: dict[int, float] = {}
-    out: dict[int, Spells] = {}
-    for e in events:
-        if e.from_state == e.to_state:
-            continue
-        if e.agv in since:
-            out.setdefault(e.agv, []).append((since.pop(e.agv), e.time_s))
-        if e.to_state == state:
-            since[e.agv] = e.time_s
-    for agv, t in since.items():
-        out.setdefault(agv, []).append((t, end_s))
-    return out
-
-
-def not_dispatched_spells(events: Sequence[EventRecord],
-                          end_s: float) -> dict[int, dict[NotDispatched, Spells]]:
-    """Per AGV and reason, the spells the fleet manager recorded (not_dispatched opens or
-    changes a reason, not_dispatched_end closes it; one still open lasts to end_s)."""
-    open_: dict[int, tuple[NotDispatched, float]] = {}
-    out: dict[int, dict[NotDispatched, Spells]] = {}
-
-    def close(agv: int, t: float) -> None:
-        reason, since = open_.pop(agv)
-        out.setdefault(agv, {}).setdefault(reason, []).append((since, t))
-
-    for e in events:
-        if e.event == NOT_DISPATCHED:
-            if e.agv in open_:
-                close(e.agv, e.time_s)
-            open_[e.agv] = (NotDispatched(e.detail), e.time_s)
-        elif e.event == NOT_DISPATCHED_END and e.agv in open_:
-            close(e.agv, e.time_s)
-    for agv in list(open_):
-        close(agv, end_s)
-    return out
-
-
-def overlap(a: Spells, b: Spells) -> Spells:
-    """The intersection of two lists of disjoint spells in time order."""
-    out: Spells = []
-    i = j = 0
-    while i < len(a) and j < len(b):
-        lo, hi = max(a[i][0], b[j][0]), min(a[i][1], b[j][1])
-        if hi > lo:
-            out.append((lo, hi))
-        if a[i][1] < b[j][1]:
-            i += 1
-        else:
-            j += 1
-    return out
-
-
-def busy_seconds(orders: Sequence[Order], start_s: float, end_s: float) -> float:
-    """AGV-seconds within [start_s, end_s] spent on an order: from its assignment to its
-    delivery, or its failure, or the end of the run."""
-    assigned = np.array([_nan(o.assigned_s) for o in orders], dtype=float)
-    done = np.array([_nan(o.delivered_s if o.delivered_s is not None else o.failed_s)
-                     for o in orders], dtype=float)
-    done = np.where(np.isnan(done), end_s, done)
-    busy = np.clip(done, start_s, end_s) - np.clip(assigned, start_s, end_s)
-    return float(np.nansum(busy))
-
-
-def queue_mean(lengths: Sequence[tuple[float, int]], start_s: float, end_s: float) -> float:
-    """Time-average of a step function given as (time, value) changes, over [start_s, end_s];
-    zero before its first change."""
-    total = 0.0
-    for (t0, value), (t1, _) in zip(lengths, [*lengths[1:], (end_s, 0)], strict=False):
-        total += value * max(0.0, min(t1, end_s) - max(t0, start_s))
-    return total / (end_s - start_s)
+def _no_state_time() -> dict[str, float]:
+    return {s.value: 0.0 for s in VehicleState}
 
 
 def _clip(value: float, low: float, high: float) -> float:
     return min(max(value, low), high)
-
-
-def _nan(value: float | None) -> float:
-    return math.nan if value is None else value
 
 
 def _round(value: float) -> float:

@@ -40,15 +40,23 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 
+from fleet_sim.analysis.tables import (
+    MOVES,
+    SortedTable,
+    events_table,
+    moves_frame,
+    table_schema,
+)
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario, load_layout_for, load_scenario
 from fleet_sim.config.trace import load_trace
 from fleet_sim.errors import InputError
 from fleet_sim.model.kinematics import Piece, distance_at
-from fleet_sim.model.records import MOVE_COLUMNS, Recorder
+from fleet_sim.model.records import Recorder
 
-MOVES_FILE = "moves.parquet"
+MOVES_FILE = f"{MOVES}.parquet"
 CONFIG_FILE = "config.resolved.yaml"
 POSITIONAL = ("drive", "track", "parking", "off")
 """Kinds of move rows that say where an AGV is (waits and charger waits do not move it)."""
@@ -64,19 +72,24 @@ _ORDER = re.compile(r"\border (\d+)")
 def moves_table(recorder: Recorder) -> pd.DataFrame:
     """One row per drive, lock wait and placement (moves.parquet), by AGV and start time; rows
     that start together keep the order they happened in."""
-    frame = pd.DataFrame(recorder.moves, columns=list(MOVE_COLUMNS))
-    frame = frame.astype({"agv": "int64", "kind": "string", "start_s": "float64",
-                          "end_s": "float64", "u": "string", "v": "string", "other": "int64",
-                          "hop_s": "float64", "driven_s": "float64", "v_in_mps": "float64",
-                          "v_out_mps": "float64", "curve_m": "float64", "curve_mps": "float64",
-                          "limit_mps": "float64", "accel_mps2": "float64",
-                          "decel_mps2": "float64"})
+    frame = moves_frame(recorder.moves)
     return frame.sort_values(["agv", "start_s"], kind="stable").reset_index(drop=True)
 
 
 def write_moves(recorder: Recorder, run_dir: Path) -> Path:
+    """moves.parquet of a run kept in memory, by its one writer (fleet_sim.analysis.tables;
+    `fleet-sim run --replay` streams it as the run goes)."""
     path = run_dir / MOVES_FILE
-    moves_table(recorder).to_parquet(path, index=False)
+    table = SortedTable(path, table_schema(MOVES), "start_s", "agv", recorder.batch_rows)
+    try:
+        for start in range(0, len(recorder.moves), recorder.batch_rows):
+            table.add(pa.Table.from_pandas(
+                moves_frame(recorder.moves[start:start + recorder.batch_rows]),
+                schema=table_schema(MOVES), preserve_index=False))
+        table.close(table_schema(MOVES))
+    except BaseException:
+        table.abort()
+        raise
     return path
 
 
@@ -127,7 +140,6 @@ def load_run(run_dir: Path, progress: ProgressCallback | None = None,
     if not resimulate:
         return RunRecord(run_dir, scenario, layout, events, orders, soc,
                          moves_table(Recorder(0.0, 0.0)), False)
-    from fleet_sim.analysis.tables import events_table
     from fleet_sim.sim.engine import simulate
 
     trace = []

@@ -1,17 +1,57 @@
-"""What a run records: events, orders, traffic figures. Plain Python records, collected in one
-place and turned into tables and KPIs only after the run (fleet_sim.analysis.tables, .kpis).
+"""What a run records: events, orders, state of charge, the replay's moves, traffic figures.
+Plain Python records, collected in one place (`Recorder`) and turned into tables and KPIs by
+fleet_sim.analysis.
 
-Decision: events and occupancy spells are typed NamedTuples rather than dataclasses. They are
-immutable and read by field name like a frozen dataclass with slots, cost no more to create than
-the plain tuples they replace (a run records some 100,000 events), and pandas builds a table
-from a list of them directly, in field order (the columns of events.parquet).
+Two ways to keep them:
+
+* **In memory** (no sink, the default of `simulate`): the recorder keeps every row in its lists
+  for the whole run, as tests and cross-checks want them.
+* **Streamed** (a `RecordSink`, as `fleet-sim run` and every sweep run use it): the recorder
+  holds at most `batch_rows` rows of each kind and hands them to the sink in batches as the run
+  goes; the sink writes the Parquet tables and keeps the KPIs' running sums
+  (fleet_sim.analysis). A run's memory then stays flat in simulated time.
+
+Decisions:
+
+* Events and occupancy spells are typed NamedTuples rather than dataclasses. They are immutable
+  and read by field name like a frozen dataclass with slots, cost no more to create than plain
+  tuples (the bundled 12-AGV shift records some 35,000 events a simulated day), and pandas
+  builds a table from a list of them directly, in field order (the columns of events.parquet).
+* The core knows no file format: `RecordSink` is a Protocol declared here and implemented
+  above the core (the Parquet files and the KPI sums in fleet_sim.analysis), so the simulation
+  never imports pyarrow.
+* Batches are cut at a fixed row count (`BATCH_ROWS`), never by time or memory, so the same
+  scenario and seed hand the sink the same batches and the files come out byte-identical.
+  Rows of one kind reach the sink in the order they were recorded; the kinds are independent
+  streams, and a sink must not rely on how batches of different kinds interleave.
+* An order is handed over once, when it is finished (delivered, or failed: with its AGV, or at
+  once for a type no AGV of the fleet may serve): its fields no longer change then. Orders
+  still open at the end follow, in creation order. A sink thus sees orders in order of
+  completion, then the open ones; the in-memory path hands a sink the same sequence
+  (`hand_over`), so both give the same KPIs to the last bit. (orders.parquet is still in
+  creation order: its writer puts the rows back in order, fleet_sim.analysis.tables.)
+* Moves (the replay's drives, waits and placements, `record_moves`) stream like events, in
+  the order recorded; moves.parquet is by AGV and start time, sorted by its writer.
+* Occupancy spells (node holds and segment traversals) are not streamed: they are recorded only
+  when asked for (`record_occupancy`, which the sweep turns on for its per-node waits) and stay
+  in memory then.
 """
 
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Final, NamedTuple, Protocol, TypeVar
+
+BATCH_ROWS: Final = 10_000
+"""Rows of one kind a streaming recorder holds before it hands them to its sink, and the rows of
+one Parquet row group. Measured on the bundled 12-AGV shift (tracemalloc, roughly), 10,000 rows
+are 1.6 MB of events, 3.4 MB of orders, 1.4 MB of SOC samples; that shift records 35,000 events
+and 2,200 orders a simulated day. With 50,000, the first choice, a 30-day run peaked at 1.40x a
+1-day run (bench/memory_flat.py): the orders' batch filled for 23 days and its conversion to a
+table at the hand-over came on top. Smaller batches would make more, smaller row groups, and a
+larger file footer that the writer holds until the end."""
 
 
 class EventRecord(NamedTuple):
@@ -140,25 +180,126 @@ class Order:
         return self.pickup_handling_s if index == 0 else self.dropoff_handling_s
 
 
+class SocSample(NamedTuple):
+    """An AGV's state of charge at one of its state changes: a row of soc.parquet."""
+
+    time_s: float
+    agv: int
+    soc_pct: float
+
+
+class QueueLength(NamedTuple):
+    """The number of orders waiting for an AGV, from time_s until the next change."""
+
+    time_s: float
+    orders: int
+
+
+class ChargeWait(NamedTuple):
+    """One charging stop: when the AGV asked for a charger and when it got one."""
+
+    asked_s: float
+    assigned_s: float
+
+
+class RecordSink(Protocol):
+    """Where a streaming `Recorder` hands what it records, in batches, each kind in the order
+    recorded: the Parquet tables and the KPIs' running sums (fleet_sim.analysis) implement
+    it. A sink keeps no reference to a batch's list after the call returns."""
+
+    def events(self, rows: Sequence[EventRecord]) -> None: ...
+
+    def orders(self, rows: Sequence[Order]) -> None:
+        """Finished orders in the order they finished; at the end, the open ones."""
+
+    def soc_samples(self, rows: Sequence[SocSample]) -> None: ...
+
+    def queue_lengths(self, rows: Sequence[QueueLength]) -> None: ...
+
+    def charge_waits(self, rows: Sequence[ChargeWait]) -> None: ...
+
+    def errors(self, rows: Sequence[ErrorRecord]) -> None: ...
+
+    def moves(self, rows: Sequence[MoveRecord]) -> None:
+        """Only when the run records moves (`record_moves`)."""
+
+    def close(self) -> None:
+        """Everything has been handed over: the run finished."""
+
+
+class Fanout:
+    """One sink that hands every batch to several, in the order given."""
+
+    def __init__(self, *sinks: RecordSink) -> None:
+        self.sinks = sinks
+
+    def events(self, rows: Sequence[EventRecord]) -> None:
+        for sink in self.sinks:
+            sink.events(rows)
+
+    def orders(self, rows: Sequence[Order]) -> None:
+        for sink in self.sinks:
+            sink.orders(rows)
+
+    def soc_samples(self, rows: Sequence[SocSample]) -> None:
+        for sink in self.sinks:
+            sink.soc_samples(rows)
+
+    def queue_lengths(self, rows: Sequence[QueueLength]) -> None:
+        for sink in self.sinks:
+            sink.queue_lengths(rows)
+
+    def charge_waits(self, rows: Sequence[ChargeWait]) -> None:
+        for sink in self.sinks:
+            sink.charge_waits(rows)
+
+    def errors(self, rows: Sequence[ErrorRecord]) -> None:
+        for sink in self.sinks:
+            sink.errors(rows)
+
+    def moves(self, rows: Sequence[MoveRecord]) -> None:
+        for sink in self.sinks:
+            sink.moves(rows)
+
+    def close(self) -> None:
+        for sink in self.sinks:
+            sink.close()
+
+
+Row = TypeVar("Row")
+
+
 @dataclass
 class Recorder:
-    """Collects everything the KPIs are computed from. `warmup_s` splits off the warm-up for the
-    running totals (blocked time, distance); events and orders keep their own timestamps."""
+    """Collects everything the tables and KPIs are made of. `warmup_s` splits off the warm-up
+    for the running totals (blocked time, distance); events and orders keep their own
+    timestamps.
+
+    Without a `sink` every list below holds the whole run. With one, each list holds at most
+    `batch_rows` rows not yet handed over (`orders` stays empty; `open_orders` holds the orders
+    not finished yet), and `finish()` hands over the rest. The counters (blocked_s, distance,
+    deadlocks, incidents, commands, warnings, zone waits) are running totals either way."""
 
     warmup_s: float
     end_s: float
     record_occupancy: bool = False
+    sink: RecordSink | None = None
+    batch_rows: int = BATCH_ROWS
     events: list[EventRecord] = field(default_factory=list)
     orders: list[Order] = field(default_factory=list)
-    queue_lengths: list[tuple[float, int]] = field(default_factory=list)
+    """Every order, in creation order (in memory only)."""
+    open_orders: dict[int, Order] = field(default_factory=dict)
+    """Orders created and not finished yet, by id, in creation order."""
+    finished: list[Order] = field(default_factory=list)
+    """Finished orders, in the order they finished (to be handed over)."""
+    queue_lengths: list[QueueLength] = field(default_factory=list)
     blocked_s: float = 0.0
     distance_m: float = 0.0
     distance_total_m: float = 0.0
     deadlocks: int = 0
     occupancy: list[OccupancySpell] = field(default_factory=list)
-    """Node holds and segment traversals, when traced (record_occupancy)."""
-    charge_waits: list[tuple[float, float]] = field(default_factory=list)
-    """(asked_s, charger_assigned_s) per charging."""
+    """Node holds and segment traversals, when traced (record_occupancy); never streamed."""
+    charge_waits: list[ChargeWait] = field(default_factory=list)
     obstacle_pauses: int = 0
     comm_losses: int = 0
     commands_sent: int = 0
@@ -166,8 +307,8 @@ class Recorder:
     errors: list[ErrorRecord] = field(default_factory=list)
     """Every Error, in time order."""
     warnings: Counter[str] = field(default_factory=Counter)
-    soc_samples: list[tuple[float, int, float]] = field(default_factory=list)
-    """(time_s, agv, soc_pct) at every state change, for battery plots."""
+    soc_samples: list[SocSample] = field(default_factory=list)
+    """(time_s, agv, soc_pct) at every state change of an AGV with a battery model."""
     zone_wait_s: dict[str, float] = field(default_factory=dict)
     """Mutex zone id -> AGV-seconds spent (in the window) waiting to enter it; the engine
     lists every mutex zone of the layout (none: no zone_wait_s KPI)."""
@@ -175,7 +316,21 @@ class Recorder:
     moves: list[MoveRecord] = field(default_factory=list)
     """Drives, lock waits and placements of every AGV, when traced (record_moves): the
     replay's data."""
+    _full: float = field(init=False, repr=False)
+    _closed: bool = field(default=False, init=False, repr=False)
 
+    def __post_init__(self) -> None:
+        if self.batch_rows < 1:
+            raise ValueError(f"batch_rows ({self.batch_rows}) must be at least 1")
+        self._full = self.batch_rows if self.sink is not None else float("inf")
+
+    def rows_held(self) -> int:
+        """Rows the recorder holds now (occupancy spells not counted: see the module)."""
+        return (len(self.events) + len(self.orders) + len(self.open_orders)
+                + len(self.finished) + len(self.queue_lengths) + len(self.charge_waits)
+                + len(self.errors) + len(self.soc_samples) + len(self.moves))
+
+    # ---- what the model records ----------------------------------------------------------------
     def zone_waited(self, zone_id: str, start_s: float, end_s: float) -> None:
         self.zone_wait_s[zone_id] = self.zone_wait_s.get(zone_id, 0.0) \
             + self.window(start_s, end_s)
@@ -186,9 +341,40 @@ class Recorder:
     def event(self, time_s: float, agv: int, event: str, from_state: str, to_state: str,
               node: str, detail: str = "") -> None:
         self.events.append(EventRecord(time_s, agv, event, from_state, to_state, node, detail))
+        if len(self.events) >= self._full:
+            self._hand(self.events, self._sink.events)
+
+    def soc(self, time_s: float, agv: int, soc_pct: float) -> None:
+        self.soc_samples.append(SocSample(time_s, agv, soc_pct))
+        if len(self.soc_samples) >= self._full:
+            self._hand(self.soc_samples, self._sink.soc_samples)
+
+    def order_created(self, order: Order) -> None:
+        if self.sink is None:
+            self.orders.append(order)
+        self.open_orders[order.id] = order
+
+    def order_finished(self, order: Order) -> None:
+        """The order was delivered or failed: its record is complete."""
+        del self.open_orders[order.id]
+        self.finished.append(order)
+        if len(self.finished) >= self._full:
+            self._hand(self.finished, self._sink.orders)
+
+    def queue_length(self, time_s: float, orders: int) -> None:
+        self.queue_lengths.append(QueueLength(time_s, orders))
+        if len(self.queue_lengths) >= self._full:
+            self._hand(self.queue_lengths, self._sink.queue_lengths)
+
+    def charge_wait(self, asked_s: float, assigned_s: float) -> None:
+        self.charge_waits.append(ChargeWait(asked_s, assigned_s))
+        if len(self.charge_waits) >= self._full:
+            self._hand(self.charge_waits, self._sink.charge_waits)
 
     def error(self, time_s: float, agv: int, code: str, level: str) -> None:
         self.errors.append(ErrorRecord(time_s, agv, code, level))
+        if len(self.errors) >= self._full:
+            self._hand(self.errors, self._sink.errors)
 
     def window(self, start_s: float, end_s: float) -> float:
         """The part of [start_s, end_s] inside the measured window (after warm-up)."""
@@ -212,3 +398,56 @@ class Recorder:
     def moved(self, record: MoveRecord) -> None:
         if self.record_moves:
             self.moves.append(record)
+            if len(self.moves) >= self._full:
+                self._hand(self.moves, self._sink.moves)
+
+    # ---- handing over --------------------------------------------------------------------------
+    def finish(self) -> None:
+        """The run is over. Streaming: hand over every row still held, the open orders last,
+        and close the sink (once). In memory: nothing (the lists are the records)."""
+        if self.sink is None or self._closed:
+            return
+        self._closed = True
+        self._hand_all(self.sink)
+        self.sink.close()
+
+    def hand_over(self, sink: RecordSink) -> None:
+        """Hand a finished in-memory run to `sink` in the batches and order a streaming run
+        hands them, and close it; the lists are kept (the in-memory run's files and KPIs are
+        then made the one way a streamed run's are)."""
+        if self.sink is not None:
+            raise ValueError("a streaming recorder hands its rows to its own sink")
+        self._hand_all(sink, keep=True)
+        sink.close()
+
+    def _hand_all(self, sink: RecordSink, keep: bool = False) -> None:
+        size = self.batch_rows
+        _in_batches(self.events, size, sink.events)
+        _in_batches(self.finished, size, sink.orders)
+        _in_batches(list(self.open_orders.values()), size, sink.orders)
+        _in_batches(self.soc_samples, size, sink.soc_samples)
+        _in_batches(self.queue_lengths, size, sink.queue_lengths)
+        _in_batches(self.charge_waits, size, sink.charge_waits)
+        _in_batches(self.errors, size, sink.errors)
+        _in_batches(self.moves, size, sink.moves)
+        if not keep:
+            for rows in (self.events, self.finished, self.soc_samples, self.queue_lengths,
+                         self.charge_waits, self.errors, self.moves):
+                rows.clear()
+            self.open_orders.clear()
+
+    @property
+    def _sink(self) -> RecordSink:
+        assert self.sink is not None
+        return self.sink
+
+    @staticmethod
+    def _hand(rows: list[Row], to: Callable[[list[Row]], None]) -> None:
+        batch = rows[:]
+        rows.clear()
+        to(batch)
+
+
+def _in_batches(rows: list[Row], size: int, to: Callable[[list[Row]], None]) -> None:
+    for start in range(0, len(rows), size):
+        to(rows[start:start + size])

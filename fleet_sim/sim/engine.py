@@ -9,6 +9,11 @@ Vehicle types: a mixed fleet (`fleet.vehicles`), or a layout that opens segments
 some types only (`allowed_types`), gives each type its own routes and motion in `Traffic` and
 tells the fleet manager each AGV's type. A one-type fleet on a layout without `allowed_types`
 is built exactly as before (the same routes, the same random streams, the same results).
+
+What a run records stays in its `Recorder` (in memory) unless `simulate` is handed a
+`RecordSink`: then the recorder streams its rows to the sink as the run goes and closes it when
+the run has reached its end (fleet_sim.model.records). A run that raises leaves the sink open:
+its owner decides what a half-written sink becomes.
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.model.kinematics import Motion, MotionBackend
-from fleet_sim.model.records import Recorder
+from fleet_sim.model.records import BATCH_ROWS, Recorder, RecordSink
 from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.agents.vehicle import Vehicle
 from fleet_sim.sim.commands import CommandPath
@@ -65,13 +70,14 @@ class RunOutput:
 
 
 def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
-                record_occupancy: bool = False, record_moves: bool = False) -> Model:
+                record_occupancy: bool = False, record_moves: bool = False,
+                sink: RecordSink | None = None, batch_rows: int = BATCH_ROWS) -> Model:
     env = simpy.Environment()
     profile = scenario.fleet.vehicle
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
                     profile.turn_speed_mps)
     recorder = Recorder(scenario.warmup_s, scenario.duration_s, record_occupancy=record_occupancy,
-                        record_moves=record_moves)
+                        record_moves=record_moves, sink=sink, batch_rows=batch_rows)
     costs = RouteCosts(scenario.traffic.congestion_cost_s, scenario.traffic.weak_wifi_cost_s,
                        scenario.rules.weak_rssi_dbm)
     traffic = Traffic(env, layout, motion, recorder, costs=costs)
@@ -133,11 +139,15 @@ def _place(vehicles: list[Vehicle], scenario: Scenario, layout: Layout,
 
 def simulate(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
              progress: ProgressCallback | None = None, record_occupancy: bool = False,
-             record_moves: bool = False) -> RunOutput:
-    """Run the scenario to its end and return what it recorded. `record_moves`: also every
+             record_moves: bool = False, sink: RecordSink | None = None,
+             batch_rows: int = BATCH_ROWS) -> RunOutput:
+    """Run the scenario to its end and return what it recorded: everything in memory, or,
+    with a `sink`, streamed to it in batches of `batch_rows` rows of a kind (the sink is
+    closed at the end; the recorder keeps the running totals). `record_moves`: also every
     drive, lock wait and placement of every AGV (the replay's data; it changes nothing else)."""
     wall_start = time.perf_counter()
-    model = build_model(scenario, layout, trace, record_occupancy, record_moves)
+    model = build_model(scenario, layout, trace, record_occupancy, record_moves, sink,
+                        batch_rows)
     end = scenario.duration_s
     try:
         for step in range(1, PROGRESS_STEPS + 1):
@@ -150,6 +160,7 @@ def simulate(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (
             model.recorder.record_moves = False
     finally:
         model.close()
+    model.recorder.finish()
     sim_events = next(model.env._eid)  # SimPy's count of scheduled events
     return RunOutput(scenario, layout, model.recorder, model.vehicles, sim_events,
                      time.perf_counter() - wall_start)

@@ -39,8 +39,13 @@ Decisions, where the issue is silent:
   idling before it, nor a park-in manoeuvre) is waiting for the way ahead. Summed over the
   measured window (after warm-up), per node, it equals the engine's blocked time. Needs the
   engine's occupancy trace, which the sweep turns on; it does not change the run.
-* KPIs: every run's are computed in memory (fleet_sim.analysis.kpis, as for `fleet-sim run`);
+* KPIs: every run's are summed as it runs (fleet_sim.analysis.kpis, as for `fleet-sim run`);
   the sweep adds ``wall_s``, the run's wall time including writing its files.
+* Memory: a run streams its tables to Parquet as `fleet-sim run` does, but the occupancy
+  trace that node_waits needs stays in memory (a record per node hold and segment
+  traversal), and node_waits reads the columns it needs of events.parquet back once the run
+  is over. A sweep run's memory therefore still grows with its simulated time, as every run's
+  did before streaming; sweeps run shifts of hours, not years.
 * One sweep or sizing search per results folder: it holds an exclusive ``fcntl.flock`` on
   ``<folder>/.fleet-sim.lock`` while it runs, and writes its pid, host and start time into it.
   flock (not a file created with O_EXCL) because the kernel releases it when the process
@@ -173,10 +178,8 @@ def _busy(out_dir: Path, owner: dict[str, Any] | None) -> FolderBusy:
 
 def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
     """Run `spec` into ``runs_dir/<run id>``; never raises for a failing run."""
-    from fleet_sim.analysis.kpis import run_kpis
-    from fleet_sim.analysis.tables import write_run
+    from fleet_sim.analysis.tables import stream_run
     from fleet_sim.config.scenario import load_scenario
-    from fleet_sim.sim.engine import simulate
 
     start = time.perf_counter()
     run_dir = Path(runs_dir) / spec.run_id
@@ -193,10 +196,10 @@ def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
         shutil.rmtree(partial, ignore_errors=True)
         scenario = load_scenario(spec.scenario_file, spec.override_dict())
         layout = layout_for(scenario, spec.scenario_file)
-        run = simulate(scenario, layout, load_trace_for(scenario, layout), record_occupancy=True)
-        figures = run_kpis(run)
-        tables = write_run(run, partial, figures)
-        waits = node_waits(run.recorder.occupancy, tables.events, scenario.warmup_s,
+        run, figures = stream_run(scenario, layout, partial, load_trace_for(scenario, layout),
+                                  record_occupancy=True)
+        events = pd.read_parquet(partial / "events.parquet", columns=list(WORK_SPELL_COLUMNS))
+        waits = node_waits(run.recorder.occupancy, events, scenario.warmup_s,
                            scenario.duration_s)
         waits.to_parquet(partial / "node_waits.parquet", index=False)
         wall = time.perf_counter() - start
@@ -272,6 +275,10 @@ def node_waits(occupancy: Sequence[OccupancySpell], events: pd.DataFrame,
         "wait_s": pd.Series([round(waits.get(n, 0.0), 6) for n in names], dtype="float64"),
         "stops": pd.Series([stops.get(n, 0) for n in names], dtype="int64"),
     })
+
+
+WORK_SPELL_COLUMNS = ("time_s", "agv", "event", "from_state", "to_state")
+"""The columns of events.parquet that node_waits reads."""
 
 
 def _work_spells(events: pd.DataFrame) -> dict[int, tuple[np.ndarray, np.ndarray]]:

@@ -153,7 +153,9 @@ class FleetManager:
         """Admission: most AGVs on the track at once (None: no limit)."""
         self.admitted: set[int] = set()
         """AGVs holding an admission (on the track, or given work to leave parking for)."""
-        recorder.queue_lengths.append((env.now, 0))
+        self.queue_recorded = 0
+        """The queue length last recorded (`recorder.queue_length`)."""
+        recorder.queue_length(env.now, 0)
         # work conservation: who stands Idle, and what holds each back
         self.standing: dict[int, FleetAgv] = {}
         """AGVs in state Idle, by id, in the order they became Idle."""
@@ -191,10 +193,11 @@ class FleetManager:
 
     # ---- orders -----------------------------------------------------------------------------
     def submit(self, order: Order) -> None:
-        self.recorder.orders.append(order)
+        self.recorder.order_created(order)
         if self.agv_types and not self._servable(order):
             order.failed_s = self.env.now
             order.failure = "type_not_allowed"
+            self.recorder.order_finished(order)
             return
         self.waiting.append(order)
         self._dispatch()
@@ -301,6 +304,7 @@ class FleetManager:
     def order_failed(self, order: Order, code: str) -> None:
         order.failed_s = self.env.now
         order.failure = code
+        self.recorder.order_finished(order)
         if order.stops:
             self._undock_chain(order)
             return
@@ -407,9 +411,9 @@ class FleetManager:
             self.assigning.add(agv.id)
             self.commands.send("assign", partial(self._deliver, agv, order))
             changed = True
-        if changed or not self.recorder.queue_lengths \
-                or self.recorder.queue_lengths[-1][1] != len(self.waiting):
-            self.recorder.queue_lengths.append((self.env.now, len(self.waiting)))
+        if changed or self.queue_recorded != len(self.waiting):
+            self.queue_recorded = len(self.waiting)
+            self.recorder.queue_length(self.env.now, self.queue_recorded)
         self._changed()
 
     def _deliver(self, agv: FleetAgv, order: Order) -> None:

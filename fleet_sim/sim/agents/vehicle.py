@@ -204,7 +204,7 @@ class Vehicle(Driver):
         self.recorder.event(now, self.id, event, self.state.value, transition.target.value,
                             self.node, detail)
         if self.has_battery:
-            self.recorder.soc_samples.append((now, self.id, self.soc_pct))
+            self.recorder.soc(now, self.id, self.soc_pct)
         self.state = transition.target
         self.fleet.status_changed(self)
         return True
@@ -360,6 +360,7 @@ class Vehicle(Driver):
         yield from self._handle("U", order.dropoff_handling_s, order)
         self.loaded = False
         order.delivered_s = self.env.now
+        self.recorder.order_finished(order)
         self.fleet.left_station(order.dropoff_node)
         self.order = None
         self.fire("Event_Unload_Complete", f"order {order.id}")
@@ -406,6 +407,7 @@ class Vehicle(Driver):
             self.fleet.left_station(node)
             if last:
                 order.delivered_s = self.env.now
+                self.recorder.order_finished(order)
                 self.order = None
                 self.fire("Event_Unload_Complete", tag(k))
             else:
@@ -459,7 +461,7 @@ class Vehicle(Driver):
         place = request.value
         assert isinstance(place, Place)
         self.charger = place
-        self.recorder.charge_waits.append((asked, self.env.now))
+        self.recorder.charge_wait(asked, self.env.now)
         self.charge_due = False
         self.fire(trigger, f"to_charger {place.id} soc {self.soc_pct:.1f}")
         if self.parked_in is not None:
