@@ -43,14 +43,15 @@ Decisions, where the issue is silent:
 * A layout with mutex zones adds `zone_wait_s` last: zone id -> AGV-seconds spent in the window
   waiting to enter it (``zone_wait_s.<zone>``, s; also counted in blocked_time_pct).
 * Memory (`KpiSums`): fixed but for the lead times of the orders delivered in the window, kept
-  one float and one AGV id each (12 bytes an order: 9 MB for a year of 90 orders/h) because
+  one float and one AGV id each (16 bytes an order: 13 MB for a year of 90 orders/h) because
   their 95th percentile needs them all, and for the Idle and waiting spells not yet matched
   (those between the newest event and the newest queue change handed over: a batch's worth).
   Everything else is a running sum or count per AGV. Float sums therefore run in the order the
   records come (events in time order; orders in the order they finished, then the open ones)
   and per AGV, where the in-memory computation before streaming summed in order id or AGV
-  order: figures may differ from those in the last bits, never in kpis.json's 6 decimals
-  (checked on the bundled scenarios, a mixed fleet, traffic zones and multi-stop orders when
+  order: a figure may differ from that in its last bits, which kpis.json's 6 decimals hide
+  unless a value falls on a rounding boundary (kpis.json came out byte-identical on the
+  bundled scenarios, a mixed fleet, a mutex zone with admission and multi-stop orders when
   this was merged). The seconds Idle while orders waited are matched spell by spell exactly
   as before (the same pieces, summed in the same order), so they are the same to the last bit.
 """
