@@ -172,3 +172,34 @@ def test_giving_way_keeps_the_main_loop_flowing(warehouse_layout: Layout) -> Non
     assert deliveries_after_first_hour(1e9) == (0, 0)
     late, circulated = deliveries_after_first_hour(10.0)
     assert late > 250 and circulated > 100
+
+
+def test_an_agv_whose_re_entry_wait_is_broken_waits_again_and_never_shares_a_node(
+        tiny_layout: Layout) -> None:
+    """An AGV off the track waits to come back on at P, held by another AGV. Traffic breaks its
+    wait (as it does to the AGV it picks to break a wait-for cycle): it must let go, wait again
+    and come on only once P is free, holding P's lock, with no claim left behind."""
+    from fleet_sim.sim.traffic.deadlock import DeadlockVictim, Escape
+
+    scenario = make_scenario(duration_h=0.1, warmup_h=0, demand={"rate_per_hour": 0},
+                             fleet={"size": 2, "start_nodes": ["S1", "P"]},
+                             dispatch={"park_idle": False})
+    model = build_model(scenario, tiny_layout)
+    env, traffic = model.env, model.traffic
+    comer, holder = model.vehicles
+    comer._leave_track()
+    comer.process = env.process(comer._reenter_track("P"))
+    env.run(until=5)
+    assert traffic.waiting[comer.id].key == traffic.node_locks["P"].key
+    traffic._escapes[comer.id] = Escape("yield", (comer.node,))
+    comer.on_deadlock_victim(DeadlockVictim(Escape("yield", (comer.node,))))
+    env.run(until=20)
+    assert comer.process.is_alive and not comer.held  # still waiting, P not taken
+    assert traffic.node_locks["P"].holder == holder.id
+    assert comer.id not in traffic._escapes
+    holder.process = env.process(holder.drive("S3"))
+    env.run(until=120)
+    assert not comer.process.is_alive
+    assert comer.node == "P" and traffic.node_locks["P"].holder == comer.id
+    assert [h.node for h in comer.held] == ["P"]
+    assert comer.id not in traffic.waiting

@@ -223,3 +223,37 @@ def test_route_costs_keep_off_weak_wifi_when_asked(ring: Layout, tmp_path: Path)
     avoiding = make_traffic(weak, costs=RouteCosts(weak_wifi_s=30.0, weak_rssi_dbm=-70.0))
     assert avoiding.route("N0", "N2") == ["N0", "B0", "N2"]
     assert avoiding.route("N1", "N3") == ["N1", "N2", "N3"]  # elsewhere: unchanged
+
+
+def test_the_detour_cache_is_bounded_and_forgetting_changes_no_result(
+        warehouse_layout: Layout, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A long run asks ever new detour questions: the cache keeps the most recent ones only,
+    and a run that forgets almost everything computes the same routes (same KPIs)."""
+    from fleet_sim.analysis.kpis import run_kpis
+    from fleet_sim.sim import engine
+    from fleet_sim.sim.traffic import routing
+
+    from .conftest import make_scenario
+
+    def run() -> tuple[dict[str, object], int, int]:
+        scenario = make_scenario("warehouse.yaml", duration_h=2, warmup_h=0.25, seed=5,
+                                 fleet={"size": 40}, demand={"rate_per_hour": 150})
+        asked: list[int] = []
+        real = routing.Routes.route_avoiding
+
+        def counting(self: routing.Routes, *args: object, **kw: object) -> object:
+            found = real(self, *args, **kw)  # type: ignore[arg-type]
+            asked.append(len(self._detours))
+            return found
+
+        monkeypatch.setattr(routing.Routes, "route_avoiding", counting)
+        out = engine.simulate(scenario, warehouse_layout)
+        return run_kpis(out), len(asked), max(asked, default=0)
+
+    full, asked_full, largest_full = run()
+    monkeypatch.setattr(routing, "DETOUR_CACHE_SIZE", 3)
+    small, asked_small, largest_small = run()
+    assert asked_full > 100 and largest_full > 3  # the run does ask for many detours
+    assert largest_small <= 3
+    assert small == full
+    assert asked_small == asked_full

@@ -232,22 +232,44 @@ class Driver:
         self._placed("off", self.node)
 
     def _reenter_track(self, access: str) -> Proc:
-        """Back onto the tape at `access`, once it (and its corridor) is free."""
+        """Back onto the tape at `access`, once it (its corridor and mutex zones) is free. An
+        attempt whose wait traffic breaks (the AGV chosen to break a wait-for cycle) lets go of
+        what it took and tries again a deadlock check later."""
+        while not (yield from self._try_reenter(access)):
+            self.traffic.take_escape(self.id)  # its way out is to stay where it is
+            yield self.env.timeout(self.config.deadlock_check_s)
+        self.node = access
+        self._placed("track", access)
+
+    def _try_reenter(self, access: str) -> Generator[simpy.Event, Any, bool]:
         traffic = self.traffic
         corridor = traffic.layout.corridor_at(access)
+        taken: list[Claim] = []
         if corridor is not None:
             lock = traffic.corridor_locks[corridor.id]
             claim = traffic.request(self.id, lock)
-            yield from self._wait(lock, claim, may_escape=False)
+            if not (yield from self._wait(lock, claim, may_escape=False)):
+                return False
+            taken.append(claim)
         for zone in traffic.layout.mutex_zones_at.get(access, ()):
             gate = traffic.zone_locks[zone.id]
-            yield from self._wait_zone(zone.id, gate, traffic.request(self.id, gate), False)
+            if not (yield from self._wait_zone(zone.id, gate, traffic.request(self.id, gate),
+                                               False)):
+                self._let_go_of(taken)
+                return False
         lock = traffic.node_locks[access]
         claim = traffic.request(self.id, lock)
-        yield from self._wait(lock, claim, may_escape=False)
+        if not (yield from self._wait(lock, claim, may_escape=False)):
+            self._let_go_of(taken)
+            return False
         self.held = [Held(access, claim, self.env.now)]
-        self.node = access
-        self._placed("track", access)
+        return True
+
+    def _let_go_of(self, corridor_claims: list[Claim]) -> None:
+        """Give back what a broken attempt to re-enter took: its corridor, its mutex zones."""
+        for claim in corridor_claims:
+            self.traffic.free(self.id, claim)
+        self._release_left_zones()  # holding no node, it is inside none of them
 
     # ---- driving ------------------------------------------------------------------------------
     def drive(self, goal: str, stop_early: Callable[[], bool] | None = None) -> Proc:

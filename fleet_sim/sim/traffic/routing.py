@@ -3,7 +3,8 @@
 * Routes follow the shortest free-flow travel time (length / min(limit, VEL_MAX)), from
   per-destination tables computed once (Dijkstra on the reversed graph).
 * Detours (`route_avoiding`) keep off given nodes and segments; they are computed when an AGV is
-  blocked and cached by (source, destination, what to avoid). The search is A* on plain
+  blocked and cached by (source, destination, what to avoid), the most recent
+  `DETOUR_CACHE_SIZE` questions only (a long run asks ever new ones). The search is A* on plain
   adjacency lists, guided by the free-flow time to the destination from the unrestricted table
   (exact where nothing is avoided, never an overestimate): it looks at little more than the
   detour itself, where networkx's search on a filtered graph view looked at most of the layout
@@ -32,6 +33,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
+from collections import OrderedDict
 from collections.abc import Callable
 from typing import Any
 
@@ -45,6 +47,9 @@ Weight = str | Callable[[str, str, dict[str, Any]], float | None]
 ExtraCost = Callable[[str, str], float]
 """Seconds added to the route cost of segment u -> v (>= 0)."""
 NO_EDGES: frozenset[tuple[str, str]] = frozenset()
+DETOUR_CACHE_SIZE = 2048
+"""Detours remembered per vehicle type: the most recently asked (a few KB each; a 27-day run
+asked 818 distinct ones, a year would ask more)."""
 
 
 class Routes:
@@ -75,7 +80,7 @@ class Routes:
         self._to_dest: dict[str, tuple[dict[str, float], dict[str, str]]] = {}
         self._pieces: dict[tuple[str | None, str, str], tuple[Piece, ...]] = {}
         self._stop_entry: dict[tuple[str, str, str], float] = {}
-        self._detours: dict[Detour, list[str] | None] = {}
+        self._detours: OrderedDict[Detour, list[str] | None] = OrderedDict()
         self._hops: dict[tuple[str | None, str, str, float, float], tuple[float, float]] = {}
         self.edge: dict[tuple[str, str], dict[str, Any]] = {
             (u, v): d for u, v, d in self.graph.edges(data=True)}
@@ -135,10 +140,14 @@ class Routes:
         if dest in avoid or src in avoid:
             return None
         key = (src, dest, frozenset(avoid), frozenset(avoid_edges or ()))
-        if key in self._detours:
-            return self._detours[key]
+        detours = self._detours
+        if key in detours:
+            detours.move_to_end(key)
+            return detours[key]
         path = self._a_star(src, dest, key[2], key[3])
-        self._detours[key] = path
+        detours[key] = path
+        if len(detours) > DETOUR_CACHE_SIZE:
+            detours.popitem(last=False)  # the least recently asked
         return path
 
     def route_costed(self, src: str, dest: str, extra: ExtraCost,
