@@ -314,6 +314,21 @@ def run_id(factors: Mapping[str, Any], replication: int) -> str:
     return text
 
 
+def level_text(value: Any) -> str:
+    """A factor level as the experiment file would write it: `null` for no value (a pandas
+    column of levels holds it as NaN), whole numbers without a decimal point."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "null"
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return _fmt(value)
+
+
+def point_text(point: Mapping[str, Any]) -> str:
+    """A design point for messages and captions: `fleet.size=50, dispatch.max_active_agvs=null`."""
+    return ", ".join(f"{k}={level_text(v)}" for k, v in point.items())
+
+
 def _fmt(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:.6g}"
@@ -454,7 +469,7 @@ def _check_scenarios(experiment: Experiment, levels: Mapping[str, list[Any]]) ->
             scenario = experiment.scenario(factors)
             layout_for(scenario, str(experiment.scenario_file))
         except InputError as exc:
-            where = ", ".join(f"{k}={v}" for k, v in factors.items())
+            where = point_text(factors)
             raise InputError(file, f"design point ({where})", exc.value,
                              f"{exc.expected} (scenario field {exc.element})") from None
 

@@ -58,7 +58,7 @@ import yaml
 from fleet_sim.analysis.kpis import BY_REASON
 from fleet_sim.analysis.replay import LEAD_LABELS, LEAD_PARTS, lead_times, load_run, state_spells
 from fleet_sim.analysis.stats import check_targets, kpi_columns, paired_differences, point_stats
-from fleet_sim.config.experiment import FLEET, Target, layout_for
+from fleet_sim.config.experiment import FLEET, Target, layout_for, point_text
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario, load_scenario
 from fleet_sim.errors import InputError
@@ -299,7 +299,7 @@ class ReportData:
         return self.summary[self.summary["status"] == "ok"]
 
     def series_key(self, row: dict[str, Any]) -> str:
-        return ", ".join(f"{k}={row[k]}" for k in self.others)
+        return point_text({k: row[k] for k in self.others})
 
 
 def load(out_dir: Path) -> ReportData:

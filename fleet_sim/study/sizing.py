@@ -87,6 +87,7 @@ from fleet_sim.config.experiment import (
     Target,
     layout_for,
     load_trace_for,
+    point_text,
 )
 from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.study.progress import Progress
@@ -507,4 +508,4 @@ def _size_group(experiment: Experiment, out_dir: Path, fixed: dict[str, Any], lo
 
 def _where(fixed: dict[str, Any]) -> str:
     """The fixed factor values as a message prefix ("demand.rate_per_hour=90: "), or ""."""
-    return ", ".join(f"{k}={v}" for k, v in fixed.items()) + ": " if fixed else ""
+    return point_text(fixed) + ": " if fixed else ""
