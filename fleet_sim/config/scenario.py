@@ -755,14 +755,35 @@ def setup_warnings(scenario: Scenario, layout: Layout) -> list[SetupWarning]:
     """The battery and charging traps of `scenario` on `layout`, one line each (see the module
     docstring): AGVs that cannot reach a charger with charging on; a draining battery with
     charging off on a run long enough to run it down. A mixed fleet is looked at type by type
-    (the first type whose battery gives the trap is named)."""
+    (the first type whose battery gives the trap is named); its layout's per-type speed limits
+    must name its types (`_unknown_limited_types`)."""
+    out: list[SetupWarning] = []
     for name, vehicle in scenario.fleet.type_profiles.items():
         found = _type_warnings(scenario, layout, vehicle)
         if found:
             if scenario.fleet.vehicles:
                 found = [SetupWarning(w.kind, f"vehicle type {name}: {w.text}".replace(
                     "fleet.vehicle.battery", f"the battery of type {name}")) for w in found]
-            return found
+            out = found
+            break
+    return out + _unknown_limited_types(scenario, layout)
+
+
+def _unknown_limited_types(scenario: Scenario, layout: Layout) -> list[SetupWarning]:
+    """A mixed fleet on a layout whose per-type speed limits name a type the fleet does not
+    have (a typo, or a layout drawn for a larger fleet): warned once, with the first segment
+    that names it. A one-type fleet is not warned: a layout is shared by many scenarios, and
+    a limit for a type the fleet lacks applies to no AGV, as `allowed_types` naming it do."""
+    fleet_types = scenario.fleet.type_profiles
+    if not scenario.fleet.vehicles:
+        return []
+    for i, seg in enumerate(layout.spec.segments):
+        for name in seg.speed_limit_mps_by_type:
+            if name not in fleet_types:
+                return [SetupWarning("unknown_type_limit", (
+                    f"{layout.file}: segments[{i}].speed_limit_mps_by_type names vehicle type "
+                    f"{name!r}, not a type of the fleet ({', '.join(fleet_types)}): its limit "
+                    "applies to no AGV (misspelt?)"))]
     return []
 
 
