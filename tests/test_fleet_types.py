@@ -368,3 +368,11 @@ def test_a_type_limit_must_name_an_allowed_type_and_unknown_types_are_warned(
     assert len(warnings) == 1
     assert "segments[15].speed_limit_mps_by_type names vehicle type 'narow', not a type of " \
            "the fleet (narrow, wide)" in warnings[0].text
+
+
+def test_the_layout_schema_publishes_per_type_limits() -> None:
+    from fleet_sim.config.schemas import json_schema
+
+    field = json_schema("layout")["$defs"]["SegmentSpec"]["properties"]["speed_limit_mps_by_type"]
+    assert field["type"] == "object" and field["default"] == {}
+    assert field["additionalProperties"] == {"exclusiveMinimum": 0, "type": "number"}

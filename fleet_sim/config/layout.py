@@ -94,8 +94,6 @@ class TypeLimits(dict[str, float]):
     clear = pop = popitem = setdefault = update = _read_only
 
 
-NO_TYPE_LIMITS: Final = TypeLimits()
-
 SpeedLimitsByType = Annotated[dict[Text, Positive], AfterValidator(TypeLimits)]
 
 
@@ -113,7 +111,7 @@ class SegmentSpec(StrictModel):
     allowed_types: Items[Text] = ()
     """Vehicle types (the scenario's fleet.vehicles[].type, or a one-type fleet's
     vehicle.name) that may drive the segment; empty: every type."""
-    speed_limit_mps_by_type: SpeedLimitsByType = NO_TYPE_LIMITS
+    speed_limit_mps_by_type: SpeedLimitsByType = Field(default={}, validate_default=True)
     """Lower speed limits for some vehicle types (type -> m/s), such as a heavy tugger in a
     narrow aisle: an AGV of a named type drives the segment at most at its type's limit, the
     others at speed_limit_mps. Each below the segment's speed limit; with allowed_types,
