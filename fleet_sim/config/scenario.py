@@ -511,9 +511,6 @@ class Scenario(StrictModel):
 
     @model_validator(mode="after")
     def _warmup_within_run(self, info: ValidationInfo) -> Scenario:
-        if self.fleet.vehicles and self.motion == "sumo":
-            raise Problem("motion", self.motion, "closed_form with fleet.vehicles (the SUMO "
-                                                 "backend drives one vehicle type)")
         if self.warmup_h >= self.duration_h:
             raise Problem("warmup_h", self.warmup_h,
                           f"a warm-up >= 0 h and shorter than duration_h ({self.duration_h})")

@@ -81,7 +81,7 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
         from fleet_sim.sim.motion.sumo import SumoMotion
 
-        traffic.motion_backend = SumoMotion(env, layout, scenario, profile.turn_speed_mps)
+        traffic.motion_backend = SumoMotion(env, layout, scenario)
     arrivals, handling, backoff, incident, link = np.random.SeedSequence(scenario.seed).spawn(5)
     commands = CommandPath(env, scenario.fleet.command_profile, scenario.fleet.status_poll_s,
                            np.random.default_rng(link), recorder)
