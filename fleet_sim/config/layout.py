@@ -15,6 +15,12 @@ Modelling decisions written down here because the engine relies on them:
   construction. A dead-end spur to a charger is a corridor too.
 * The turn an AGV makes at a node comes from the geometry of its incoming and outgoing segments
   (left, right, straight, reverse); a segment's ``branch`` key overrides it for AGVs entering it.
+* A segment's ``speed_limit_mps_by_type`` (type -> m/s) only lowers its speed limit for the
+  types named: an AGV drives it at the least of its top speed, the segment's limit and its
+  type's limit there (`Layout.speed_limit_mps`). A limit at or above the segment's own says
+  nothing and is refused, as is one for a type the segment's ``allowed_types`` shut out. The
+  names are not checked against a fleet here (a layout serves many scenarios); a mixed fleet
+  whose layout names a type it lacks is warned (fleet_sim.config.scenario.setup_warnings).
 """
 
 from __future__ import annotations
@@ -25,11 +31,11 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 from datetime import datetime
 from pathlib import Path
-from typing import Annotated, Any, Final, Literal
+from typing import Annotated, Any, Final, Literal, NoReturn
 
 import networkx as nx
 import yaml
-from pydantic import Field, Strict, field_validator
+from pydantic import AfterValidator, Field, Strict, field_validator
 
 from agv_model.inputs import (
     Items,
@@ -71,6 +77,26 @@ class NodeSpec(StrictModel):
     """RFID marker action (RSS-AGV-001 5.3): speed tags, location correction, spin, pause."""
 
 
+class TypeLimits(dict[str, float]):
+    """Vehicle type -> speed limit (m/s) of one segment: a read-only, hashable mapping, so a
+    layout spec stays hashable like every config (lists are tuples there)."""
+
+    def __hash__(self) -> int:  # type: ignore[override]
+        return hash(tuple(sorted(self.items())))
+
+    def __reduce__(self) -> tuple[type[TypeLimits], tuple[dict[str, float]]]:
+        return TypeLimits, (dict(self),)  # pickle and copy without item assignment
+
+    def _read_only(self, *_: Any, **__: Any) -> NoReturn:
+        raise TypeError("a segment's per-type speed limits are read-only")
+
+    __setitem__ = __delitem__ = _read_only
+    clear = pop = popitem = setdefault = update = _read_only
+
+
+SpeedLimitsByType = Annotated[dict[Text, Positive], AfterValidator(TypeLimits)]
+
+
 class SegmentSpec(StrictModel):
     from_node: Text = Field(alias="from")
     to_node: Text = Field(alias="to")
@@ -85,6 +111,11 @@ class SegmentSpec(StrictModel):
     allowed_types: Items[Text] = ()
     """Vehicle types (the scenario's fleet.vehicles[].type, or a one-type fleet's
     vehicle.name) that may drive the segment; empty: every type."""
+    speed_limit_mps_by_type: SpeedLimitsByType = Field(default={}, validate_default=True)
+    """Lower speed limits for some vehicle types (type -> m/s), such as a heavy tugger in a
+    narrow aisle: an AGV of a named type drives the segment at most at its type's limit, the
+    others at speed_limit_mps. Each below the segment's speed limit; with allowed_types,
+    only types among them."""
 
 
 class StationSpec(StrictModel):
@@ -362,6 +393,21 @@ class Layout:
         return nx.subgraph_view(self.graph, filter_edge=allowed)
 
     @property
+    def speed_limited_types(self) -> frozenset[str]:
+        """The vehicle types some segment gives a speed limit of their own."""
+        return frozenset(name for s in self.spec.segments for name in s.speed_limit_mps_by_type)
+
+    def speed_limit_mps(self, u: str, v: str, vehicle_type: str | None = None) -> float:
+        """Segment u -> v's speed limit, for AGVs of `vehicle_type` (None: the segment's
+        own, for every type)."""
+        data = self.graph.edges[u, v]
+        limit: float = data["speed_limit_mps"]
+        if vehicle_type is None:
+            return limit
+        limits: TypeLimits = data["speed_limit_mps_by_type"]
+        return min(limit, limits.get(vehicle_type, limit))
+
+    @property
     def total_length_m(self) -> float:
         """Length of tape, counting a two-way segment once."""
         seen: set[frozenset[str]] = set()
@@ -423,6 +469,17 @@ def _build_graph(spec: LayoutSpec, file: str, max_speed_mps: float | None) -> nx
         if max_speed_mps is not None and limit > max_speed_mps + 1e-9:
             raise InputError(file, f"{where}.speed_limit_mps", limit,
                              f"at most the vehicle's maximum speed {max_speed_mps} m/s")
+        for name, type_limit in seg.speed_limit_mps_by_type.items():
+            at = f"{where}.speed_limit_mps_by_type.{name}"
+            if seg.allowed_types and name not in seg.allowed_types:
+                raise InputError(file, at, name, "a type of the segment's allowed_types ("
+                                 f"{', '.join(seg.allowed_types)}): other types may not "
+                                 "drive it")
+            if type_limit >= limit:
+                raise InputError(file, at, type_limit,
+                                 f"a limit below the segment's speed limit {limit:g} m/s (a "
+                                 "type's limit lowers it for that type; raise "
+                                 "speed_limit_mps to let the other types drive faster)")
         ends = [(seg.from_node, seg.to_node)]
         if seg.direction == "two_way":
             ends.append((seg.to_node, seg.from_node))
@@ -436,7 +493,8 @@ def _build_graph(spec: LayoutSpec, file: str, max_speed_mps: float | None) -> nx
             graph.add_edge(u, v, length_m=length, speed_limit_mps=limit,
                            two_way=seg.direction == "two_way", branch=branch, index=i,
                            rssi_dbm=seg.rssi_dbm, obstacle_rate_per_km=None,
-                           obstacle_duration=None, allowed_types=frozenset(seg.allowed_types))
+                           obstacle_duration=None, allowed_types=frozenset(seg.allowed_types),
+                           speed_limit_mps_by_type=seg.speed_limit_mps_by_type)
     _apply_zones(spec, file, graph)
     for node in spec.nodes:
         if graph.out_degree(node.id) == 0:

@@ -54,6 +54,7 @@ from fleet_sim.config.layout import (
     LayoutDefaults,
     Marker,
     NodeKind,
+    SpeedLimitsByType,
     ZoneSpec,
     is_timestamp,
 )
@@ -106,6 +107,10 @@ class EdgeExtension(StrictModel):
     length_m: Positive | None = None
     speed_limit_mps: Positive | None = None
     """Given when the layout file gives it (maxSpeed holds the limit in either case)."""
+    speed_limit_mps_by_type: SpeedLimitsByType | None = None
+    """The segment's lower limits for some types, as the layout gives them; each type's
+    maxSpeed holds its limit (and wins). Written so that import knows the segment's own limit
+    even when every type on the edge has a lower one."""
     branch: Branch = "auto"
     rssi_dbm: float | None = None
 
