@@ -1,5 +1,6 @@
 """Traffic zones of the layout: mutex zones (at most N AGVs inside, held by traffic control),
-ban zones (some vehicle types never enter), their zone_wait_s KPI, their validation and drawing."""
+ban zones (some vehicle types never enter), same-direction zones (AGVs inside a two-way aisle
+all drive it one way), their zone_wait_s KPI, their validation and drawing."""
 
 from __future__ import annotations
 
@@ -11,13 +12,13 @@ import pytest
 import yaml
 
 from fleet_sim.analysis.kpis import compute_kpis, is_kpi_name
-from fleet_sim.config.layout import LayoutSpec, layout_yaml, load_layout
+from fleet_sim.config.layout import BACKWARD, FORWARD, LayoutSpec, layout_yaml, load_layout
 from fleet_sim.config.scenario import load_layout_for, parse_scenario
 from fleet_sim.errors import InputError
 from fleet_sim.model.records import OccupancySpell
 from fleet_sim.report.layout_plot import draw_layout
 from fleet_sim.sim.engine import build_model
-from tests.conftest import LAYOUTS
+from tests.conftest import DATA, LAYOUTS
 from tests.test_fleet_types import AISLE_NODES, aisle_layout
 
 EAST = ["S3", "SE", "E1", "NE"]
@@ -126,3 +127,86 @@ def test_bad_traffic_zones_are_named(tmp_path: Path, zone: dict[str, Any], messa
     path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     with pytest.raises(InputError, match=message):
         load_layout(path)
+
+
+# ---- same-direction zones ----------------------------------------------------------------------
+
+AISLE = ["B", "A1", "A2", "A3", "T"]
+"""The aisle of tests/data/aisle_crossing.yaml, from the bottom of the loop to its top."""
+
+
+def crossing(folder: Path, zones: list[dict[str, Any]] | None = None) -> Path:
+    """tests/data/aisle_crossing.yaml with `zones` (default: the aisle same-direction)."""
+    data: dict[str, Any] = yaml.safe_load((DATA / "aisle_crossing.yaml").read_text("utf-8"))
+    data["traffic_zones"] = zones if zones is not None else [
+        {"id": "AISLE", "kind": "same_direction", "nodes": AISLE}]
+    path = folder / "crossing.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(("zone", "message"), [
+    ({"nodes": AISLE, "segments": [["B", "A1"]]},
+     r"traffic_zones\[0\].segments: got \[\['B', 'A1'\]\]; expected no segments for a "
+     r"same_direction zone: list the aisle's nodes in order under `nodes`"),
+    ({"nodes": ["B", "A1"]}, r"traffic_zones\[0\].nodes: got \['B', 'A1'\]; expected at least "
+                             r"3 nodes in order along the aisle"),
+    ({"nodes": ["B", "A2", "A1", "A3", "T"]},
+     r"traffic_zones\[0\].nodes\[1\]: got 'A2'; expected a node joined to nodes\[0\] \(B\) by "
+     r"a two-way segment"),
+    ({"nodes": ["S2", "B", "A1", "A2"]},
+     r"traffic_zones\[0\].nodes\[1\]: got 'B'; expected a node joined to nodes\[0\] \(S2\) by "
+     r"a two-way segment"),
+    ({"nodes": ["B", "A1", "A2", "A1", "B"]},
+     r"traffic_zones\[0\].nodes\[3\]: got 'A1'; expected each node once"),
+    ({"nodes": ["A1", "A2", "A3", "T"]},
+     r"traffic_zones\[0\].nodes: got \['A1', 'A2', 'A3', 'T'\]; expected the whole two-way "
+     r"aisle: its segment A1 -> B goes on beyond the zone's end"),
+    ({"nodes": AISLE, "banned_types": ["wide"]},
+     r"traffic_zones\[0\].banned_types: got \['wide'\]; expected none for a same_direction"),
+    ({"nodes": AISLE, "capacity": 0}, r"traffic_zones\[0\].capacity"),
+])
+def test_bad_same_direction_zones_are_named(tmp_path: Path, zone: dict[str, Any],
+                                            message: str) -> None:
+    path = crossing(tmp_path, [{"id": "Z", "kind": "same_direction", **zone}])
+    with pytest.raises(InputError, match=message) as raised:
+        load_layout(path)
+    assert str(raised.value).startswith(str(path))
+
+
+def test_a_same_direction_zone_is_an_aisle_entered_at_its_ends_with_a_way_round(
+        tmp_path: Path) -> None:
+    data: dict[str, Any] = yaml.safe_load((DATA / "aisle_crossing.yaml").read_text("utf-8"))
+    zone = {"id": "Z", "kind": "same_direction", "nodes": AISLE}
+    side = {**data, "traffic_zones": [zone],
+            "nodes": [*data["nodes"], {"id": "X", "x": 14, "y": 6}],
+            "segments": [*data["segments"], {"from": "A2", "to": "X", "direction": "two_way"}]}
+    path = tmp_path / "side.yaml"
+    path.write_text(yaml.safe_dump(side, sort_keys=False), encoding="utf-8")
+    with pytest.raises(InputError, match=r"traffic_zones\[0\].nodes\[2\]: got 'A2'; expected a "
+                                         r"node joined only to its neighbours in the list \(a "
+                                         r"segment joins it to X"):
+        load_layout(path)
+    # the loop's top side bypasses T: from T the only way on is down the aisle
+    top = [s for s in data["segments"] if (s["from"], s["to"]) != ("T", "N2")]
+    cut = {**data, "traffic_zones": [zone],
+           "segments": [*top, {"from": "N4", "to": "N2", "length_m": 9}]}
+    path.write_text(yaml.safe_dump(cut, sort_keys=False), encoding="utf-8")
+    with pytest.raises(InputError, match=r"traffic_zones\[0\].nodes: got \['B', 'A1', 'A2', "
+                                         r"'A3', 'T'\]; expected an aisle with a way round: no "
+                                         r"path outside the zone leads from its end T back"):
+        load_layout(path)
+
+
+def test_a_same_direction_zone_lifts_the_single_track_rule_of_its_aisle_only(
+        tmp_path: Path) -> None:
+    plain = load_layout(DATA / "aisle_crossing.yaml")
+    zoned = load_layout(crossing(tmp_path))
+    assert [c.id for c in plain.corridors] == [0] and zoned.corridors == []
+    assert zoned.direction_zone_of("A1", "A2") == (zoned.traffic_zones[0], FORWARD)
+    assert zoned.direction_zone_of("T", "A3") == (zoned.traffic_zones[0], BACKWARD)
+    assert zoned.direction_zone_of("S2", "B") is None
+    assert zoned.traffic_zones[0].nodes == {"A1", "A2", "A3"}  # its ends are its gates
+    again = tmp_path / "again.yaml"
+    again.write_text(layout_yaml(zoned.spec), encoding="utf-8")
+    assert load_layout(again).spec == zoned.spec

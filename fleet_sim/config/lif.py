@@ -54,6 +54,7 @@ from fleet_sim.config.layout import (
     LayoutDefaults,
     Marker,
     NodeKind,
+    TrafficZoneSpec,
     ZoneSpec,
     is_timestamp,
 )
@@ -85,10 +86,11 @@ class LifModel(StrictModel):
 # fleet-sim writes; its keys are the layout file's).
 
 class LayoutExtension(StrictModel):
-    """On a layout: the layout file's defaults and zones."""
+    """On a layout: the layout file's defaults, zones and traffic zones."""
 
     defaults: LayoutDefaults | None = None
     zones: List[ZoneSpec] = ()
+    traffic_zones: List[TrafficZoneSpec] = ()
 
 
 class NodeExtension(StrictModel):
