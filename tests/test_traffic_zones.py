@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import simpy
 import yaml
 
 from fleet_sim.analysis.kpis import compute_kpis, is_kpi_name
@@ -18,8 +19,11 @@ from fleet_sim.errors import InputError
 from fleet_sim.model.records import OccupancySpell
 from fleet_sim.report.layout_plot import draw_layout
 from fleet_sim.sim.engine import build_model
+from fleet_sim.sim.traffic.locks import ZoneLock
+from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate
 from tests.conftest import DATA, LAYOUTS
 from tests.test_fleet_types import AISLE_NODES, aisle_layout
+from tests.test_traffic import Client, make_traffic
 
 EAST = ["S3", "SE", "E1", "NE"]
 
@@ -143,6 +147,165 @@ def crossing(folder: Path, zones: list[dict[str, Any]] | None = None) -> Path:
     path = folder / "crossing.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     return path
+
+
+def crossing_scenario(folder: Path, hours: float = 8, **fields: Any) -> dict[str, Any]:
+    """Orders up the aisle (PICK1 -> DROP1), down it (PICK2 -> DROP2) and into its middle."""
+    return {"name": "crossing", "layout": "crossing.yaml", "duration_h": hours,
+            "warmup_h": 0.5, "seed": 5, "fleet": {"size": 6},
+            "demand": {"rate_per_hour": 90, "flows": [
+                {"from": "PICK1", "to": "DROP1"}, {"from": "PICK2", "to": "DROP2"},
+                {"from": "PICK1", "to": "MID", "weight": 0.3},
+                {"from": "PICK2", "to": "MID", "weight": 0.3}]},
+            "charging": {"enabled": False}, **fields}
+
+
+def run_crossing(folder: Path, zones: list[dict[str, Any]] | None = None) -> tuple[Any, Any]:
+    crossing(folder, zones)
+    scenario = parse_scenario(crossing_scenario(folder), "<test>", folder)
+    layout = load_layout_for(scenario, "<test>")
+    model = build_model(scenario, layout, record_occupancy=True)
+    model.env.run(until=scenario.duration_s)
+    return model, compute_kpis(model.recorder, scenario, layout.name)
+
+
+Pass = tuple[float, float, int, set[int]]
+
+
+def aisle_passes(spells: list[OccupancySpell]) -> list[Pass]:
+    """Each AGV's stays inside the aisle, from what it held and drove (not from the zone's
+    lock): (start, end, agv, the directions of its hops along the aisle meanwhile; +1 from B
+    towards T). An AGV is inside while it holds a node between the aisle's ends."""
+    index = {n: i for i, n in enumerate(AISLE)}
+    inner = set(AISLE[1:-1])
+    holds: dict[int, list[tuple[float, float]]] = {}
+    hops: dict[int, list[tuple[float, float, int]]] = {}
+    for s in spells:
+        if s.kind == "node" and s.key in inner:
+            holds.setdefault(s.agv, []).append((s.start_s, s.end_s))
+        elif s.kind == "segment":
+            u, v = s.key.split(">")
+            if u in index and v in index:
+                hops.setdefault(s.agv, []).append((s.start_s, s.end_s,
+                                                   1 if index[v] > index[u] else -1))
+    passes: list[Pass] = []
+    for agv, spans in holds.items():
+        merged: list[list[float]] = []
+        for start, end in sorted(spans):
+            if merged and start < merged[-1][1]:  # holds overlap all the way through
+                merged[-1][1] = max(merged[-1][1], end)
+            else:
+                merged.append([start, end])
+        for start, end in merged:
+            ways = {d for a, b, d in hops.get(agv, []) if start <= a and b <= end + 1e-9}
+            passes.append((start, end, agv, ways))
+    return passes
+
+
+def test_a_same_direction_aisle_is_shared_one_way_at_a_time(tmp_path: Path) -> None:
+    """8 hours, 6 AGVs, orders up and down a two-way aisle: never two AGVs inside driving it
+    opposite ways (from their node holds and hops, not from the lock), every stay inside one
+    way only; AGVs do share it one way (two inside at once), and the zone makes AGVs wait."""
+    model, figures = run_crossing(tmp_path)
+    end = model.env.now
+    still = [OccupancySpell("node", h.node, v.id, h.since_s, end)  # held when the run ended
+             for v in model.vehicles for h in v.held + v.ahead]
+    passes = aisle_passes(model.recorder.occupancy + still)
+    most = 0
+    shared = 0
+    inside: dict[int, Pass] = {}
+    for time_s, step, i in sorted([(p[0], 1, i) for i, p in enumerate(passes)]
+                                  + [(p[1], -1, i) for i, p in enumerate(passes)]):
+        if step < 0:  # at equal times, leaving sorts before entering
+            del inside[i]
+            continue
+        inside[i] = passes[i]
+        assert len({w for p in inside.values() for w in p[3]}) == 1, (time_s, inside)
+        most = max(most, len(inside))
+        shared += len(inside) >= 2
+    ways = [p[3] for p in passes]
+    assert all(len(w) == 1 for w in ways)  # nobody turns round inside
+    up, down = sum(w == {1} for w in ways), sum(w == {-1} for w in ways)
+    assert up > 200 and down > 200
+    assert most >= 2 and shared > 50
+    assert figures["zone_wait_s"]["AISLE"] > 600
+    assert figures["throughput_per_hour"] > 60
+    # the lock's own record agrees: holders one way at a time
+    assert len([s for s in model.recorder.occupancy if s.kind == "zone"]) >= len(passes)
+
+
+def test_without_the_zone_the_aisle_is_single_track(tmp_path: Path) -> None:
+    """The same run with the aisle a plain two-way corridor: one AGV inside at a time, and
+    AGVs turn round inside it (after a drop-off at MID): the zone is what changes both."""
+    model, figures = run_crossing(tmp_path, [])
+    passes = aisle_passes(model.recorder.occupancy)
+    nodes = [s for s in model.recorder.occupancy if s.kind == "node"]
+    assert most_inside(nodes, set(AISLE[1:-1])) == 1
+    assert sum(len(p[3]) == 2 for p in passes) > 20
+    assert "zone_wait_s" not in figures
+
+
+def test_the_gate_shares_one_way_queues_the_other_and_lets_a_turn_go_first() -> None:
+    """The rule itself (fleet_sim.sim.traffic.zones.DirectionGate): one way shared; the other
+    way waits, and so does every later AGV, in the order asked; a capacity; an AGV put inside
+    takes the way of those inside; an AGV turning round inside goes before every waiter once
+    alone."""
+    env = simpy.Environment()
+    gate = DirectionGate(env, ZoneLock("Z"), capacity=None)
+    a = DirectedClaim(gate, 0, FORWARD)
+    b = DirectedClaim(gate, 1, FORWARD)
+    assert a.triggered and b.triggered and gate.direction == FORWARD
+    c = DirectedClaim(gate, 2, BACKWARD)
+    d = DirectedClaim(gate, 3, FORWARD)  # would fit, but asked after c
+    assert not c.triggered and not d.triggered
+    assert gate.blockers(2) == (0, 1) and gate.blockers(3) == (2,)
+    assert not gate.admits(FORWARD) and not gate.admits(BACKWARD)
+    turn = DirectedClaim(gate, 1, BACKWARD, turn=True)  # AGV 1 must drive back
+    assert list(gate.put_queue) == [turn, c, d] and gate.blockers(1) == (0,)
+    gate.release(a)
+    env.run()
+    assert turn.triggered and not c.triggered  # alone: it may turn, before c
+    gate.release(b)  # its claim the old way, given back
+    env.run()
+    assert c.triggered and not d.triggered and gate.direction == BACKWARD
+    small = DirectionGate(env, ZoneLock("S"), capacity=1)
+    assert DirectedClaim(small, 0, FORWARD).triggered
+    assert not DirectedClaim(small, 1, FORWARD).triggered and small.blockers(1) == (0,)
+    placed = DirectedClaim(gate, 4, ANY_DIRECTION)
+    assert placed.triggered is False  # d asked before it
+    assert DirectedClaim(DirectionGate(env, ZoneLock("E"), None), 5, ANY_DIRECTION).direction \
+        == FORWARD
+
+
+def test_a_deadlock_in_front_of_the_aisle_is_found_through_every_holder(tmp_path: Path) -> None:
+    """AGV 0 drives up the aisle and waits for T, where AGV 2 stands wanting to drive down; AGV
+    1 drives up ahead of AGV 0 and is not waiting. AGV 2 waits for both holders; the cycle
+    runs through the second one (AGV 0), which the first-holder walk of a plain lock would
+    miss. It is counted and broken as any other: AGV 2 takes the loop instead."""
+    layout = load_layout(crossing(tmp_path))
+    traffic = make_traffic(layout)
+    gate = traffic.zone_locks["AISLE"]
+    clients = [Client(0, "A3", goal="N2", next_node="T"), Client(1, "A2", goal="N2"),
+               Client(2, "T", goal="S4", next_node="A3")]
+    for c in clients:
+        traffic.register(c)
+    for c, direction in ((clients[1], FORWARD), (clients[0], FORWARD)):
+        assert traffic.request(c.id, gate, direction=direction).triggered
+    for c in clients:
+        assert traffic.request(c.id, traffic.node_locks[c.node]).triggered
+    assert not traffic.request(0, traffic.node_locks["T"]).triggered
+    traffic.start_waiting(0, traffic.node_locks["T"])
+    assert not traffic.request(2, gate, direction=BACKWARD).triggered
+    traffic.start_waiting(2, gate)
+    assert gate.holder == 1  # the first holder is not in the cycle
+    escape = traffic.resolve_deadlock(clients[2])
+    assert traffic.recorder.deadlocks == 1
+    assert clients[2].notes[0] == ("deadlock_detected", "agvs 2 0 waiting for zone AISLE T")
+    assert escape is not None and escape.kind == "reroute"
+    assert escape.path[:3] == ("T", "N2", "D1") and "A3" not in escape.path
+    # AGV 0, inside, has no way back against its claim: its detours keep off the aisle down
+    assert traffic.against(0) == {("T", "A3"), ("A3", "A2"), ("A2", "A1"), ("A1", "B")}
+    assert traffic.escape_for(clients[0]) is None
 
 
 @pytest.mark.parametrize(("zone", "message"), [
