@@ -8,6 +8,7 @@ import itertools
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import simpy
 import yaml
@@ -17,7 +18,7 @@ from fleet_sim.config.layout import BACKWARD, FORWARD, LayoutSpec, layout_yaml, 
 from fleet_sim.config.scenario import load_layout_for, parse_scenario
 from fleet_sim.errors import InputError
 from fleet_sim.model.records import OccupancySpell
-from fleet_sim.report.layout_plot import draw_layout
+from fleet_sim.report.layout_plot import ZONE_COLOUR, draw_layout, zone_rule
 from fleet_sim.sim.engine import build_model
 from fleet_sim.sim.traffic.locks import ZoneLock
 from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate
@@ -373,3 +374,28 @@ def test_a_same_direction_zone_lifts_the_single_track_rule_of_its_aisle_only(
     again = tmp_path / "again.yaml"
     again.write_text(layout_yaml(zoned.spec), encoding="utf-8")
     assert load_layout(again).spec == zoned.spec
+
+
+def test_a_same_direction_zone_is_drawn_as_a_band_with_its_forward_arrow(tmp_path: Path) -> None:
+    """On the layout PNG: the aisle in the zone's colour (a band, an arrow from the first node
+    listed to the last, the id and rule); the same layout without the zone has none of it."""
+    import matplotlib.image
+
+    teal = np.array([int(ZONE_COLOUR["same_direction"][i:i + 2], 16) for i in (1, 3, 5)])
+
+    def teal_pixels(png: Path) -> tuple[int, int]:
+        image = (matplotlib.image.imread(png)[:, :, :3] * 255).round().astype(int)
+        weight = 255 - teal  # how much teal over white each pixel is
+        share = ((255 - image) * weight).sum(axis=2) / (weight * weight).sum()
+        made = 255 - np.clip(share, 0, 1)[..., None] * weight
+        teal_over_white = np.abs(image - made).max(axis=2) <= 12
+        solid = int((teal_over_white & (share > 0.8)).sum())  # arrow and label
+        tinted = int((teal_over_white & (share > 0.15) & (share < 0.4)).sum())  # the band
+        return solid, tinted
+
+    zoned = load_layout(crossing(tmp_path))
+    assert zone_rule(zoned.traffic_zones[0]) == "same direction; forward B \u2192 T"
+    solid, tinted = teal_pixels(draw_layout(zoned, tmp_path / "zoned.png"))
+    assert solid > 150 and tinted > 1500, (solid, tinted)
+    plain = teal_pixels(draw_layout(load_layout(crossing(tmp_path, [])), tmp_path / "plain.png"))
+    assert plain[0] == 0 and plain[1] < 0.02 * tinted  # a few edges of other things
