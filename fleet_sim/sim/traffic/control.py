@@ -37,7 +37,8 @@ Rules (see docs/engine.md for why):
   inside; an AGV takes the zone's lock (a `Gate`) before its first node in it.
 * Same-direction zones (fleet_sim.sim.traffic.zones): AGVs inside all drive the aisle one
   way; an AGV takes the zone's lock (a `DirectionGate`) for the direction it enters by, and
-  while it holds it, its routes and escapes keep off the aisle's hops the other way.
+  while it holds it with others, its routes and escapes keep off the aisle's hops the other
+  way (alone, it may turn round).
 * Giving way: an AGV that has waited `give_way_after_s` for a corridor or a side track while
   another AGV queues behind it drives on and comes back round (circulates) instead of blocking
   the main loop. This keeps loops flowing, which avoids most deadlocks by construction.
@@ -279,13 +280,16 @@ class Traffic:
         return self._zones[client_id]
 
     def against(self, client_id: int | None) -> set[tuple[str, str]]:
-        """The hops the client may not drive: along each same-direction zone it holds, the
-        other way."""
+        """The hops the client may not drive: along each same-direction zone it holds with
+        other AGVs, the other way. Alone in one, it may turn round (and would get the turn at
+        once)."""
         if client_id is None:
             return set()
         out: set[tuple[str, str]] = set()
         for zone_id, claim in self._zones[client_id].items():
-            if isinstance(claim, DirectedClaim) and claim.triggered:
+            if isinstance(claim, DirectedClaim) and claim.triggered \
+                    and any(cast(Claim, c).client_id != client_id
+                            for c in self.zone_locks[zone_id].users):
                 zone = self.layout.traffic_zone_by_id[zone_id]
                 out |= {hop for hop, d in zone.hops.items() if d != claim.direction}
         return out

@@ -19,13 +19,15 @@ from the first node listed towards the last; BACKWARD). Decisions:
   room (`capacity`, default no limit but one AGV per node), in the order asked (first come,
   first served): one that wants the other direction is not overtaken by later AGVs going the
   way the AGVs inside go, so it waits for the AGVs inside to leave, not for a gap in a stream.
-* An AGV holding the zone routes on within it: while it holds a claim its routes, detours and
-  escapes keep off the aisle's hops the other way (Traffic.route, Traffic.escape_for), so it
-  leaves by the far end; the layout check makes sure a way round leads back
-  (fleet_sim.config.layout). An AGV put on the track inside the aisle (a start node, back from
-  a repair) takes the zone in the direction of the AGVs inside (forward if none). Should an AGV
-  have to drive back all the same (its type has no way round), it turns: it asks for the other
-  direction ahead of every waiting AGV and gets it once it is alone inside.
+* Turning round inside. An AGV alone in the zone may turn round (after a drop-off in the
+  aisle, its next stop behind it): it asks for the other direction ahead of every waiting AGV
+  and, being alone, gets it at once. With other AGVs in the zone it drives on: while it holds
+  the zone with others, its routes, detours and escapes keep off the aisle's hops the other way
+  (Traffic.against), so it leaves by the far end, and the layout check makes sure a way round
+  leads back (fleet_sim.config.layout). (Should it have to drive back all the same, its type
+  having no way round, it waits inside until it is alone.) An AGV put on the track inside the
+  aisle (a start node, back from a repair) takes the zone in the direction of the AGVs inside
+  (forward if none).
 * Deadlocks: a claim waits for every AGV holding the zone the other way (all of them must
   leave), else, when the zone is full, for the AGV that entered first, else for the AGV asking
   before it (first come, first served). `blockers` names them, and the wait-for graph follows
