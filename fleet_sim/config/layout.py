@@ -12,7 +12,9 @@ Modelling decisions written down here because the engine relies on them:
 * Two-way segments form *corridors*: maximal chains of two-way segments between junctions (nodes
   that also have one-way segments or meet three or more two-way segments). An AGV must hold a
   corridor before it enters it (single-track rule), which rules out head-on deadlocks by
-  construction. A dead-end spur to a charger is a corridor too.
+  construction. A dead-end spur to a charger is a corridor too. A corridor covered by a
+  same_direction traffic zone is not one: the zone's rule (AGVs inside all drive it one way)
+  takes the place of the single-track rule.
 * The turn an AGV makes at a node comes from the geometry of its incoming and outgoing segments
   (left, right, straight, reverse); a segment's ``branch`` key overrides it for AGVs entering it.
 """
