@@ -679,7 +679,7 @@ def test_a_screenshot_shows_the_zones_and_their_holders_now(zoned_run: Path,
             edge = _tint(image[y1 - 2:y1 + 3, x0 + 4:x1 - 4], want)
             assert (edge > 0.3).any(axis=0).mean() > 0.3, zone["id"]
         if zone["kind"] != "ban":  # the live badge, filled with the zone's colour
-            bx, by = left + math.floor(zone["bx"]) + 2, top + math.floor(zone["by"]) + 1
+            bx, by = left + round(zone["bx"]), top + round(zone["by"])
             assert np.abs(image[by, bx] - want).max() <= 3, zone["id"]
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -53,8 +54,13 @@ def _draw_traffic_zones(ax: Any, layout: Layout) -> None:
                         arrowprops={"arrowstyle": "-|>", "color": colour, "lw": 1.6,
                                     "shrinkA": 6, "shrinkB": 6, "mutation_scale": 14,
                                     "ls": "--"})
-            ax.annotate(f"{zone.id} ({zone_rule(zone)})", (xs[0], ys[0]), xytext=(4, -9),
-                        textcoords="offset points", fontsize=6, color=colour, zorder=3)
+            angle = math.degrees(math.atan2(ys[-1] - ys[0], xs[-1] - xs[0]))
+            if not -90 < angle <= 90:
+                angle -= math.copysign(180, angle)  # text reads left to right or upwards
+            ax.annotate(f"{zone.id} ({zone_rule(zone)})",
+                        ((xs[0] + xs[-1]) / 2, (ys[0] + ys[-1]) / 2), xytext=(0, 5),
+                        textcoords="offset points", rotation=angle, rotation_mode="anchor",
+                        ha="center", va="bottom", fontsize=6, color=colour, zorder=3)
             continue
         pts = [layout.position(n) for n in sorted(zone.nodes)]
         x0 = min(p[0] for p in pts) - ZONE_MARGIN_M

@@ -25,10 +25,10 @@ Decisions, where the issue is silent:
 * Traffic zones are drawn under the track as the layout drawing draws them: mutex and ban
   zones as dashed outlines round their nodes, same-direction zones as a band along the aisle
   with an arrow the forward way; each labelled with its id and rule, and, for mutex and
-  same-direction zones, live: how many AGVs hold it (and, for a same-direction zone, the way
-  they drive it, its arrow turned that way) and how many wait for it, from the run's zone
-  rows (fleet_sim.analysis.replay.zone_holders_at is the Python twin). The side panel lists
-  each zone's holders and waiters by AGV.
+  same-direction zones, live while anyone holds or waits for it: how many AGVs hold it (and,
+  for a same-direction zone, the way they drive it, its arrow turned that way) and how many
+  wait for it, from the run's zone rows (fleet_sim.analysis.replay.zone_holders_at is the
+  Python twin). The side panel lists each zone's holders and waiters by AGV.
 """
 
 from __future__ import annotations
