@@ -450,3 +450,25 @@ def test_the_published_layout_schema_knows_same_direction_zones(
     data["traffic_zones"][0]["kind"] = "same_way"
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate(data, schema, cls=jsonschema.Draft202012Validator)
+
+
+def test_agvs_put_inside_the_aisle_and_faults_keep_it_one_way(tmp_path: Path) -> None:
+    """Two AGVs start inside the aisle (they take the zone the way of those inside), AGVs fail
+    (two inside it: they hold it until taken off the track, and come back onto the track where
+    they stood) and meet obstacles: still never two AGVs inside driving opposite ways."""
+    crossing(tmp_path)
+    raw = crossing_scenario(tmp_path, hours=4)
+    raw["fleet"] = {"size": 6, "start_nodes": ["A1", "A3", "S2", "N4", "E1", "P1"]}
+    raw["incidents"] = {"obstacle_rate_per_km": 3, "faults": [
+        {"agv": i % 6, "at_s": 900 + 311 * i, "code": "E_999"} for i in range(24)]}
+    scenario = parse_scenario(raw, "<test>", tmp_path)
+    layout = load_layout_for(scenario, "<test>")
+    model = build_model(scenario, layout, record_occupancy=True)
+    model.env.run(until=scenario.duration_s)
+    most, _ = one_way_at_a_time(aisle_spells(model.recorder.occupancy + still_held(model)))
+    assert most >= 2
+    inside = [e for e in model.recorder.events
+              if e.event == "Event_Critical_Error" and e.node in AISLE[1:-1]]
+    assert len(inside) >= 2
+    figures = compute_kpis(model.recorder, scenario, layout.name)
+    assert figures["throughput_per_hour"] > 50 and figures["zone_wait_s"]["AISLE"] > 0
