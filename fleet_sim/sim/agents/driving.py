@@ -108,7 +108,7 @@ class Driver:
         self._corridors = traffic.corridors_of(self.id)
         """The corridors traffic has given this AGV (its view of the table, read-only)."""
         self._zones = traffic.zones_of(self.id)
-        """The mutex zones traffic has given this AGV (read-only view)."""
+        """The zones traffic has given this AGV (read-only view)."""
         self._zone_since: dict[str, float] = {}
         """Zone id -> when the AGV was given the zone it holds."""
         self._zone_entry: dict[str, str] = {}
@@ -524,8 +524,6 @@ class Driver:
         claim = traffic.request(self.id, gate, direction=direction)
         ok = yield from self._wait_zone(zone_id, gate, claim)
         if not ok:
-            if held is not None:
-                self._zone_since[zone_id] = since
             return False
         if held is not None:  # a turn inside: the old claim ends here
             self._record_zone(zone_id, cast(DirectedClaim, held), since)

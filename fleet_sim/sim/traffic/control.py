@@ -55,7 +55,7 @@ from typing import Protocol, cast
 
 import simpy
 
-from fleet_sim.config.layout import Corridor, Layout
+from fleet_sim.config.layout import BACKWARD, FORWARD, Corridor, Layout
 from fleet_sim.errors import SimulationError
 from fleet_sim.model.kinematics import Motion, MotionBackend
 from fleet_sim.model.records import Recorder
@@ -167,6 +167,11 @@ class Traffic:
                 self.zone_locks[z.id] = Gate(env, ZoneLock(z.id), z.capacity or 1)
             elif z.kind == "same_direction":
                 self.zone_locks[z.id] = DirectionGate(env, ZoneLock(z.id), z.capacity)
+        self._against_hops: dict[str, dict[int, frozenset[tuple[str, str]]]] = {
+            z.id: {way: frozenset(hop for hop, d in z.hops.items() if d != way)
+                   for way in (FORWARD, BACKWARD)}
+            for z in layout.traffic_zones if z.kind == "same_direction"}
+        """Same-direction zone id -> direction -> the aisle's hops the other way."""
         self._zones: dict[int, dict[str, Claim]] = {}
         """Client id -> zone id -> its zone claims (granted or waiting)."""
         self.costs = costs if costs is not None else RouteCosts()
@@ -290,8 +295,7 @@ class Traffic:
             if isinstance(claim, DirectedClaim) and claim.triggered \
                     and any(cast(Claim, c).client_id != client_id
                             for c in self.zone_locks[zone_id].users):
-                zone = self.layout.traffic_zone_by_id[zone_id]
-                out |= {hop for hop, d in zone.hops.items() if d != claim.direction}
+                out |= self._against_hops[zone_id][claim.direction]
         return out
 
     def holds_corridor(self, client_id: int, corridor_id: int) -> bool:
@@ -343,13 +347,15 @@ class Traffic:
         if self.known_blocks:
             now = self.env.now
             self.known_blocks = {k: t for k, t in self.known_blocks.items() if t > now}
-        against = self.against(client_id) if self.zone_locks else None
-        if against:  # on through a same-direction zone it holds, never back
-            forward = routes.route_avoiding(src, dest, set(), against | set(self.known_blocks))
-            if forward is None and self.known_blocks:
-                forward = routes.route_avoiding(src, dest, set(), against)
-            if forward is not None:
-                return forward
+        against = self.against(client_id) if self._against_hops else None
+        if against:  # on through a same-direction zone it holds with others, never back
+            tries = [against | set(self.known_blocks), against] if self.known_blocks \
+                else [against]
+            for avoid in tries:
+                forward = routes.route_costed(src, dest, self._extra_cost, frozenset(avoid)) \
+                    if self.costs.active else routes.route_avoiding(src, dest, set(), avoid)
+                if forward is not None:
+                    return forward
         if self.costs.active:
             if self.known_blocks:
                 around = routes.route_costed(src, dest, self._extra_cost,
@@ -456,7 +462,7 @@ class Traffic:
                        {NodeLock(n) for n in zone.nodes} for c in self._nodes[client_id]):
                 return Escape("yield", (node,))  # holds the zone, not yet inside: give it up
         avoid_nodes: set[str] = set()
-        avoid_edges = self.against(client_id) if self.zone_locks else set()
+        avoid_edges = self.against(client_id) if self._against_hops else set()
         if waited is not None:
             key = waited.key
             if isinstance(key, NodeLock):
