@@ -5,11 +5,12 @@ docs/standards.md; the decisions it rests on are these.
 * Export writes what LIF can say in LIF's own fields (node positions, directed edges with
   maxSpeed, stations with their interaction nodes, the purpose of a place as the VDA 5050 action
   on its nodes: ``pick``, ``drop``, ``startCharging``/``stopCharging``) and everything else in
-  the extension key ``fleetSim`` (layout defaults and zones; a node's kind where the places do
-  not tell it and its RFID marker; a segment's explicit length, explicit speed limit, two-way
-  direction, branch and Wi-Fi signal; a place's kind, handling time, charger power and docking
-  time, parking capacity). So a LIF reader that ignores extensions still gets a graph it can
-  route on, and `import` of an exported file gives the layout back exactly.
+  the extension key ``fleetSim`` (layout defaults, zones and traffic zones; a node's kind where
+  the places do not tell it and its RFID marker; a segment's explicit length, explicit speed
+  limit, two-way direction, branch and Wi-Fi signal; a place's kind, handling time, charger
+  power and docking time, parking capacity). So a LIF reader that ignores extensions still
+  gets a graph it can route on, and `import` of an exported file gives the layout back
+  exactly.
 * A two-way segment is two LIF edges (u->v, then v->u right after it), both marked two-way in
   the extension; import merges them back into one segment. In a file without fleet-sim's
   extension, an opposite pair of edges with the same length and speed limit is one path driven
@@ -187,6 +188,9 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
     if spec.zones:
         layout[EXTENSION_KEY]["zones"] = [z.model_dump(mode="json", exclude_none=True)
                                           for z in spec.zones]
+    if spec.traffic_zones:
+        layout[EXTENSION_KEY]["traffic_zones"] = [
+            z.model_dump(mode="json", exclude_defaults=True) for z in spec.traffic_zones]
     data = {"metaInformation": {"projectIdentification": info.project or spec.name,
                                 "creator": info.creator,
                                 "exportTimestamp": timestamp or info.export_timestamp,
@@ -346,6 +350,9 @@ def lif_to_layout(lif: LifFile, file: str, layout_id: str | None = None,
         data["defaults"] = extension.defaults.model_dump(mode="json")
     if extension is not None and extension.zones:
         data["zones"] = [z.model_dump(mode="json", exclude_none=True) for z in extension.zones]
+    if extension is not None and extension.traffic_zones:
+        data["traffic_zones"] = [z.model_dump(mode="json", exclude_defaults=True)
+                                 for z in extension.traffic_zones]
     data |= {"nodes": spec_nodes, "segments": segments, **places,
              "lif": {k: v for k, v in lif_info.items() if v is not None}}
     spec = validate(LayoutSpec, data, file, at)

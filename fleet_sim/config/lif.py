@@ -55,6 +55,7 @@ from fleet_sim.config.layout import (
     Marker,
     NodeKind,
     SpeedLimitsByType,
+    TrafficZoneSpec,
     ZoneSpec,
     is_timestamp,
 )
@@ -86,10 +87,11 @@ class LifModel(StrictModel):
 # fleet-sim writes; its keys are the layout file's).
 
 class LayoutExtension(StrictModel):
-    """On a layout: the layout file's defaults and zones."""
+    """On a layout: the layout file's defaults, zones and traffic zones."""
 
     defaults: LayoutDefaults | None = None
     zones: List[ZoneSpec] = ()
+    traffic_zones: List[TrafficZoneSpec] = ()
 
 
 class NodeExtension(StrictModel):
