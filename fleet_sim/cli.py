@@ -63,8 +63,44 @@ def _hours(text: str) -> float:
     return _number(text, "hours", 0, MAX_DURATION_H)
 
 
-def _agvs(text: str) -> int:
-    return _integer(text, "number of AGVs", 1, MAX_FLEET_SIZE)
+def _agvs(text: str) -> int | dict[str, int]:
+    """A fleet size (N), or a mixed fleet's counts of some of its types (TYPE=N[,TYPE=N])."""
+    if "=" not in text:
+        return _integer(text, "number of AGVs", 1, MAX_FLEET_SIZE)
+    counts: dict[str, int] = {}
+    for part in text.split(","):
+        name, _, number = part.partition("=")
+        name = name.strip()
+        if not name or name in counts:
+            raise argparse.ArgumentTypeError(
+                f"got {text!r}; expected N, or TYPE=N[,TYPE=N] with each type once")
+        counts[name] = _integer(number.strip(), f"number of {name} AGVs", 1, MAX_FLEET_SIZE)
+    return counts
+
+
+def _fleet_overrides(agvs: int | dict[str, int], scenario_file: Path) -> dict[str, object]:
+    """The overrides of --agvs: fleet.size, or each named type's count of a mixed fleet. A
+    plain number for a mixed fleet, or types for a one-type fleet, is refused by name."""
+    from fleet_sim.config.scenario import load_scenario, type_count_path
+
+    fleet = load_scenario(scenario_file).fleet
+    if isinstance(agvs, int):
+        if fleet.vehicles:
+            types = [t.type for t in fleet.vehicles]
+            raise InputError("--agvs", "--agvs", agvs, "TYPE=N for a mixed fleet (fleet."
+                             f"vehicles: {', '.join(types)}), e.g. --agvs {types[-1]}=N; "
+                             f"several: --agvs {types[0]}=N,{types[-1]}=M")
+        return {"fleet.size": agvs}
+    if not fleet.vehicles:
+        raise InputError("--agvs", "--agvs", ",".join(f"{t}={n}" for t, n in agvs.items()),
+                         "a number of AGVs (the scenario's fleet has one vehicle type)")
+    return {type_count_path(name): n for name, n in agvs.items()}
+
+
+def _fleet_text(agvs: int | dict[str, int]) -> str:
+    if isinstance(agvs, int):
+        return f"{agvs} AGVs"
+    return " + ".join(f"{n} {name}" for name, n in agvs.items())
 
 
 def _seed(text: str) -> int:
@@ -116,7 +152,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     run = sub.add_parser("run", help="run one scenario and write its run directory")
     run.add_argument("scenario", type=Path, help="scenario YAML file")
-    run.add_argument("--agvs", type=_agvs, help="fleet size (overrides fleet.size)")
+    run.add_argument("--agvs", type=_agvs, help="fleet size (overrides fleet.size); a mixed "
+                     "fleet: TYPE=N[,TYPE=N] (overrides those types' counts)")
     run.add_argument("--hours", type=_hours, help="run length in hours (overrides duration_h)")
     run.add_argument("--seed", type=_seed, help="random seed (overrides seed)")
     run.add_argument("--out", type=Path, help="run directory (default: results/<scenario name>)")
@@ -160,7 +197,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                            "motion backends and compare the KPIs (each run in its own process)")
     cross.add_argument("scenario", type=Path, help="scenario YAML file")
     cross.add_argument("--agvs", type=_agvs, nargs="+", metavar="N",
-                       help="fleet sizes to compare (default: the scenario's)")
+                       help="fleet sizes to compare (default: the scenario's); a mixed fleet: "
+                            "TYPE=N[,TYPE=N] each")
     cross.add_argument("--hours", type=_hours, help="run length in hours (overrides duration_h)")
     cross.add_argument("--seed", type=_seed, help="random seed (overrides seed)")
 
@@ -280,7 +318,7 @@ def _run(args: argparse.Namespace) -> int:
 
     overrides: dict[str, object] = {}
     if args.agvs is not None:
-        overrides["fleet.size"] = args.agvs
+        overrides |= _fleet_overrides(args.agvs, args.scenario)
     if args.hours is not None:
         overrides["duration_h"] = args.hours
     if args.seed is not None:
@@ -652,11 +690,12 @@ def _crosscheck(args: argparse.Namespace) -> int:
     # bad input fails here, before any run
     scenario = _load_with_hours(load_scenario, args.scenario, base, args.hours)
     load_layout_for(scenario, str(args.scenario))
-    for size in args.agvs or [scenario.fleet.size]:
-        if size < 1:
-            raise InputError("--agvs", "fleet.size", size, "an integer >= 1")
-        overrides = {**base, "fleet.size": size}
-        print(f"{scenario.name}: {size} AGVs, {scenario.duration_h:g} h "
+    for size in args.agvs or [None]:
+        overrides = base if size is None else {**base, **_fleet_overrides(size, args.scenario)}
+        fleet = scenario.fleet
+        text = _fleet_text(size) if size is not None else _fleet_text(
+            {t.type: t.count for t in fleet.vehicles} if fleet.vehicles else fleet.size)
+        print(f"{scenario.name}: {text}, {scenario.duration_h:g} h "
               f"(warm-up {scenario.warmup_h:g} h), seed {scenario.seed}", flush=True)
         print(table(crosscheck(args.scenario, overrides)), flush=True)
         print()

@@ -108,3 +108,33 @@ def test_a_sweep_warns_once_per_experiment_not_per_run(tmp_path: Path) -> None:
     assert len(warnings) == 1 and "charging.enabled is false" in warnings[0]
     summary = pd.read_parquet(tmp_path / "out" / "summary.parquet")
     assert len(summary) == 4 and (summary["setup_warnings"].str.len() > 0).all()
+
+
+def test_agvs_of_a_mixed_fleet_name_the_types(tmp_path: Path) -> None:
+    """--agvs TYPE=N sets that type's count (the others keep theirs); a plain number for a
+    mixed fleet, a type for a one-type fleet or an unknown type is one clear line."""
+    scenario = write_yaml(tmp_path / "mixed.yaml", {
+        "name": "mixed", "layout": str(LAYOUTS / "tiny_loop.yaml"), "duration_h": 0.3,
+        "warmup_h": 0.05, "fleet": {"vehicles": [{"type": "carrier", "count": 1},
+                                                 {"type": "heavy", "count": 1}]}})
+    out = tmp_path / "run"
+    result = fleet_sim("run", str(scenario), "--agvs", "heavy=2", "--quiet", "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    fleet = yaml.safe_load((out / "config.resolved.yaml").read_text())["fleet"]
+    assert [(t["type"], t["count"]) for t in fleet["vehicles"]] == [("carrier", 1), ("heavy", 2)]
+    for args, message in [
+        (("run", str(scenario), "--agvs", "3"),
+         "--agvs: got 3; expected TYPE=N for a mixed fleet (fleet.vehicles: carrier, heavy), "
+         "e.g. --agvs heavy=N"),
+        (("run", str(scenario), "--agvs", "hevy=2"),
+         "fleet.vehicles.hevy.count: got 'hevy'; expected a type of fleet.vehicles "
+         "(carrier, heavy)"),
+        (("run", "experiments/tiny_loop.yaml", "--agvs", "heavy=2"),
+         "--agvs: got 'heavy=2'; expected a number of AGVs (the scenario's fleet has one "
+         "vehicle type)"),
+        (("run", str(scenario), "--agvs", "heavy=0"), "number of heavy AGVs >= 1"),
+    ]:
+        result = fleet_sim(*args)
+        assert result.returncode == 2, args
+        assert message in result.stderr and result.stderr.strip().count("\n") == 0, \
+            result.stderr

@@ -219,3 +219,160 @@ def test_a_one_type_fleet_is_written_and_reported_as_before(tmp_path: Path) -> N
 def test_bad_fleets_are_named(fleet: dict[str, Any], message: str) -> None:
     with pytest.raises(InputError, match=message):
         parse_scenario({"layout": "tiny_loop.yaml", "fleet": fleet}, "<test>", LAYOUTS)
+
+
+# Per-type speed limits on segments (speed_limit_mps_by_type)
+
+SLOW_AISLE = (("SE", "E1"), ("E1", "NE"))
+BYPASS = (("SE", "X1"), ("X1", "X2"), ("X2", "NE"))
+
+
+def limited_layout(folder: Path, limits: dict[tuple[str, str], dict[str, float]],
+                   bypass: bool = False) -> Path:
+    """The tiny loop with per-type speed limits on some segments; `bypass`: a 16 m detour
+    east of its 8 m east side (SE -> X1 -> X2 -> NE)."""
+    data: dict[str, Any] = yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text("utf-8"))
+    data["name"] = "limited_loop"
+    for seg in data["segments"]:
+        if (seg["from"], seg["to"]) in limits:
+            seg["speed_limit_mps_by_type"] = limits[seg["from"], seg["to"]]
+    if bypass:
+        data["nodes"] += [{"id": "X1", "x": 20, "y": 0}, {"id": "X2", "x": 20, "y": 8}]
+        data["segments"] += [{"from": a, "to": b} for a, b in BYPASS]
+    path = folder / "limited_loop.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return path
+
+
+def run_limited(folder: Path, limits: dict[tuple[str, str], dict[str, float]],
+                bypass: bool = False) -> Any:
+    limited_layout(folder, limits, bypass)
+    data = {"name": "limited", "layout": "limited_loop.yaml", "duration_h": 2,
+            "warmup_h": 0.2, "seed": 5,
+            "fleet": {"vehicles": [{"type": "carrier", "count": 2},
+                                   {"type": "heavy", "count": 2}]},
+            "demand": {"rate_per_hour": 60}, "charging": {"enabled": False}}
+    scenario = parse_scenario(data, "<test>", folder)
+    layout = load_layout_for(scenario, "<test>")
+    model = build_model(scenario, layout, record_occupancy=True)
+    model.env.run(until=scenario.duration_s)
+    return scenario, layout, model
+
+
+def segment_times(model: Any, agvs: set[int], segment: tuple[str, str]) -> list[float]:
+    key = ">".join(segment)
+    return [s.end_s - s.start_s for s in model.recorder.occupancy
+            if s.kind == "segment" and s.key == key and s.agv in agvs]
+
+
+def test_a_type_never_drives_a_segment_faster_than_its_limit_there(tmp_path: Path) -> None:
+    """heavy may drive the south side past the pickup at 0.4 m/s only; carrier AGVs (the same
+    top speed, 1 m/s) drive it faster. Traversal times are the recorded segment spells."""
+    south = (("P", "S3"), ("S3", "SE"))
+    _, layout, model = run_limited(tmp_path, {seg: {"heavy": 0.4} for seg in south})
+    heavy, carrier = {2, 3}, {0, 1}
+    for seg in south:
+        length = layout.graph.edges[seg]["length_m"]
+        slow = segment_times(model, heavy, seg)
+        fast = segment_times(model, carrier, seg)
+        assert len(slow) > 20 and len(fast) > 20
+        assert min(slow) >= length / 0.4 - 1e-9, seg
+        assert min(fast) < length / 0.4 - 1.0, seg  # never held to heavy's limit
+    elsewhere = segment_times(model, heavy, ("N3", "D"))  # no limit of its own: top speed
+    assert min(elsewhere) < 4 / 0.4 - 1.0
+    assert layout.speed_limit_mps("P", "S3", "heavy") == 0.4
+    assert layout.speed_limit_mps("P", "S3", "carrier") == 1.0
+    assert layout.speed_limit_mps("P", "S3") == 1.0
+
+
+def test_a_type_slowed_on_a_segment_routes_around_it(tmp_path: Path) -> None:
+    """The east side is 8 m, the bypass 16 m. heavy's limit of 0.2 m/s on the east side
+    makes the bypass quicker for heavy only: heavy AGVs take it, carrier AGVs keep to the
+    east side. Without the limit both types take the east side."""
+    from fleet_sim.model.kinematics import Motion
+    from fleet_sim.sim.traffic.routing import Routes
+
+    _, layout, model = run_limited(tmp_path, {seg: {"heavy": 0.2} for seg in SLOW_AISLE},
+                                   bypass=True)
+    motion = Motion(1.0, 0.5, 0.5, 0.3)
+    assert Routes(layout, motion, "heavy").route("S3", "N3") == ["S3", "SE", "X1", "X2", "NE",
+                                                                  "N3"]
+    assert Routes(layout, motion, "carrier").route("S3", "N3") == ["S3", "SE", "E1", "NE",
+                                                                    "N3"]
+    heavy, carrier = {2, 3}, {0, 1}
+    assert len(segment_times(model, heavy, BYPASS[1])) > 20
+    assert segment_times(model, heavy, SLOW_AISLE[0]) == []
+    assert len(segment_times(model, carrier, SLOW_AISLE[0])) > 20
+    assert segment_times(model, carrier, BYPASS[1]) == []
+    _, _, plain = run_limited(tmp_path, {}, bypass=True)
+    assert len(segment_times(plain, heavy, SLOW_AISLE[0])) > 20
+    assert segment_times(plain, heavy | carrier, BYPASS[1]) == []
+
+
+def test_a_one_type_fleet_named_in_a_limit_drives_at_it(tmp_path: Path) -> None:
+    """A one-type fleet's vehicle.name is a type too; a layout whose limits name only other
+    types runs exactly as without them."""
+    limited_layout(tmp_path, {("P", "S3"): {"rss-agv-001": 0.25}})
+    data = {"layout": "limited_loop.yaml", "duration_h": 0.5, "warmup_h": 0.1,
+            "fleet": {"size": 1}, "charging": {"enabled": False}}
+    scenario = parse_scenario(data, "<test>", tmp_path)
+    model = build_model(scenario, load_layout_for(scenario, "<test>"), record_occupancy=True)
+    model.env.run(until=scenario.duration_s)
+    assert min(segment_times(model, {0}, ("P", "S3"))) >= 4 / 0.25 - 1e-9
+    limited_layout(tmp_path, {("P", "S3"): {"heavy": 0.25}})
+    other = simulate(scenario, load_layout_for(scenario, "<test>"))
+    plain = simulate(scenario.model_copy(update={"layout": str(LAYOUTS / "tiny_loop.yaml")}),
+                     load_layout(LAYOUTS / "tiny_loop.yaml"))
+    assert other.recorder.orders == plain.recorder.orders
+    assert other.recorder.events == plain.recorder.events
+
+
+@pytest.mark.parametrize(("limits", "message"), [
+    ({"heavy": 1.0}, r"segments\[1\].speed_limit_mps_by_type.heavy: got 1.0; expected a limit "
+                     r"below the segment's speed limit 1 m/s"),
+    ({"heavy": 0}, r"segments\[1\].speed_limit_mps_by_type.heavy"),
+    ({"heavy": ".nan"}, r"segments\[1\].speed_limit_mps_by_type.heavy"),
+    ({"heavy": "fast"}, r"segments\[1\].speed_limit_mps_by_type.heavy: got 'fast'"),
+])
+def test_bad_type_limits_are_named(tmp_path: Path, limits: dict[str, Any], message: str) -> None:
+    path = limited_layout(tmp_path, {("S1", "P"): limits})
+    path.write_text(path.read_text("utf-8").replace("'.nan'", ".nan"), encoding="utf-8")
+    with pytest.raises(InputError, match=message) as caught:
+        load_layout(path)
+    assert str(path) in str(caught.value)
+
+
+def test_a_type_limit_must_name_an_allowed_type_and_unknown_types_are_warned(
+        tmp_path: Path) -> None:
+    from fleet_sim.config.scenario import setup_warnings
+
+    aisle_layout(tmp_path)
+    path = tmp_path / "aisle_loop.yaml"
+    data = yaml.safe_load(path.read_text("utf-8"))
+    data["segments"][-1]["speed_limit_mps_by_type"] = {"wide": 0.5}
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    with pytest.raises(InputError, match=r"segments\[15\].speed_limit_mps_by_type.wide: got "
+                                         r"'wide'; expected a type of the segment's "
+                                         r"allowed_types \(narrow\)"):
+        load_layout(path)
+    data["segments"][-1]["speed_limit_mps_by_type"] = {"narow": 0.5}
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    with pytest.raises(InputError, match="allowed_types"):
+        load_layout(path)
+    data["segments"][-1]["allowed_types"] = []
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    scenario = parse_scenario(mixed(tmp_path), "<test>", tmp_path)
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    warnings = [w for w in setup_warnings(scenario, load_layout_for(scenario, "<test>"))
+                if w.kind == "unknown_type_limit"]
+    assert len(warnings) == 1
+    assert "segments[15].speed_limit_mps_by_type names vehicle type 'narow', not a type of " \
+           "the fleet (narrow, wide)" in warnings[0].text
+
+
+def test_the_layout_schema_publishes_per_type_limits() -> None:
+    from fleet_sim.config.schemas import json_schema
+
+    field = json_schema("layout")["$defs"]["SegmentSpec"]["properties"]["speed_limit_mps_by_type"]
+    assert field["type"] == "object" and field["default"] == {}
+    assert field["additionalProperties"] == {"exclusiveMinimum": 0, "type": "number"}

@@ -397,24 +397,41 @@ def test_edge_ids_stay_unique_when_node_ids_hold_dashes(tmp_path: Path) -> None:
 def test_all_types_import_keeps_each_types_access_as_allowed_types(tmp_path: Path,
                                                                    capsys: Any) -> None:
     """hall3's L0: T1 drives the loop and the spurs, T2 only N1-N2 and its spur to N6. With
-    every type imported, the shared corridor is open to all, the rest to its type only, and
-    the stations whose nodes only T1 may reach are T1's; T2's other maxSpeed is reported."""
+    every type imported, the shared edges are open to all, the rest to its type only, and
+    the stations whose nodes only T1 may reach are T1's. Each type keeps its maxSpeed on the
+    shared edges (T1 1.2 m/s both ways, T2 2.0 one way and no limit, so the default 1 m/s,
+    the other): the highest is the segment's limit, the lower one a per-type limit. The
+    speeds differ by direction for T2, so the pair stays two one-way segments."""
     imported = import_lif(HALL3, "L0", all_types=True)
     spec = imported.spec
     assert imported.vehicle_type == "T1" and spec.lif.vehicle_type_id == "T1"
     assert {(s.from_node, s.to_node): s.allowed_types for s in spec.segments} == {
-        ("N1", "N2"): (), ("N2", "N3"): ("T1",), ("N3", "N4"): ("T1",), ("N4", "N1"): ("T1",),
-        ("N1", "N5"): ("T1",), ("N4", "N7"): ("T1",), ("N2", "N6"): ("T2",)}
+        ("N1", "N2"): (), ("N2", "N1"): (), ("N2", "N3"): ("T1",), ("N3", "N4"): ("T1",),
+        ("N4", "N1"): ("T1",), ("N1", "N5"): ("T1",), ("N4", "N7"): ("T1",),
+        ("N2", "N6"): ("T2",)}
+    assert [(s.from_node, s.to_node, s.speed_limit_mps, s.speed_limit_mps_by_type)
+            for s in spec.segments][:2] == [("N1", "N2", 2.0, {"T1": 1.2}),
+                                            ("N2", "N1", 1.2, {"T2": 1.0})]
     assert {s.id: s.allowed_types for s in spec.stations} == {"PICK": ("T1",), "DROP": ("T1",)}
     assert "N6" in [n.id for n in spec.nodes]  # T2's node, left out when importing T1 alone
     assert "N6" not in [n.id for n in import_lif(HALL3, "L0", "T1").spec.nodes]
-    assert any("maxSpeed of another vehicle type" in n.why for n in imported.notes)
     assert not any("a fleet_sim layout is for one vehicle type" in n.why
                    for n in imported.notes)
-    # T2 as the main type: the shared corridor takes T2's speed (2.0 m/s one way)
+    def speed(segment: Any, vehicle_type: str | None = None) -> float:
+        limit = segment.speed_limit_mps or 1.0  # hall3 has the default defaults
+        return min(limit, segment.speed_limit_mps_by_type.get(vehicle_type, limit))
+
+    for vehicle_type in ("T1", "T2"):  # each type's speed as when imported alone
+        alone = {}
+        for seg in import_lif(HALL3, "L0", vehicle_type).spec.segments:
+            alone[seg.from_node, seg.to_node] = speed(seg)
+            if seg.direction == "two_way":
+                alone[seg.to_node, seg.from_node] = speed(seg)
+        assert [speed(s, vehicle_type) for s in spec.segments[:2]] \
+            == [alone[s.from_node, s.to_node] for s in spec.segments[:2]]
+    # the main type names the file's type and chooses lengths; the speeds stay the same
     second = import_lif(HALL3, "L0", "T2", all_types=True).spec
-    assert [(s.from_node, s.to_node, s.speed_limit_mps) for s in second.segments][:2] == [
-        ("N1", "N2", 2.0), ("N2", "N1", None)]
+    assert second.segments == spec.segments
     out = tmp_path / "hall3.yaml"
     assert main(["layout", "import", str(HALL3), "--out", str(out), "--layout-id", "L0",
                  "--all-types"]) == 1  # written; no parking yet
@@ -450,3 +467,78 @@ def test_a_layout_with_allowed_types_exports_per_type_properties_and_comes_back(
     plain = layout_to_lif(load_layout(LAYOUTS / "tiny_loop.yaml").spec)
     assert {p["vehicleTypeId"] for e in plain["layouts"][0]["edges"]
             for p in e["vehicleTypeEdgeProperties"]} == {"fleet-sim"}
+
+
+def test_per_type_speed_limits_are_each_types_max_speed_and_come_back(tmp_path: Path) -> None:
+    """speed_limit_mps_by_type is each type's maxSpeed on the edge; `--all-types` reads the
+    layout back key for key: limits on one-way and two-way segments, under a default or an
+    explicit segment limit, and on a segment where every type that may drive it has one."""
+    data = read_yaml(LAYOUTS / "tiny_loop.yaml")
+    data["segments"][1]["speed_limit_mps_by_type"] = {"heavy": 0.5}
+    data["segments"][2] |= {"speed_limit_mps": 0.8, "speed_limit_mps_by_type": {"heavy": 0.3,
+                                                                               "narrow": 0.6}}
+    data["segments"][5] |= {"allowed_types": ["narrow", "heavy"],
+                            "speed_limit_mps_by_type": {"heavy": 0.4, "narrow": 0.7}}
+    data["nodes"].append({"id": "Y", "x": 20, "y": 4})
+    data["segments"].append({"from": "E1", "to": "Y", "direction": "two_way",
+                             "speed_limit_mps_by_type": {"narrow": 0.25}})
+    spec = validate(LayoutSpec, data, "t.yaml", "")
+    lif = layout_to_lif(spec)
+    edges = {e["edgeId"]: {p["vehicleTypeId"]: p["maxSpeed"]
+                           for p in e["vehicleTypeEdgeProperties"]}
+             for e in lif["layouts"][0]["edges"]}
+    assert edges["S1-P"] == {"fleet-sim": 1.0, "heavy": 0.5, "narrow": 1.0}
+    assert edges["P-S3"] == {"fleet-sim": 0.8, "heavy": 0.3, "narrow": 0.6}
+    assert edges["E1-NE"] == {"narrow": 0.7, "heavy": 0.4}
+    assert edges["E1-Y"] == edges["Y-E1"] == {"fleet-sim": 1.0, "heavy": 1.0, "narrow": 0.25}
+    assert edges["SW-S1"] == {"fleet-sim": 1.0, "heavy": 1.0, "narrow": 1.0}
+    path = write_json(tmp_path / "t.lif.json", lif)
+    imported = import_lif(path, all_types=True)
+    assert imported.spec == spec
+    assert imported.notes == ()
+    written = tmp_path / "back.yaml"
+    written.write_text(layout_yaml(imported.spec, imported.comments()), encoding="utf-8")
+    assert spec_of(written) == spec
+    assert "speed_limit_mps_by_type: {heavy: 0.3, narrow: 0.6}" in written.read_text("utf-8")
+    heavy = import_lif(path, vehicle_type="heavy").spec  # one type: its own speed limits
+    assert [(s.from_node, s.to_node, s.speed_limit_mps) for s in heavy.segments][1:3] == [
+        ("S1", "P", 0.5), ("P", "S3", 0.3)]
+    assert all(not s.speed_limit_mps_by_type for s in heavy.segments)
+
+
+def test_a_foreign_file_gives_each_type_its_max_speed(tmp_path: Path) -> None:
+    """Without fleet-sim's extension: the highest maxSpeed is the segment's limit and a type
+    with a lower one gets it as its own; a type without maxSpeed has the default."""
+    raw = copy.deepcopy(RAW_HALL3)
+    edge = raw["layouts"][0]["edges"][0]
+    edge["vehicleTypeEdgeProperties"][0]["maxSpeed"] = 2.5
+    edge["vehicleTypeEdgeProperties"][1]["maxSpeed"] = 0.9
+    spec = import_lif(write_json(tmp_path / "h.lif.json", raw), "L0", all_types=True).spec
+    assert (spec.segments[0].speed_limit_mps, spec.segments[0].speed_limit_mps_by_type) \
+        == (2.5, {"T2": 0.9})
+
+
+def test_traffic_zones_of_every_kind_go_through_lif_exactly(tmp_path: Path) -> None:
+    """Mutex, ban and same-direction zones ride in the layout's fleetSim extension (LIF has
+    no field for them): export and import give the same layout, with nothing left out, and
+    the layout file written from it loads to the same layout again. Before, they were lost."""
+    data = read_yaml(DATA / "aisle_crossing.yaml")
+    data["traffic_zones"] = [
+        {"id": "AISLE", "kind": "same_direction", "nodes": ["B", "A1", "A2", "A3", "T"],
+         "capacity": 3},
+        {"id": "TOP", "kind": "mutex", "nodes": ["N4"], "segments": [["N4", "T"]],
+         "capacity": 2},
+        {"id": "EAST", "kind": "mutex", "nodes": ["E1", "E2"]},
+        {"id": "DOCK", "kind": "ban", "nodes": ["D2"], "banned_types": ["wide", "tugger"]}]
+    spec = validate(LayoutSpec, data, "zones.yaml", "")
+    lif = layout_to_lif(spec)
+    assert [z["kind"] for z in lif["layouts"][0]["fleetSim"]["traffic_zones"]] == \
+        ["same_direction", "mutex", "mutex", "ban"]
+    imported = export_import(spec, tmp_path)
+    assert imported.spec == spec and imported.notes == ()
+    written = tmp_path / "back.yaml"
+    written.write_text(layout_yaml(imported.spec, imported.comments()), encoding="utf-8")
+    after = load_layout(written)
+    assert after.spec == spec
+    assert after.traffic_zones == layout_from_spec(spec, "zones.yaml").traffic_zones
+    assert lif_json(layout_to_lif(after.spec)) == lif_json(lif)  # and out again, the same bytes

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
 from fleet_sim.analysis.kpis import run_kpis
 from fleet_sim.analysis.replay import (
@@ -28,6 +29,7 @@ from fleet_sim.analysis.replay import (
     moves_table,
     positions_at,
     state_spells,
+    zone_holders_at,
 )
 from fleet_sim.analysis.tables import events_table, orders_table
 from fleet_sim.cli import main
@@ -37,7 +39,7 @@ from fleet_sim.model.kinematics import distance_at, traverse
 from fleet_sim.report.replay import write_replay
 from fleet_sim.sim.engine import RunOutput, simulate
 
-from .conftest import LAYOUTS, ROOT, write_yaml
+from .conftest import DATA, LAYOUTS, ROOT, write_yaml
 
 TEMPLATES = ROOT / "fleet_sim" / "report" / "templates"
 HOURS = 1.5
@@ -571,3 +573,119 @@ def test_a_mixed_fleet_moves_each_agv_on_its_own_profile(tmp_path: Path) -> None
     data = json.loads(found.group(1))
     assert [a["length_m"] for a in data["agv"]] == [1.0, 1.0, 1.0, 1.6, 1.6]
     assert set(data["profiles"]["acc"]) == {0.8, 0.3}
+
+
+# ---- traffic zones on the page ------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def zoned_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """`fleet-sim run --replay` on tests/data/aisle_crossing.yaml with a zone of each kind: the
+    aisle same-direction, the east side a mutex zone, a ban zone round DROP2."""
+    tmp = tmp_path_factory.mktemp("zones")
+    layout: dict[str, Any] = yaml.safe_load((DATA / "aisle_crossing.yaml").read_text("utf-8"))
+    layout["traffic_zones"] = [
+        {"id": "AISLE", "kind": "same_direction", "nodes": ["B", "A1", "A2", "A3", "T"]},
+        {"id": "EAST", "kind": "mutex", "nodes": ["E1", "E2"]},
+        {"id": "DOCK", "kind": "ban", "nodes": ["D2"], "banned_types": ["wide"]}]
+    write_yaml(tmp / "crossing.yaml", layout)
+    scenario = write_yaml(tmp / "zones.yaml", {
+        "name": "zones", "layout": "crossing.yaml", "duration_h": 1.5, "warmup_h": 0.25,
+        "seed": 5, "fleet": {"size": 6},
+        "demand": {"rate_per_hour": 90, "flows": [
+            {"from": "PICK1", "to": "DROP1"}, {"from": "PICK2", "to": "DROP2"},
+            {"from": "PICK1", "to": "MID", "weight": 0.3}]},
+        "charging": {"enabled": False}})
+    run_dir = tmp / "run"
+    assert main(["run", str(scenario), "--out", str(run_dir), "--replay", "--quiet"]) == 0
+    return run_dir
+
+
+def _page_data(run_dir: Path) -> dict[str, Any]:
+    html = (run_dir / "replay.html").read_text(encoding="utf-8")
+    found = re.search(r'<script type="application/json" id="replay-data">(.*?)</script>', html,
+                      re.S)
+    assert found
+    data: dict[str, Any] = json.loads(found.group(1))
+    return data
+
+
+def test_the_page_carries_every_traffic_zone_and_who_held_it(zoned_run: Path,
+                                                             tmp_path: Path) -> None:
+    data = _page_data(zoned_run)
+    zones = data["zones"]
+    assert zones["id"] == ["AISLE", "EAST", "DOCK"]
+    assert zones["kind"] == ["same_direction", "mutex", "ban"]
+    assert zones["rule"] == ["same direction; forward B \u2192 T", "max 1", "no wide"]
+    nodes = data["nodes"]["id"]
+    assert [nodes[n] for n in zones["path"][0]] == ["B", "A1", "A2", "A3", "T"]
+    assert len(set(zones["colour"])) == 3  # told apart by kind
+    moves = pd.read_parquet(zoned_run / MOVES_FILE)
+    held = moves[moves["kind"] == "zone"]
+    assert set(held["v"]) == {"forward", "backward", ""}
+    holds = data["zoneHolds"]
+    assert len(holds["agv"]) == len(held) > 100
+    assert sorted(zip(holds["agv"], [zones["id"][z] for z in holds["z"]], holds["dir"],
+                      strict=True)) == sorted(
+        zip(held["agv"], held["u"], [{"forward": 1, "backward": -1, "": 0}[v]
+                                     for v in held["v"]], strict=True))
+    html = (zoned_run / "replay.html").read_text(encoding="utf-8")
+    assert re.findall(r"(?i)(?:https?|ftp|wss?)://", html) == []
+    copy = tmp_path / "copy"
+    shutil.copytree(zoned_run, copy)
+    assert write_replay(copy).read_bytes() == (zoned_run / "replay.html").read_bytes()
+    assert write_replay(copy).read_bytes() == (zoned_run / "replay.html").read_bytes()
+
+
+def test_a_screenshot_shows_the_zones_and_their_holders_now(zoned_run: Path,
+                                                           tmp_path: Path) -> None:
+    """Headless Chromium at a moment when two AGVs share the aisle one way and one holds the
+    mutex zone: the page's holders are the engine's (zone_holders_at), the side panel names
+    them, and the screenshot has each zone drawn in its kind's colour with its badge."""
+    import matplotlib.image
+
+    moves = pd.read_parquet(zoned_run / MOVES_FILE)
+    starts = sorted(set(moves[moves["kind"] == "zone"]["start_s"]))
+    t = next(s + 0.5 for s in starts
+             if len(zone_holders_at(moves, s + 0.5).get("AISLE", [])) >= 2
+             and zone_holders_at(moves, s + 0.5).get("EAST"))
+    truth = zone_holders_at(moves, t)
+    state = _page_state(zoned_run, t, tmp_path / "profile")
+    assert state["resources"] == 0 and state["violations"] == []
+    shown = {z["id"]: z for z in state["zones"]}
+    way = {"forward": 1, "backward": -1}
+    for zone_id in ("AISLE", "EAST"):
+        assert shown[zone_id]["holders"] == [agv for agv, _ in truth[zone_id]]
+    aisle_way = {d for _, d in truth["AISLE"]}
+    assert len(aisle_way) == 1 and shown["AISLE"]["dir"] == way[aisle_way.pop()]
+    assert shown["DOCK"]["holders"] == []
+    agvs = ", ".join(str(agv) for agv, _ in truth["AISLE"])
+    assert f"AISLE (same direction; forward B \u2192 T): AGV {agvs} " in state["zonePanel"]
+    shot = tmp_path / "shot.png"
+    result = _browser([f"--screenshot={shot}"], (zoned_run / "replay.html").as_uri() + f"#t={t}",
+                      tmp_path / "profile")
+    assert result.returncode == 0, result.stderr[-2000:]
+    image = (matplotlib.image.imread(shot)[:, :, :3] * 255).round().astype(int)
+    left, top = round(state["floor"]["x"]), round(state["floor"]["y"])
+    assert [z["id"] for z in state["drawnZones"]] == ["AISLE", "EAST", "DOCK"]
+    for zone in state["drawnZones"]:
+        want = np.array([int(zone["colour"][i:i + 2], 16) for i in (1, 3, 5)])
+        x0, y0 = left + round(zone["x"]), top + round(zone["y"])
+        x1, y1 = x0 + round(zone["w"]), y0 + round(zone["h"])
+        if zone["kind"] == "same_direction":  # a band along the (upright) aisle, tinted
+            band = _tint(image[y0 + 20:y1 - 20, (x0 + x1) // 2 + 8], want)
+            assert (band > 0.15).mean() > 0.8, zone["id"]
+        else:  # a dashed outline in its colour: along its bottom edge
+            edge = _tint(image[y1 - 2:y1 + 3, x0 + 4:x1 - 4], want)
+            assert (edge > 0.3).any(axis=0).mean() > 0.3, zone["id"]
+        if zone["kind"] != "ban":  # the live badge, filled with the zone's colour
+            bx, by = left + round(zone["bx"]), top + round(zone["by"])
+            assert np.abs(image[by, bx] - want).max() <= 3, zone["id"]
+
+
+def _tint(pixels: Any, colour: Any) -> Any:
+    """How much of `colour` over white each pixel is (0: none or another colour; 1: it)."""
+    weight = 255 - colour
+    share = ((255 - pixels) * weight).sum(axis=-1) / (weight * weight).sum()
+    made = 255 - np.clip(share, 0, 1)[..., None] * weight
+    return np.where(np.abs(pixels - made).max(axis=-1) <= 20, share, 0.0)

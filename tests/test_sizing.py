@@ -109,3 +109,79 @@ def test_run_budget_counts_each_run_once() -> None:
     assert len(budget.used) == 3
     budget.take([experiment.run({"fleet.size": 3}, 0)])
     assert len(budget.used) == 4
+
+
+# A mixed fleet: one type's count is searched, the others keep theirs
+
+def mixed_experiment(tmp_path: Path, **sizing: Any) -> Path:
+    """The tiny loop at 50 orders/h with one carrier (1 m/s, ~29 orders/h alone) and a number
+    of slower heavy AGVs (0.8 m/s) to find: one heavy AGV beside it keeps up only with p95
+    lead times of about 500 s, two bring them to about 250 s."""
+    scenario = {"name": "mixed_loop", "layout": str(ROOT / "layouts" / "tiny_loop.yaml"),
+                "fleet": {"vehicles": [
+                    {"type": "carrier", "count": 1, "vehicle": {"battery": "off"}},
+                    {"type": "heavy", "count": 1,
+                     "vehicle": {"battery": "off", "max_speed_mps": 0.8, "length_m": 1.4}}]},
+                "demand": {"rate_per_hour": 50}}
+    write_yaml(tmp_path / "mixed_loop.yaml", scenario)
+    data = {"name": "mixed_sizing", "scenario": "mixed_loop.yaml",
+            "overrides": {"duration_h": 3, "warmup_h": 0.5}, "master_seed": 7,
+            "targets": [{"kpi": "lead_time_p95_s", "at_most": 450}],
+            "sizing": {"min_agvs": 1, "max_agvs": 3, "stopping": "fixed", **sizing},
+            "replications": 3}
+    return write_yaml(tmp_path / "mixed_sizing.yaml", data)
+
+
+def test_sizing_a_mixed_fleet_varies_one_type_and_keeps_the_others(tmp_path: Path) -> None:
+    experiment = load_experiment(mixed_experiment(tmp_path, vary_type="heavy"))
+    assert experiment.fleet_factor == "fleet.vehicles.heavy.count"
+    out = tmp_path / "sizing"
+    (result,) = size_fleet(experiment, out, workers=2, quiet=True)
+    assert result.recommended == 2
+    assert result.evaluations[1].verdict != "meets"
+    assert set(result.evaluations) == {1, 2}  # from the estimate (2 AGVs) less the carrier
+    assert result.statement().startswith("2 heavy AGVs (beside 1 carrier) meet every target")
+    document = json.loads((out / "sizing.json").read_text())
+    (group,) = document["groups"]
+    assert (group["vary_type"], group["beside"], group["recommended"]) == \
+        ("heavy", {"carrier": 1}, 2)
+    runs = sorted((out / "runs").iterdir())
+    assert [p.name for p in runs] == [f"fleet.vehicles.heavy.count={n}__r{r:02d}"
+                                      for n in (1, 2) for r in range(3)]
+    for run in runs:  # the carrier count never changes; the heavy count is the run's
+        fleet = yaml.safe_load((run / "config.resolved.yaml").read_text())["fleet"]
+        counts = {t["type"]: t["count"] for t in fleet["vehicles"]}
+        assert counts == {"carrier": 1, "heavy": int(run.name.split("=")[1][0])}, run.name
+        kpis = json.loads((run / "kpis.json").read_text())
+        assert kpis["by_type"]["carrier.agvs"] == 1
+
+
+@pytest.mark.parametrize(("sizing", "factors", "message"), [
+    ({}, {}, r"sizing.vary_type: got None; expected the vehicle type whose count the search "
+             r"varies, .*fleet mixes carrier, heavy; for example sizing: \{vary_type: heavy\}"),
+    ({"vary_type": "hevy"}, {}, r"sizing.vary_type: got 'hevy'; expected a type of the base "
+                                r"scenario's fleet.vehicles \(carrier, heavy\)"),
+    ({"vary_type": "heavy"}, {"fleet.size": [3, 4]},
+     r"factors.fleet.size\[0\].*fleet.vehicles.<type>.count"),
+])
+def test_a_mixed_fleet_sizing_names_what_to_write(tmp_path: Path, sizing: dict[str, Any],
+                                                  factors: dict[str, Any], message: str) -> None:
+    from fleet_sim.errors import InputError
+
+    path = mixed_experiment(tmp_path, **sizing)
+    if factors:
+        data = yaml.safe_load(path.read_text())
+        write_yaml(path, {**data, "factors": factors})
+    with pytest.raises(InputError, match=message):
+        size_fleet(load_experiment(path), tmp_path / "out", workers=1, quiet=True)
+
+
+def test_vary_type_needs_a_mixed_fleet(tmp_path: Path) -> None:
+    from fleet_sim.errors import InputError
+
+    data = yaml.safe_load(EXPERIMENT.read_text())
+    data["scenario"] = str(EXPERIMENT.parent / data["scenario"])
+    data["sizing"]["vary_type"] = "heavy"
+    with pytest.raises(InputError, match=r"sizing.vary_type: got 'heavy'; expected no "
+                                         r"vary_type with a one-type fleet"):
+        load_experiment(write_yaml(tmp_path / "vary.yaml", data))

@@ -105,6 +105,20 @@ def test_wide_interval_warning_says_how_many_replications() -> None:
     assert checks[1].warning() is None
 
 
+def test_warnings_name_levels_as_the_experiment_file_writes_them() -> None:
+    """A factor with a null level (no admission limit) makes pandas hold the column as floats:
+    messages still say 40 and null, not 40.0 and nan."""
+    frame = pd.DataFrame({"status": ["ok"] * 4, "fleet.size": [50] * 4,
+                          "dispatch.max_active_agvs": [40, 40, None, None],
+                          "replication": [0, 1, 0, 1], "x": [1.0, 2.0, 1.0, 2.0]})
+    assert frame["dispatch.max_active_agvs"].dtype == float
+    checks = check_targets(frame, ["fleet.size", "dispatch.max_active_agvs"],
+                           [Target(kpi="x", at_least=1.4)])
+    warnings = sorted(str(c.warning()) for c in checks)
+    assert warnings[0].startswith("fleet.size=50, dispatch.max_active_agvs=40: the 95 % CI")
+    assert warnings[1].startswith("fleet.size=50, dispatch.max_active_agvs=null: the 95 % CI")
+
+
 def test_a_code_no_run_raised_counts_zero_times() -> None:
     frame = pd.DataFrame({"fleet.size": [3, 3, 3], "status": ["ok"] * 3,
                           "errors_by_code.E_101": [1.0, 0.0, 2.0]})

@@ -10,6 +10,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+import yaml
 
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.vehicle import VehicleProfile
@@ -138,3 +139,34 @@ def test_layout_command_writes_the_sumo_files(tmp_path: Path) -> None:
     assert names == {"tiny_loop.nod.xml", "tiny_loop.edg.xml", "tiny_loop.con.xml",
                      "tiny_loop.net.xml", "tiny_loop.vtype.xml"}
     assert "SUMO network" in result.stdout
+
+
+def test_a_mixed_fleet_gets_a_vtype_and_a_class_per_type(tmp_path: Path) -> None:
+    """One vType per vehicle type, each with a SUMO class of its own; a segment's per-type
+    speed limits are its edge type's class restrictions (the network is read back and
+    checked); a one-type fleet the layout gives no limit keeps the plain `agv` vType."""
+    from fleet_sim.sim.motion.sumo_network import read_class_limits, vehicle_classes
+
+    data = yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text("utf-8"))
+    data["segments"][2]["speed_limit_mps_by_type"] = {"heavy": 0.4}
+    data["segments"][3]["speed_limit_mps_by_type"] = {"heavy": 0.4, "carrier": 0.7}
+    data["segments"][4]["speed_limit_mps_by_type"] = {"heavy": 0.4}
+    layout = load_layout(write_yaml(tmp_path / "l.yaml", data))
+    heavy = VehicleProfile(max_speed_mps=0.6, length_m=1.5, accel_mps2=0.3)
+    classes = vehicle_classes({"carrier": VehicleProfile(), "heavy": heavy}, layout)
+    assert [(c.vtype_id, c.vclass) for c in classes] == [("agv0_carrier", "custom1"),
+                                                         ("agv1_heavy", "custom2")]
+    network = export(layout, tmp_path / "out", classes=classes)
+    assert network.types_file is not None
+    assert read_class_limits(network.net_file) == {
+        edge_id("P", "S3"): {"custom2": 0.4},
+        edge_id("S3", "SE"): {"custom2": 0.4, "custom1": 0.7},
+        edge_id("SE", "E1"): {"custom2": 0.4}}
+    vtypes = {v.get("id"): (v.get("vClass"), v.get("maxSpeed"), v.get("length"))
+              for v in ET.parse(network.vtype_file).getroot().iter("vType")}
+    assert vtypes == {"agv0_carrier": ("custom1", "1.0", "1.0"),
+                      "agv1_heavy": ("custom2", "0.6", "1.5")}
+    (plain,) = vehicle_classes({"rss-agv-001": VehicleProfile()}, layout)
+    assert (plain.vtype_id, plain.vclass) == ("agv", None)
+    (named,) = vehicle_classes({"heavy": heavy}, layout)  # a one-type fleet the layout limits
+    assert (named.vtype_id, named.vclass) == ("agv0_heavy", "custom1")

@@ -4,8 +4,10 @@ process (fleet_sim.study.crosscheck.run_isolated), as libsumo requires."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -102,3 +104,65 @@ def test_bad_motion_settings_are_named(fields: dict[str, object], element: str,
     assert info.value.file == "<test scenario>"
     assert info.value.element == element
     assert expected in info.value.expected
+
+
+MIXED_RUN = """
+import json, sys
+from fleet_sim.config.scenario import load_scenario, load_layout_for
+from fleet_sim.sim.engine import build_model
+scenario = load_scenario(sys.argv[1])
+layout = load_layout_for(scenario, sys.argv[1])
+model = build_model(scenario, layout, record_occupancy=True)
+model.env.run(until=scenario.duration_s)
+sumo = model.motion_backend.sumo
+types = {vid: sumo.vehicle.getTypeID(vid) for vid in sumo.vehicle.getIDList()}
+print(json.dumps({
+    "spells": [[s.agv, s.key, s.end_s - s.start_s] for s in model.recorder.occupancy
+               if s.kind == "segment"],
+    "vtypes": {t: [sumo.vehicletype.getMaxSpeed(t), sumo.vehicletype.getLength(t),
+                   sumo.vehicletype.getVehicleClass(t)] for t in set(types.values())},
+    "types": types,
+    "delivered": sum(o.delivered_s is not None for o in model.recorder.orders)}))
+model.close()
+"""
+
+
+def test_a_mixed_fleet_runs_under_sumo_each_type_at_its_own_speed(tmp_path: Path) -> None:
+    """carrier (1 m/s) and heavy (0.5 m/s, 1.5 m long) on the tiny loop under SUMO, with a
+    limit of 0.4 m/s for carrier past the pickup (P -> S3): each AGV is its type's SUMO vType,
+    heavy never beats its top speed anywhere, carrier drives faster than heavy can elsewhere
+    but keeps to its own limit on P -> S3 (SUMO's class speed limit)."""
+    import yaml
+
+    layout = yaml.safe_load((ROOT / "layouts" / "tiny_loop.yaml").read_text("utf-8"))
+    layout["segments"][2]["speed_limit_mps_by_type"] = {"carrier": 0.4}
+    (tmp_path / "limited.yaml").write_text(yaml.safe_dump(layout), encoding="utf-8")
+    scenario = {"name": "mixed_sumo", "layout": "limited.yaml", "motion": "sumo",
+                "duration_h": 0.5, "warmup_h": 0.05, "seed": 4,
+                "fleet": {"vehicles": [
+                    {"type": "carrier", "count": 2, "vehicle": {"battery": "off"}},
+                    {"type": "heavy", "count": 1, "vehicle": {
+                        "battery": "off", "max_speed_mps": 0.5, "length_m": 1.5}}]},
+                "demand": {"rate_per_hour": 60}}
+    path = tmp_path / "mixed_sumo.yaml"
+    path.write_text(yaml.safe_dump(scenario), encoding="utf-8")
+    result = subprocess.run([sys.executable, "-c", MIXED_RUN, str(path)], cwd=ROOT,
+                            capture_output=True, text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stderr
+    got = json.loads(result.stdout.strip().splitlines()[-1])
+    assert got["vtypes"] == {"agv0_carrier": [1.0, 1.0, "custom1"],
+                             "agv1_heavy": [0.5, 1.5, "custom2"]}
+    assert {vid: t for vid, t in got["types"].items()} == {
+        vid: "agv1_heavy" if vid == "agv2" else "agv0_carrier" for vid in got["types"]}
+    assert got["delivered"] > 10
+    step = 0.1  # SUMO's step: a hop ends in the step the AGV gets there
+    lengths = {f"{s['from']}>{s['to']}": 4.0 for s in layout["segments"]}
+    fastest = {"carrier": [], "heavy": []}
+    for agv, key, seconds in got["spells"]:
+        kind = "heavy" if agv == 2 else "carrier"
+        top = 0.5 if kind == "heavy" else (0.4 if key == "P>S3" else 1.0)
+        assert seconds >= lengths[key] / top - step, (agv, key, seconds)
+        fastest[kind].append(seconds)
+    assert min(fastest["carrier"]) < 4.0 / 0.5 - 1.0  # carrier is not held to heavy's speed
+    on_limited = [s for a, k, s in got["spells"] if a < 2 and k == "P>S3"]
+    assert on_limited and min(on_limited) >= 4.0 / 0.4 - step

@@ -25,6 +25,7 @@ import numpy as np
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario
 from fleet_sim.config.trace import TraceOrder
+from fleet_sim.config.vehicle import VehicleProfile
 from fleet_sim.model.kinematics import Motion, Piece, traverse
 from fleet_sim.sim.demand import resolved_chains
 from fleet_sim.sim.traffic.routing import Routes
@@ -85,10 +86,12 @@ def route_time_s(routes: Routes, motion: Motion, src: str, dest: str) -> float:
 
 
 def analytic_estimate(scenario: Scenario, layout: Layout, availability: float = 1.0,
-                      trace: Sequence[TraceOrder] = ()) -> Estimate:
+                      trace: Sequence[TraceOrder] = (),
+                      vehicle: VehicleProfile | None = None) -> Estimate:
     """The estimate for the scenario's demand (or its trace), AGVs available `availability` of
-    the time."""
-    profile = scenario.fleet.vehicle
+    the time, all of them `vehicle`s (default: the scenario's fleet.vehicle; a sizing search
+    over one type of a mixed fleet passes that type's)."""
+    profile = vehicle if vehicle is not None else scenario.fleet.vehicle
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
                     profile.turn_speed_mps)
     routes = Routes(layout, motion)

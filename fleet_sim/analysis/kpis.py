@@ -40,8 +40,9 @@ Decisions, where the issue is silent:
   flattens it as it does errors_by_code, to ``by_type.heavy.throughput_per_hour``. Type names
   are the scenario's, so these names are not in `CATALOGUE`; `is_kpi_name` accepts them. A
   one-type fleet's kpis.json has no `by_type` (it stays as it was).
-* A layout with mutex zones adds `zone_wait_s` last: zone id -> AGV-seconds spent in the window
-  waiting to enter it (``zone_wait_s.<zone>``, s; also counted in blocked_time_pct).
+* A layout with mutex or same-direction zones adds `zone_wait_s` last: zone id -> AGV-seconds
+  spent in the window waiting to enter it (``zone_wait_s.<zone>``, s; also counted in
+  blocked_time_pct).
 * Memory (`KpiSums`): fixed but for the lead times of the orders delivered in the window, kept
   one float and one AGV id each (16 bytes an order: 13 MB for a year of 90 orders/h) because
   their 95th percentile needs them all, and for the Idle and waiting spells not yet matched

@@ -25,6 +25,10 @@ Decisions, where the issue is silent:
   to its lead time: wait for assignment, drive empty (assignment to arrival at the pickup: the
   command's delay, leaving parking and obstacle pauses included), load, drive loaded, unload,
   blocked.
+* Traffic zones: the "zone" rows are the engine's zone holds (fleet_sim.model.records.
+  MoveRecord): `zone_holders_at` says which AGVs hold each mutex or same-direction zone at a
+  time, and which way they drive a same-direction one; the page shows the same. A run recorded
+  before zone rows existed shows nobody holding.
 * State spells (the Gantt) run from each change of state to the next, clipped to the window;
   each carries the event and detail that started it (the reason), the order the AGV had and
   whether it was loaded. An AGV's spells cover the window without gap or overlap.
@@ -169,6 +173,21 @@ def _same_events(a: pd.DataFrame, b: pd.DataFrame) -> bool:
         elif [str(v) for v in x] != [str(v) for v in y]:
             return False
     return True
+
+
+# ---- who holds each traffic zone ---------------------------------------------------------------
+
+
+def zone_holders_at(moves: pd.DataFrame, t_s: float) -> dict[str, list[tuple[int, str]]]:
+    """Zone id -> (AGV, direction) of every AGV holding the zone at `t_s` (direction
+    "forward" or "backward" for a same-direction zone, "" for a mutex zone), by AGV; zones
+    nobody holds are left out. A hold given back at `t_s` is over."""
+    holds = moves[(moves["kind"] == "zone") & (moves["start_s"] <= t_s) & (moves["end_s"] > t_s)]
+    out: dict[str, list[tuple[int, str]]] = {}
+    for agv, zone, direction in zip(holds["agv"].tolist(), holds["u"].tolist(),
+                                    holds["v"].tolist(), strict=True):
+        out.setdefault(str(zone), []).append((int(agv), str(direction)))
+    return {z: sorted(h) for z, h in sorted(out.items())}
 
 
 # ---- where each AGV is -------------------------------------------------------------------------

@@ -34,7 +34,7 @@ import pandas as pd
 from scipy.special import stdtrit
 
 from fleet_sim.analysis.kpis import COUNTS_BY_CODE
-from fleet_sim.config.experiment import Target
+from fleet_sim.config.experiment import Target, point_text
 
 CONFIDENCE = 0.95
 NOT_KPIS = {"replication", "seed", "point", "agvs_requested"}
@@ -202,7 +202,7 @@ class TargetCheck:
     def warning(self) -> str | None:
         if self.decision != "undecided":
             return None
-        where = ", ".join(f"{k}={v}" for k, v in self.point.items()) or "the scenario"
+        where = point_text(self.point) or "the scenario"
         ci = self.interval
         if ci.n < 2:
             return (f"{where}: {self.target.describe()} cannot be decided from {ci.n} "

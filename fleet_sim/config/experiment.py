@@ -39,6 +39,13 @@ Decisions, where the issue is silent:
   index over its levels, one given as ``{min, max}`` uniformly within its stratum (rounded for
   ``integer: true``). Its random stream is ``SeedSequence(master_seed, spawn_key=(2**32,))``, apart
   from every replication's.
+* A mixed fleet (the base scenario's ``fleet.vehicles``) is varied one type at a time: the
+  factor (or override) ``fleet.vehicles.<type>.count`` sets that type's count, the others keep
+  theirs; ``fleet.size`` is their sum and cannot be set. `fleet-sim size` varies the type named
+  by ``sizing.vary_type`` (required with a mixed fleet, refused with a one-type fleet), whose
+  count min_agvs and max_agvs then bound; run ids read ``fleet.vehicles.heavy.count=3__r00``.
+  Why one type: "how many heavy tuggers do my eight carriers need beside them" is the
+  planner's question; a search over several counts at once has no single smallest answer.
 * Battery and charging traps (fleet_sim.config.scenario.setup_warnings) are said once per
   experiment (`experiment_warnings`): each kind of trap once, with the first design point's
   line and how many design points have it, not once per run.
@@ -68,6 +75,7 @@ from fleet_sim.config.scenario import (
     is_folder_name,
     load_scenario,
     setup_warnings,
+    type_count_path,
 )
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.errors import InputError
@@ -146,6 +154,11 @@ class SizingConfig(StrictModel):
     max_replications: int = Field(default=12, ge=2, le=MAX_REPLICATIONS)
     """Replications a close decision may grow to under sequential stopping (a size still
     undecided there counts as not meeting the targets)."""
+    vary_type: Text | None = None
+    """With a mixed fleet (the base scenario's fleet.vehicles): the vehicle type whose count
+    the search varies (the factor fleet.vehicles.<type>.count); the other types keep their
+    counts. min_agvs and max_agvs then bound that type's count. Needed with a mixed fleet;
+    not given with a one-type fleet (the search varies fleet.size)."""
     agv_availability: float = Field(default=1.0, gt=0, le=1)
     """Share of each AGV-hour available for orders, for the analytic estimate (charging,
     breaks); 1.0 while the runs model no charging."""
@@ -267,6 +280,13 @@ class Experiment:
     def factor_names(self) -> list[str]:
         return list(self.spec.factors)
 
+    @property
+    def fleet_factor(self) -> str:
+        """The factor a sizing search varies, and the fleet axis of reports: fleet.size, or
+        a mixed fleet's count of `sizing.vary_type` (fleet.vehicles.<type>.count)."""
+        vary = self.spec.sizing.vary_type
+        return FLEET if vary is None else type_count_path(vary)
+
     def run(self, factors: Mapping[str, Any], replication: int, point: int = -1) -> RunSpec:
         """The run of design point `factors` (any factor values) at `replication`."""
         seed = replication_seed(self.spec.master_seed, replication)
@@ -312,6 +332,21 @@ def run_id(factors: Mapping[str, Any], replication: int) -> str:
         digest = hashlib.sha1(text.encode()).hexdigest()[:12]
         text = f"p{digest}__r{replication:02d}"
     return text
+
+
+def level_text(value: Any) -> str:
+    """A factor level as the experiment file would write it: `null` for no value (a pandas
+    column of levels holds it as NaN), whole numbers without a decimal point."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "null"
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return _fmt(value)
+
+
+def point_text(point: Mapping[str, Any]) -> str:
+    """A design point for messages and captions: `fleet.size=50, dispatch.max_active_agvs=null`."""
+    return ", ".join(f"{k}={level_text(v)}" for k, v in point.items())
 
 
 def _fmt(value: Any) -> str:
@@ -371,11 +406,29 @@ def load_experiment(path: str | Path) -> Experiment:
                                  list(spec.factors))
     experiment = Experiment(spec, path, tuple(tuple(p.items()) for p in points))
     _check_scenarios(experiment, levels)
+    _check_vary_type(experiment)
     return experiment
 
 
+def _check_vary_type(experiment: Experiment) -> None:
+    """`sizing.vary_type` names a type of the base scenario's mixed fleet (fleet.size cannot
+    be a factor of a mixed fleet: the scenario refuses it)."""
+    vary = experiment.spec.sizing.vary_type
+    if vary is None:
+        return
+    file = str(experiment.file)
+    types = list(experiment.scenario().fleet.type_profiles)
+    if not experiment.scenario().fleet.vehicles:
+        raise InputError(file, "sizing.vary_type", vary, "no vary_type with a one-type fleet "
+                         f"(the base scenario's fleet is {types[0]} only: the search varies "
+                         "fleet.size)")
+    if vary not in types:
+        raise InputError(file, "sizing.vary_type", vary,
+                         f"a type of the base scenario's fleet.vehicles ({', '.join(types)})")
+
+
 def _check_path(file: str, element: str, key: str) -> None:
-    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*", key):
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z0-9_][A-Za-z0-9_-]*)*", key):
         raise InputError(file, element, key, "a dotted scenario path such as fleet.size")
     if key in ("seed", "layout"):
         why = ("seeds come from master_seed and the replication" if key == "seed"
@@ -454,7 +507,7 @@ def _check_scenarios(experiment: Experiment, levels: Mapping[str, list[Any]]) ->
             scenario = experiment.scenario(factors)
             layout_for(scenario, str(experiment.scenario_file))
         except InputError as exc:
-            where = ", ".join(f"{k}={v}" for k, v in factors.items())
+            where = point_text(factors)
             raise InputError(file, f"design point ({where})", exc.value,
                              f"{exc.expected} (scenario field {exc.element})") from None
 

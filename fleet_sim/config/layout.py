@@ -12,24 +12,33 @@ Modelling decisions written down here because the engine relies on them:
 * Two-way segments form *corridors*: maximal chains of two-way segments between junctions (nodes
   that also have one-way segments or meet three or more two-way segments). An AGV must hold a
   corridor before it enters it (single-track rule), which rules out head-on deadlocks by
-  construction. A dead-end spur to a charger is a corridor too.
+  construction. A dead-end spur to a charger is a corridor too. A corridor covered by a
+  same_direction traffic zone is not one: the zone's rule (AGVs inside all drive it one way)
+  takes the place of the single-track rule.
 * The turn an AGV makes at a node comes from the geometry of its incoming and outgoing segments
   (left, right, straight, reverse); a segment's ``branch`` key overrides it for AGVs entering it.
+* A segment's ``speed_limit_mps_by_type`` (type -> m/s) only lowers its speed limit for the
+  types named: an AGV drives it at the least of its top speed, the segment's limit and its
+  type's limit there (`Layout.speed_limit_mps`). A limit at or above the segment's own says
+  nothing and is refused, as is one for a type the segment's ``allowed_types`` shut out. The
+  names are not checked against a fleet here (a layout serves many scenarios); a mixed fleet
+  whose layout names a type it lacks is warned (fleet_sim.config.scenario.setup_warnings).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 from datetime import datetime
 from pathlib import Path
-from typing import Annotated, Any, Final, Literal
+from typing import Annotated, Any, Final, Literal, NoReturn
 
 import networkx as nx
 import yaml
-from pydantic import Field, Strict, field_validator
+from pydantic import AfterValidator, Field, Strict, field_validator
 
 from agv_model.inputs import (
     Items,
@@ -71,6 +80,26 @@ class NodeSpec(StrictModel):
     """RFID marker action (RSS-AGV-001 5.3): speed tags, location correction, spin, pause."""
 
 
+class TypeLimits(dict[str, float]):
+    """Vehicle type -> speed limit (m/s) of one segment: a read-only, hashable mapping, so a
+    layout spec stays hashable like every config (lists are tuples there)."""
+
+    def __hash__(self) -> int:  # type: ignore[override]
+        return hash(tuple(sorted(self.items())))
+
+    def __reduce__(self) -> tuple[type[TypeLimits], tuple[dict[str, float]]]:
+        return TypeLimits, (dict(self),)  # pickle and copy without item assignment
+
+    def _read_only(self, *_: Any, **__: Any) -> NoReturn:
+        raise TypeError("a segment's per-type speed limits are read-only")
+
+    __setitem__ = __delitem__ = _read_only
+    clear = pop = popitem = setdefault = update = _read_only
+
+
+SpeedLimitsByType = Annotated[dict[Text, Positive], AfterValidator(TypeLimits)]
+
+
 class SegmentSpec(StrictModel):
     from_node: Text = Field(alias="from")
     to_node: Text = Field(alias="to")
@@ -85,6 +114,11 @@ class SegmentSpec(StrictModel):
     allowed_types: Items[Text] = ()
     """Vehicle types (the scenario's fleet.vehicles[].type, or a one-type fleet's
     vehicle.name) that may drive the segment; empty: every type."""
+    speed_limit_mps_by_type: SpeedLimitsByType = Field(default={}, validate_default=True)
+    """Lower speed limits for some vehicle types (type -> m/s), such as a heavy tugger in a
+    narrow aisle: an AGV of a named type drives the segment at most at its type's limit, the
+    others at speed_limit_mps. Each below the segment's speed limit; with allowed_types,
+    only types among them."""
 
 
 class StationSpec(StrictModel):
@@ -129,6 +163,9 @@ class ZoneSpec(StrictModel):
     obstacle_duration: TimeDistribution | None = None
 
 
+TrafficZoneKind = Literal["mutex", "ban", "same_direction"]
+
+
 class TrafficZoneSpec(StrictModel):
     """A traffic zone (FlexSim's control areas, openTCS blocks, Open-RMF mutex groups): a set
     of nodes, given as `nodes` and/or `segments` (a segment adds both its ends).
@@ -137,15 +174,24 @@ class TrafficZoneSpec(StrictModel):
       node of the zone); an AGV asks traffic for the zone before it takes its first node in
       it and waits outside when the zone is full.
     * ``ban``: AGVs of `banned_types` never enter: their routes keep off every segment into
-      the zone, and they serve no station inside it."""
+      the zone, and they serve no station inside it.
+    * ``same_direction`` (openTCS's "same direction only" block): a two-way aisle, its `nodes`
+      listed in order from one end to the other. Several AGVs may be inside at once if they
+      all drive it the same way: forward (from the first node listed towards the last) or
+      backward; one that wants the other way waits before the aisle's end until no AGV drives
+      it the other way. The end nodes are its gates (an AGV passing an end is not inside);
+      the aisle's single-track rule gives way to the zone's. `capacity`: the most AGVs inside
+      at once (default: no limit but one AGV per node)."""
 
     id: Text
-    kind: Literal["mutex", "ban"]
+    kind: TrafficZoneKind
     nodes: Items[Text] = ()
+    """same_direction: the aisle's nodes in order, its two ends included."""
     segments: Items[Annotated[tuple[Text, Text], Strict(False)]] = ()
-    """[from, to] pairs of the layout's segments."""
-    capacity: int = Field(default=1, ge=1)
-    """mutex: the most AGVs inside at once."""
+    """[from, to] pairs of the layout's segments (not for same_direction)."""
+    capacity: int | None = Field(default=None, ge=1)
+    """mutex: the most AGVs inside at once (default 1); same_direction: the same (default:
+    no limit)."""
     banned_types: Items[Text] = ()
     """ban: the vehicle types that may not enter."""
 
@@ -218,15 +264,36 @@ class LayoutSpec(StrictModel):
     areas)."""
 
 
+FORWARD: Final = 1
+"""A same_direction zone driven from its first node listed towards its last."""
+BACKWARD: Final = -1
+"""... and from its last node towards its first."""
+
+
 @dataclass(frozen=True)
 class TrafficZone:
     """A traffic zone as the engine sees it (TrafficZoneSpec, its nodes resolved)."""
 
     id: str
-    kind: Literal["mutex", "ban"]
+    kind: TrafficZoneKind
     nodes: frozenset[str]
-    capacity: int
+    """The nodes inside: an AGV holding one of them is in the zone (same_direction: the
+    aisle's nodes between its two ends)."""
+    capacity: int | None
+    """The most AGVs inside at once (mutex: 1 if not given); None: no limit."""
     banned_types: frozenset[str]
+    path: tuple[str, ...] = ()
+    """same_direction: the aisle's nodes in order, its ends included (forward: first to
+    last)."""
+
+    @property
+    def hops(self) -> dict[tuple[str, str], int]:
+        """same_direction: every hop along the aisle and its direction."""
+        out: dict[tuple[str, str], int] = {}
+        for a, b in itertools.pairwise(self.path):
+            out[(a, b)] = FORWARD
+            out[(b, a)] = BACKWARD
+        return out
 
 
 @dataclass(frozen=True)
@@ -291,15 +358,20 @@ class Layout:
         self.parking = [p for p in places if p.kind == "parking"]
         self.turn_length_m = spec.defaults.turn_length_m
         self.markers = {n.id: n.marker for n in spec.nodes if n.marker is not None}
-        self.traffic_zones = [
-            TrafficZone(z.id, z.kind, frozenset(z.nodes) | {n for seg in z.segments for n in seg},
-                        z.capacity, frozenset(z.banned_types)) for z in spec.traffic_zones]
+        self.traffic_zones = [_traffic_zone(z) for z in spec.traffic_zones]
+        self.traffic_zone_by_id = {z.id: z for z in self.traffic_zones}
         self.mutex_zones_at: dict[str, tuple[TrafficZone, ...]] = {}
         """Node -> the mutex zones it lies in."""
+        self.direction_zones_at: dict[str, TrafficZone] = {}
+        """Node -> the same_direction zone it lies inside (not at an end of)."""
+        self._direction_hops: dict[tuple[str, str], tuple[TrafficZone, int]] = {}
         for zone in self.traffic_zones:
             if zone.kind == "mutex":
                 for node in sorted(zone.nodes):
                     self.mutex_zones_at[node] = (*self.mutex_zones_at.get(node, ()), zone)
+            elif zone.kind == "same_direction":
+                self.direction_zones_at.update(dict.fromkeys(zone.nodes, zone))
+                self._direction_hops.update({hop: (zone, d) for hop, d in zone.hops.items()})
         self._banned_at: dict[str, frozenset[str]] = {}
         for zone in self.traffic_zones:
             if zone.kind == "ban":
@@ -315,6 +387,11 @@ class Layout:
 
     def corridor_of(self, u: str, v: str) -> Corridor | None:
         return self._corridor_of.get((u, v))
+
+    def direction_zone_of(self, u: str, v: str) -> tuple[TrafficZone, int] | None:
+        """The same_direction zone whose aisle the hop u -> v drives along, and the hop's
+        direction (FORWARD or BACKWARD), if any."""
+        return self._direction_hops.get((u, v))
 
     def corridor_at(self, node: str) -> Corridor | None:
         """The corridor that `node` lies inside (not at the junction end of), if any."""
@@ -362,6 +439,21 @@ class Layout:
         return nx.subgraph_view(self.graph, filter_edge=allowed)
 
     @property
+    def speed_limited_types(self) -> frozenset[str]:
+        """The vehicle types some segment gives a speed limit of their own."""
+        return frozenset(name for s in self.spec.segments for name in s.speed_limit_mps_by_type)
+
+    def speed_limit_mps(self, u: str, v: str, vehicle_type: str | None = None) -> float:
+        """Segment u -> v's speed limit, for AGVs of `vehicle_type` (None: the segment's
+        own, for every type)."""
+        data = self.graph.edges[u, v]
+        limit: float = data["speed_limit_mps"]
+        if vehicle_type is None:
+            return limit
+        limits: TypeLimits = data["speed_limit_mps_by_type"]
+        return min(limit, limits.get(vehicle_type, limit))
+
+    @property
     def total_length_m(self) -> float:
         """Length of tape, counting a two-way segment once."""
         seen: set[frozenset[str]] = set()
@@ -387,7 +479,19 @@ def layout_from_spec(spec: LayoutSpec, file: str, max_speed_mps: float | None = 
     _check_places(spec, file, graph)
     _check_traffic_zones(spec, file, graph)
     _check_connectivity(spec, file, graph)
-    return Layout(spec, file, graph, _find_corridors(graph))
+    corridors = _find_corridors(graph)
+    if any(z.kind == "same_direction" for z in spec.traffic_zones):
+        corridors = _check_aisles(spec, file, graph, corridors)
+    return Layout(spec, file, graph, corridors)
+
+
+def _traffic_zone(spec: TrafficZoneSpec) -> TrafficZone:
+    if spec.kind == "same_direction":
+        return TrafficZone(spec.id, spec.kind, frozenset(spec.nodes[1:-1]), spec.capacity,
+                           frozenset(), tuple(spec.nodes))
+    nodes = frozenset(spec.nodes) | {n for seg in spec.segments for n in seg}
+    capacity = spec.capacity if spec.capacity is not None or spec.kind != "mutex" else 1
+    return TrafficZone(spec.id, spec.kind, nodes, capacity, frozenset(spec.banned_types))
 
 
 def _build_graph(spec: LayoutSpec, file: str, max_speed_mps: float | None) -> nx.DiGraph:
@@ -423,6 +527,17 @@ def _build_graph(spec: LayoutSpec, file: str, max_speed_mps: float | None) -> nx
         if max_speed_mps is not None and limit > max_speed_mps + 1e-9:
             raise InputError(file, f"{where}.speed_limit_mps", limit,
                              f"at most the vehicle's maximum speed {max_speed_mps} m/s")
+        for name, type_limit in seg.speed_limit_mps_by_type.items():
+            at = f"{where}.speed_limit_mps_by_type.{name}"
+            if seg.allowed_types and name not in seg.allowed_types:
+                raise InputError(file, at, name, "a type of the segment's allowed_types ("
+                                 f"{', '.join(seg.allowed_types)}): other types may not "
+                                 "drive it")
+            if type_limit >= limit:
+                raise InputError(file, at, type_limit,
+                                 f"a limit below the segment's speed limit {limit:g} m/s (a "
+                                 "type's limit lowers it for that type; raise "
+                                 "speed_limit_mps to let the other types drive faster)")
         ends = [(seg.from_node, seg.to_node)]
         if seg.direction == "two_way":
             ends.append((seg.to_node, seg.from_node))
@@ -436,7 +551,8 @@ def _build_graph(spec: LayoutSpec, file: str, max_speed_mps: float | None) -> nx
             graph.add_edge(u, v, length_m=length, speed_limit_mps=limit,
                            two_way=seg.direction == "two_way", branch=branch, index=i,
                            rssi_dbm=seg.rssi_dbm, obstacle_rate_per_km=None,
-                           obstacle_duration=None, allowed_types=frozenset(seg.allowed_types))
+                           obstacle_duration=None, allowed_types=frozenset(seg.allowed_types),
+                           speed_limit_mps_by_type=seg.speed_limit_mps_by_type)
     _apply_zones(spec, file, graph)
     for node in spec.nodes:
         if graph.out_degree(node.id) == 0:
@@ -490,7 +606,7 @@ def _check_traffic_zones(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None
         if zone.kind == "mutex" and zone.banned_types:
             raise InputError(file, f"{where}.banned_types", list(zone.banned_types),
                              "none for a mutex zone (a ban zone bans types)")
-        if zone.kind == "ban" and zone.capacity != 1:
+        if zone.kind == "ban" and zone.capacity is not None:
             raise InputError(file, f"{where}.capacity", zone.capacity,
                              "no capacity for a ban zone (a mutex zone has one)")
         parking = {p.node for p in spec.parking}
@@ -499,6 +615,85 @@ def _check_traffic_zones(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None
             raise InputError(file, f"{where}.nodes", sorted(inside)[0],
                              "no parking access node in a mutex zone (parked AGVs hold no "
                              "node and would not count)")
+        if zone.kind == "same_direction":
+            _check_aisle(zone, where, file, graph, parking)
+
+
+def _check_aisle(zone: TrafficZoneSpec, where: str, file: str, graph: nx.DiGraph,
+                 parking: set[str]) -> None:
+    """A same_direction zone is one two-way aisle, its nodes listed in order, entered and
+    left at its two ends only (its way round: `_check_aisles`)."""
+    if zone.banned_types:
+        raise InputError(file, f"{where}.banned_types", list(zone.banned_types),
+                         "none for a same_direction zone (a ban zone bans types)")
+    if zone.segments:
+        raise InputError(file, f"{where}.segments", [list(s) for s in zone.segments],
+                         "no segments for a same_direction zone: list the aisle's nodes in "
+                         "order under `nodes` (the order says which way is forward)")
+    nodes = zone.nodes
+    if len(nodes) < 3:
+        raise InputError(file, f"{where}.nodes", list(nodes),
+                         "at least 3 nodes in order along the aisle (its two ends and the "
+                         "nodes between them)")
+    first: dict[str, int] = {}
+    for j, node in enumerate(nodes):
+        if node in first:
+            raise InputError(file, f"{where}.nodes[{j}]", node,
+                             f"each node once (nodes[{first[node]}] is {node} already)")
+        first[node] = j
+    for j in range(1, len(nodes)):
+        a, b = nodes[j - 1], nodes[j]
+        if not (graph.has_edge(a, b) and graph.has_edge(b, a)):
+            raise InputError(file, f"{where}.nodes[{j}]", b,
+                             f"a node joined to nodes[{j - 1}] ({a}) by a two-way segment "
+                             "(a same_direction zone is a two-way aisle, its nodes listed "
+                             "in order)")
+    for j in range(1, len(nodes) - 1):
+        node = nodes[j]
+        chain = {nodes[j - 1], nodes[j + 1]}
+        others = sorted((set(graph.successors(node)) | set(graph.predecessors(node))) - chain)
+        if others:
+            raise InputError(file, f"{where}.nodes[{j}]", node,
+                             f"a node joined only to its neighbours in the list (a segment "
+                             f"joins it to {others[0]}: a same_direction zone is entered "
+                             "and left at its two ends only)")
+        if node in parking:
+            raise InputError(file, f"{where}.nodes[{j}]", node,
+                             "no parking access node inside a same_direction zone (parked "
+                             "AGVs hold no node and would not count)")
+
+
+def _check_aisles(spec: LayoutSpec, file: str, graph: nx.DiGraph,
+                  corridors: list[Corridor]) -> list[Corridor]:
+    """A same_direction zone has a way round outside it and covers whole single-track
+    corridors, whose place it takes: the corridors it covers are left out (the others
+    numbered again)."""
+    covered: set[tuple[str, str]] = set()
+    for i, zone in enumerate(spec.traffic_zones):
+        if zone.kind != "same_direction":
+            continue
+        nodes = zone.nodes
+        outside = graph.subgraph(n for n in graph.nodes if n not in set(nodes[1:-1]))
+        for a, b in ((nodes[-1], nodes[0]), (nodes[0], nodes[-1])):
+            if not nx.has_path(outside, a, b):
+                raise InputError(file, f"traffic_zones[{i}].nodes", list(nodes),
+                                 f"an aisle with a way round: no path outside the zone "
+                                 f"leads from its end {a} back to its other end {b}, so an "
+                                 "AGV that drove through it could not come back without "
+                                 "turning round inside")
+        hops = _traffic_zone(zone).hops
+        for corridor in corridors:
+            inside = corridor.segments & hops.keys()
+            if inside and inside != corridor.segments:
+                u, v = sorted(corridor.segments - hops.keys())[0]
+                raise InputError(file, f"traffic_zones[{i}].nodes", list(zone.nodes),
+                                 f"the whole two-way aisle: its segment {u} -> {v} goes on "
+                                 "beyond the zone's end (a same_direction zone takes the "
+                                 "place of the aisle's single-track rule, so it must start "
+                                 "and end where the aisle does)")
+        covered |= hops.keys()
+    kept = [c for c in corridors if not c.segments <= covered]
+    return [replace(c, id=i) for i, c in enumerate(kept)]
 
 
 def _check_places(spec: LayoutSpec, file: str, graph: nx.DiGraph) -> None:

@@ -5,11 +5,12 @@ docs/standards.md; the decisions it rests on are these.
 * Export writes what LIF can say in LIF's own fields (node positions, directed edges with
   maxSpeed, stations with their interaction nodes, the purpose of a place as the VDA 5050 action
   on its nodes: ``pick``, ``drop``, ``startCharging``/``stopCharging``) and everything else in
-  the extension key ``fleetSim`` (layout defaults and zones; a node's kind where the places do
-  not tell it and its RFID marker; a segment's explicit length, explicit speed limit, two-way
-  direction, branch and Wi-Fi signal; a place's kind, handling time, charger power and docking
-  time, parking capacity). So a LIF reader that ignores extensions still gets a graph it can
-  route on, and `import` of an exported file gives the layout back exactly.
+  the extension key ``fleetSim`` (layout defaults, zones and traffic zones; a node's kind where
+  the places do not tell it and its RFID marker; a segment's explicit length, explicit speed
+  limit, two-way direction, branch and Wi-Fi signal; a place's kind, handling time, charger
+  power and docking time, parking capacity). So a LIF reader that ignores extensions still
+  gets a graph it can route on, and `import` of an exported file gives the layout back
+  exactly.
 * A two-way segment is two LIF edges (u->v, then v->u right after it), both marked two-way in
   the extension; import merges them back into one segment. In a file without fleet-sim's
   extension, an opposite pair of edges with the same length and speed limit is one path driven
@@ -26,12 +27,17 @@ docs/standards.md; the decisions it rests on are these.
 * Mixed fleets: `--all-types` (``all_types=True``) imports every vehicle type of the layout.
   A node or edge open to any type is kept; a segment open to some types only gets those as its
   `allowed_types`, and so does a pickup or drop-off station whose interaction nodes are not
-  open to every type (the types open on all of them). A segment has one speed limit and one
-  length: those of the main type (`--vehicle-type`, else the file's first type) where it has
-  an entry, else of the first type that has one; another type's different maxSpeed or
-  trajectory is reported. An opposite pair of edges becomes one two-way segment only if the
-  same types may drive both. Chargers and parking areas have no `allowed_types`: one not open
-  to every type is kept and reported.
+  open to every type (the types open on all of them). Each type keeps its own maxSpeed (the
+  speed it would have if imported alone): the highest is the segment's `speed_limit_mps`, a
+  lower one the type's `speed_limit_mps_by_type` (`_speeds`). A segment has one length: the
+  main type's (`--vehicle-type`, else the file's first type) where it has an entry, else the
+  first type's that has one; another type's different trajectory is reported. An opposite
+  pair of edges becomes one two-way segment only if the same types may drive both at the same
+  speeds. Chargers and parking areas have no `allowed_types`: one not open to every type is
+  kept and reported.
+* Per-type speed limits are exported as each type's maxSpeed on the edge (the types they name
+  are written like those of `allowed_types`); the edge's extension repeats them, so that the
+  import knows the segment's own limit even where every type on the edge has a lower one.
 * A foreign station's purpose comes from the actions on its interaction nodes, as LIF 8.3.13.1
   says: pick -> pickup, drop -> drop-off, startCharging -> one charger per node. A station with
   none of them cannot be placed and is reported; so are handling times (fleet_sim's default) and
@@ -144,7 +150,7 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
     edge_ids: set[str] = set()
 
     def edge(start: str, end: str, limit: float, extension: dict[str, Any],
-             allowed: tuple[str, ...]) -> None:
+             allowed: tuple[str, ...], by_type: dict[str, float]) -> None:
         edge_id = f"{start}-{end}"
         n = 2
         while edge_id in edge_ids:  # ids that contain "-" can meet: A-B + C and A + B-C
@@ -153,7 +159,8 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
         data: dict[str, Any] = {
             "edgeId": edge_id, "startNodeId": start, "endNodeId": end,
             "vehicleTypeEdgeProperties": [{"vehicleTypeId": t, "rotationAllowed": False,
-                                           "maxSpeed": limit} for t in allowed or types]}
+                                           "maxSpeed": by_type.get(t, limit)}
+                                          for t in allowed or types]}
         if extension:
             data[EXTENSION_KEY] = extension
         edges.append(data)
@@ -163,10 +170,12 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
             else spec.defaults.speed_limit_mps
         extension = seg.model_dump(mode="json", exclude_defaults=True,
                                    exclude={"from_node", "to_node", "allowed_types"})
-        edge(seg.from_node, seg.to_node, limit, extension, seg.allowed_types)
+        by_type = dict(seg.speed_limit_mps_by_type)
+        edge(seg.from_node, seg.to_node, limit, extension, seg.allowed_types, by_type)
         if seg.direction == "two_way":
             edge(seg.to_node, seg.from_node, limit,
-                 {k: v for k, v in extension.items() if k != "branch"}, seg.allowed_types)
+                 {k: v for k, v in extension.items() if k != "branch"}, seg.allowed_types,
+                 by_type)
 
     layout: dict[str, Any] = {"layoutId": layout_id, "layoutName": spec.name,
                               "layoutVersion": info.layout_version}
@@ -179,6 +188,9 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
     if spec.zones:
         layout[EXTENSION_KEY]["zones"] = [z.model_dump(mode="json", exclude_none=True)
                                           for z in spec.zones]
+    if spec.traffic_zones:
+        layout[EXTENSION_KEY]["traffic_zones"] = [
+            z.model_dump(mode="json", exclude_defaults=True) for z in spec.traffic_zones]
     data = {"metaInformation": {"projectIdentification": info.project or spec.name,
                                 "creator": info.creator,
                                 "exportTimestamp": timestamp or info.export_timestamp,
@@ -190,13 +202,15 @@ def layout_to_lif(spec: LayoutSpec, timestamp: str | None = None,
 
 def export_types(spec: LayoutSpec, type_id: str) -> tuple[str, ...]:
     """The vehicle types an export writes: `type_id`, then every type the layout's segments
-    and stations name in `allowed_types` (first seen first). A segment or station with
-    `allowed_types` is written for those types only (a station: its pick or drop action only
-    on their entries of its nodes); the rest for every type. A layout without allowed_types
-    is written for `type_id` alone, as always."""
+    and stations name in `allowed_types`, then in `speed_limit_mps_by_type` (first seen
+    first). A segment or station with `allowed_types` is written for those types only (a
+    station: its pick or drop action only on their entries of its nodes); the rest for every
+    type. An edge's maxSpeed for a type is the segment's limit for it. A layout without
+    allowed_types and per-type limits is written for `type_id` alone, as always."""
     named: dict[str, None] = {type_id: None}
     for allowed in [s.allowed_types for s in spec.segments] \
-            + [s.allowed_types for s in spec.stations]:
+            + [s.allowed_types for s in spec.stations] \
+            + [tuple(s.speed_limit_mps_by_type) for s in spec.segments]:
         for t in allowed:
             named.setdefault(t)
     return tuple(named)
@@ -336,6 +350,9 @@ def lif_to_layout(lif: LifFile, file: str, layout_id: str | None = None,
         data["defaults"] = extension.defaults.model_dump(mode="json")
     if extension is not None and extension.zones:
         data["zones"] = [z.model_dump(mode="json", exclude_none=True) for z in extension.zones]
+    if extension is not None and extension.traffic_zones:
+        data["traffic_zones"] = [z.model_dump(mode="json", exclude_defaults=True)
+                                 for z in extension.traffic_zones]
     data |= {"nodes": spec_nodes, "segments": segments, **places,
              "lif": {k: v for k, v in lif_info.items() if v is not None}}
     spec = validate(LayoutSpec, data, file, at)
@@ -626,6 +643,8 @@ class _Hop:
     speed_limit_mps: float | None
     allowed_types: tuple[str, ...] = ()
     """With every vehicle type imported: the types that may drive it, if not all."""
+    speed_limits_by_type: dict[str, float] = field(default_factory=dict)
+    """With every vehicle type imported: the types whose maxSpeed is below the segment's."""
 
 
 def _segments(edges: tuple[Edge, ...], kept: _OpenNodes, type_id: str, ours: bool, at: str,
@@ -662,14 +681,16 @@ def _segments(edges: tuple[Edge, ...], kept: _OpenNodes, type_id: str, ours: boo
         _note_edge_fields(edge, prop, where, f"{where}.vehicleTypeEdgeProperties[{k}]",
                           pattern, notes)
         allowed: tuple[str, ...] = ()
-        if types is not None:
+        prop_at = f"{where}.vehicleTypeEdgeProperties[{k}]"
+        if types is None:
+            speed = _speed(edge.fleetSim, prop, defaults, prop_at, pattern, notes)
+            by_type: dict[str, float] = {}
+        else:
             allowed = _edge_types(edge, prop, types, where, pattern, notes)
+            speed, by_type = _speeds(edge, types, defaults, where, pattern, notes)
         hops.append(_Hop(where, edge, prop, edge.fleetSim,
-                         _length(edge, prop, kept, f"{where}.vehicleTypeEdgeProperties[{k}]",
-                                 pattern, notes),
-                         _speed(edge.fleetSim, prop, defaults,
-                                f"{where}.vehicleTypeEdgeProperties[{k}]", pattern, notes),
-                         allowed))
+                         _length(edge, prop, kept, prop_at, pattern, notes), speed, allowed,
+                         by_type))
     by_pair = {(h.edge.startNodeId, h.edge.endNodeId): h for h in hops}
     merged: set[int] = set()
     segments: list[dict[str, Any]] = []
@@ -680,8 +701,10 @@ def _segments(edges: tuple[Edge, ...], kept: _OpenNodes, type_id: str, ours: boo
         two_way = hop.ext.direction == "two_way" if ours and hop.ext is not None else not ours
         if partner is not None and id(partner) not in merged and two_way and (
                 not ours or (partner.ext is not None and partner.ext.direction == "two_way")):
-            same = (partner.length_m, partner.speed_limit_mps, partner.allowed_types) \
-                == (hop.length_m, hop.speed_limit_mps, hop.allowed_types) \
+            same = (partner.length_m, partner.speed_limit_mps, partner.allowed_types,
+                    partner.speed_limits_by_type) \
+                == (hop.length_m, hop.speed_limit_mps, hop.allowed_types,
+                    hop.speed_limits_by_type) \
                 and (partner.ext.rssi_dbm if partner.ext else None) == (
                     hop.ext.rssi_dbm if hop.ext else None)
             if same:
@@ -705,6 +728,8 @@ def _segment(hop: _Hop, direction: str) -> dict[str, Any]:
         data["length_m"] = hop.length_m
     if hop.speed_limit_mps is not None:
         data["speed_limit_mps"] = hop.speed_limit_mps
+    if hop.speed_limits_by_type:
+        data["speed_limit_mps_by_type"] = hop.speed_limits_by_type
     if direction == "two_way":
         data["direction"] = "two_way"
     if hop.ext is not None and hop.ext.branch != "auto":
@@ -719,17 +744,14 @@ def _segment(hop: _Hop, direction: str) -> dict[str, Any]:
 def _edge_types(edge: Edge, prop: VehicleTypeEdgeProperty, types: tuple[str, ...], where: str,
                 pattern: str, notes: _Notes) -> tuple[str, ...]:
     """The types that may drive an edge, if not every type (else ()); another type's different
-    maxSpeed or trajectory is reported (a segment has one speed limit and one length)."""
+    trajectory is reported (a segment has one length; each type's maxSpeed is kept:
+    `_speeds`)."""
     entries = edge.vehicleTypeEdgeProperties
     open_to = {e.vehicleTypeId for e in entries}
     for k, entry in enumerate(entries):
         if entry is prop:
             continue
         at = f"{where}.vehicleTypeEdgeProperties[{k}]"
-        if entry.maxSpeed != prop.maxSpeed:
-            notes.add(f"{pattern}.vehicleTypeEdgeProperties[*].maxSpeed", f"{at}.maxSpeed",
-                      f"maxSpeed of another vehicle type: the segment keeps type "
-                      f"{prop.vehicleTypeId}'s (one speed limit per segment)")
         if entry.trajectory is not None and entry.trajectory != prop.trajectory:
             notes.add(f"{pattern}.vehicleTypeEdgeProperties[*].trajectory", f"{at}.trajectory",
                       f"trajectory of another vehicle type: the segment keeps type "
@@ -775,6 +797,39 @@ def _speed(ext: EdgeExtension | None, prop: VehicleTypeEdgeProperty, defaults: L
     if explicit is not None and prop.maxSpeed == explicit:
         return explicit
     return None if prop.maxSpeed == defaults.speed_limit_mps else prop.maxSpeed
+
+
+def _speeds(edge: Edge, types: tuple[str, ...], defaults: LayoutDefaults, where: str,
+            pattern: str, notes: _Notes) -> tuple[float | None, dict[str, float]]:
+    """With every vehicle type: the segment's speed limit (given as `_speed` gives it) and
+    the types' lower limits. Each type keeps the speed it would have if imported alone: its
+    maxSpeed, else (no limit in LIF) the extension's speed_limit_mps or
+    defaults.speed_limit_mps. The segment's limit is the highest of them (or, where
+    fleet-sim's extension lists per-type limits, at least the layout's own limit, which every
+    type on the edge may have below it); a type below it gets its own as its limit."""
+    ext = edge.fleetSim
+    explicit = ext.speed_limit_mps if ext is not None else None
+    fallback = explicit if explicit is not None else defaults.speed_limit_mps
+    speeds: dict[str, float] = {}
+    for k, entry in enumerate(edge.vehicleTypeEdgeProperties):
+        if entry.maxSpeed is not None:
+            speeds[entry.vehicleTypeId] = entry.maxSpeed
+            continue
+        speeds[entry.vehicleTypeId] = fallback
+        if ext is None:
+            notes.add(f"{pattern}.vehicleTypeEdgeProperties[*].maxSpeed",
+                      f"{where}.vehicleTypeEdgeProperties[{k}].maxSpeed", "no maxSpeed (no "
+                      f"limit): defaults.speed_limit_mps ({defaults.speed_limit_mps:g} m/s) "
+                      "applies", kept=True)
+    top = max(speeds.values())
+    listed = ext.speed_limit_mps_by_type if ext is not None else None
+    if listed:
+        top = max(top, fallback)
+    limit = explicit if explicit is not None and explicit == top else \
+        None if top == defaults.speed_limit_mps else top
+    order = [*(listed or ()), *types]
+    lower = sorted((t for t, v in speeds.items() if v < top), key=order.index)
+    return limit, {t: speeds[t] for t in lower}
 
 
 _NOT_MODELLED: Final = {

@@ -54,6 +54,8 @@ from fleet_sim.config.layout import (
     LayoutDefaults,
     Marker,
     NodeKind,
+    SpeedLimitsByType,
+    TrafficZoneSpec,
     ZoneSpec,
     is_timestamp,
 )
@@ -85,10 +87,11 @@ class LifModel(StrictModel):
 # fleet-sim writes; its keys are the layout file's).
 
 class LayoutExtension(StrictModel):
-    """On a layout: the layout file's defaults and zones."""
+    """On a layout: the layout file's defaults, zones and traffic zones."""
 
     defaults: LayoutDefaults | None = None
     zones: List[ZoneSpec] = ()
+    traffic_zones: List[TrafficZoneSpec] = ()
 
 
 class NodeExtension(StrictModel):
@@ -106,6 +109,10 @@ class EdgeExtension(StrictModel):
     length_m: Positive | None = None
     speed_limit_mps: Positive | None = None
     """Given when the layout file gives it (maxSpeed holds the limit in either case)."""
+    speed_limit_mps_by_type: SpeedLimitsByType | None = None
+    """The segment's lower limits for some types, as the layout gives them; each type's
+    maxSpeed holds its limit (and wins). Written so that import knows the segment's own limit
+    even when every type on the edge has a lower one."""
     branch: Branch = "auto"
     rssi_dbm: float | None = None
 

@@ -215,7 +215,9 @@ class FleetConfig(StrictModel):
             total = sum(t.count for t in self.vehicles)
             if self.size != total:
                 raise Problem("size", self.size, f"the sum of fleet.vehicles' counts ({total}); "
-                                                 "leave fleet.size out with fleet.vehicles")
+                              "leave fleet.size out with fleet.vehicles (to vary one type's "
+                              "count: fleet.vehicles.<type>.count, e.g. "
+                              f"{type_count_path(self.vehicles[-1].type)})")
             names = [t.type for t in self.vehicles]
             for i, name in enumerate(names):
                 if name in names[:i]:
@@ -509,9 +511,6 @@ class Scenario(StrictModel):
 
     @model_validator(mode="after")
     def _warmup_within_run(self, info: ValidationInfo) -> Scenario:
-        if self.fleet.vehicles and self.motion == "sumo":
-            raise Problem("motion", self.motion, "closed_form with fleet.vehicles (the SUMO "
-                                                 "backend drives one vehicle type)")
         if self.warmup_h >= self.duration_h:
             raise Problem("warmup_h", self.warmup_h,
                           f"a warm-up >= 0 h and shorter than duration_h ({self.duration_h})")
@@ -555,7 +554,7 @@ def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> 
                          "a scenario file; run experiments with `fleet-sim sweep` or "
                          "`fleet-sim size`")
     for dotted, value in (overrides or {}).items():
-        _set_dotted(data, dotted, value)
+        _set_dotted(data, dotted, value, str(path))
     return parse_scenario(data, str(path), path.parent)
 
 
@@ -563,16 +562,53 @@ def parse_scenario(data: Any, file: str, base_dir: str | Path = ".") -> Scenario
     """A scenario from parsed YAML; `file` names it in errors, `base_dir` is its folder."""
     return validate(Scenario, data, file, context={"base_dir": str(base_dir)})
 
-def _set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
+VEHICLE_TYPES: Final = "fleet.vehicles"
+"""Where a mixed fleet's types are; an override enters one by its name:
+``fleet.vehicles.<type>.count``."""
+
+
+def type_count_path(vehicle_type: str) -> str:
+    """The dotted path (override, factor) of a mixed fleet's count of `vehicle_type`."""
+    return f"{VEHICLE_TYPES}.{vehicle_type}.count"
+
+
+def _set_dotted(data: dict[str, Any], dotted: str, value: Any, file: str = "<overrides>") -> None:
+    """Set `value` at a dotted path of a scenario's data. `fleet.vehicles` is a list: the key
+    after it names a type (``fleet.vehicles.heavy.count``)."""
     keys = dotted.split(".")
     target = data
-    for key in keys[:-1]:
+    i = 0
+    while i < len(keys) - 1:
+        key = keys[i]
         nxt = target.get(key)
+        if ".".join(keys[:i + 1]) == VEHICLE_TYPES:
+            target = _vehicle_type_entry(nxt, keys, i, dotted, file)
+            i += 2
+            continue
         if not isinstance(nxt, dict):
             nxt = {}
             target[key] = nxt
         target = nxt
+        i += 1
     target[keys[-1]] = value
+
+
+def _vehicle_type_entry(types: Any, keys: list[str], i: int, dotted: str,
+                        file: str) -> dict[str, Any]:
+    """The entry of fleet.vehicles that keys[i + 1] names."""
+    if not isinstance(types, list) or not types:
+        raise InputError(file, dotted, keys[i + 1] if i + 1 < len(keys) else "",
+                         "a type of a mixed fleet (fleet.vehicles); the scenario's fleet has "
+                         "one vehicle type: vary fleet.size")
+    names = [t.get("type") for t in types if isinstance(t, dict)]
+    if i + 1 >= len(keys) - 1:
+        raise InputError(file, dotted, dotted, "a field of one vehicle type, such as "
+                         f"{type_count_path(str(names[0]))}")
+    for entry in types:
+        if isinstance(entry, dict) and str(entry.get("type")) == keys[i + 1]:
+            return entry
+    raise InputError(file, dotted, keys[i + 1],
+                     f"a type of fleet.vehicles ({', '.join(str(n) for n in names)})")
 
 
 def load_layout_for(scenario: Scenario, scenario_file: str) -> Layout:
@@ -755,14 +791,35 @@ def setup_warnings(scenario: Scenario, layout: Layout) -> list[SetupWarning]:
     """The battery and charging traps of `scenario` on `layout`, one line each (see the module
     docstring): AGVs that cannot reach a charger with charging on; a draining battery with
     charging off on a run long enough to run it down. A mixed fleet is looked at type by type
-    (the first type whose battery gives the trap is named)."""
+    (the first type whose battery gives the trap is named); its layout's per-type speed limits
+    must name its types (`_unknown_limited_types`)."""
+    out: list[SetupWarning] = []
     for name, vehicle in scenario.fleet.type_profiles.items():
         found = _type_warnings(scenario, layout, vehicle)
         if found:
             if scenario.fleet.vehicles:
                 found = [SetupWarning(w.kind, f"vehicle type {name}: {w.text}".replace(
                     "fleet.vehicle.battery", f"the battery of type {name}")) for w in found]
-            return found
+            out = found
+            break
+    return out + _unknown_limited_types(scenario, layout)
+
+
+def _unknown_limited_types(scenario: Scenario, layout: Layout) -> list[SetupWarning]:
+    """A mixed fleet on a layout whose per-type speed limits name a type the fleet does not
+    have (a typo, or a layout drawn for a larger fleet): warned once, with the first segment
+    that names it. A one-type fleet is not warned: a layout is shared by many scenarios, and
+    a limit for a type the fleet lacks applies to no AGV, as `allowed_types` naming it do."""
+    fleet_types = scenario.fleet.type_profiles
+    if not scenario.fleet.vehicles:
+        return []
+    for i, seg in enumerate(layout.spec.segments):
+        for name in seg.speed_limit_mps_by_type:
+            if name not in fleet_types:
+                return [SetupWarning("unknown_type_limit", (
+                    f"{layout.file}: segments[{i}].speed_limit_mps_by_type names vehicle type "
+                    f"{name!r}, not a type of the fleet ({', '.join(fleet_types)}): its limit "
+                    "applies to no AGV (misspelt?)"))]
     return []
 
 

@@ -75,7 +75,7 @@ class OccupancySpell(NamedTuple):
     """An AGV holding a node or traversing a segment (key "u>v") from start_s to end_s."""
 
     kind: str
-    """"node" or "segment"."""
+    """"node", "segment" or "zone" (a traffic zone held, key its id)."""
     key: str
     agv: int
     start_s: float
@@ -95,7 +95,9 @@ class MoveRecord(NamedTuple):
     `other` held when the wait began (-1: none). "track": set on the track at u (at the
     start, back from parking or repair); "parking": into the parking area reached through u;
     "off": taken off the track where it stood. "charger_wait": asked at u for a charger at
-    start_s and got charger v at end_s ("": none, it failed first).
+    start_s and got charger v at end_s ("": none, it failed first). "zone": it held traffic
+    zone u from start_s to end_s, driving it v ("forward" or "backward" for a same-direction
+    zone, "" for a mutex zone).
     """
 
     agv: int
@@ -310,8 +312,8 @@ class Recorder:
     soc_samples: list[SocSample] = field(default_factory=list)
     """(time_s, agv, soc_pct) at every state change of an AGV with a battery model."""
     zone_wait_s: dict[str, float] = field(default_factory=dict)
-    """Mutex zone id -> AGV-seconds spent (in the window) waiting to enter it; the engine
-    lists every mutex zone of the layout (none: no zone_wait_s KPI)."""
+    """Mutex and same-direction zone id -> AGV-seconds spent (in the window) waiting to enter
+    it; the engine lists every such zone of the layout (none: no zone_wait_s KPI)."""
     record_moves: bool = False
     moves: list[MoveRecord] = field(default_factory=list)
     """Drives, lock waits and placements of every AGV, when traced (record_moves): the

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -11,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from matplotlib.patches import Rectangle
 
-from fleet_sim.config.layout import Layout
+from fleet_sim.config.layout import Layout, TrafficZone
 
 KIND_STYLE = {
     "tag": ("#9aa0a6", 8),
@@ -24,27 +25,52 @@ PLACE_COLOUR = {"pickup": "#1a73e8", "dropoff": "#d93025", "charger": "#f9ab00",
                 "parking": "#188038"}
 
 
-ZONE_COLOUR = {"mutex": "#a142f4", "ban": "#d93025"}
+ZONE_COLOUR = {"mutex": "#a142f4", "ban": "#d93025", "same_direction": "#12b5cb"}
+"""Traffic zones by kind (the replay page draws them in the same colours)."""
 ZONE_MARGIN_M = 0.8
 """How far a traffic zone's outline stands off its nodes."""
 
 
+def zone_rule(zone: TrafficZone) -> str:
+    """A zone's rule in a few words: what the drawings print beside its id."""
+    if zone.kind == "mutex":
+        return f"max {zone.capacity}"
+    if zone.kind == "ban":
+        return "no " + ", ".join(sorted(zone.banned_types))
+    limit = f", max {zone.capacity}" if zone.capacity is not None else ""
+    return f"same direction{limit}; forward {zone.path[0]} \u2192 {zone.path[-1]}"
+
+
 def _draw_traffic_zones(ax: Any, layout: Layout) -> None:
-    """Each traffic zone as a dashed rectangle round its nodes, labelled with its id and rule
-    (mutex: at most N AGVs; ban: the banned types)."""
+    """Each mutex or ban zone as a dashed rectangle round its nodes, each same-direction zone
+    as a band along its aisle with an arrow the forward way (from its first node listed
+    towards its last), all labelled with their id and rule."""
     for zone in layout.traffic_zones:
+        colour = ZONE_COLOUR[zone.kind]
+        if zone.kind == "same_direction":
+            xs, ys = zip(*(layout.position(n) for n in zone.path), strict=True)
+            ax.plot(xs, ys, color=colour, lw=9, alpha=0.25, solid_capstyle="round", zorder=0)
+            ax.annotate("", xy=(xs[-1], ys[-1]), xytext=(xs[0], ys[0]), zorder=1,
+                        arrowprops={"arrowstyle": "-|>", "color": colour, "lw": 1.6,
+                                    "shrinkA": 6, "shrinkB": 6, "mutation_scale": 14,
+                                    "ls": "--"})
+            angle = math.degrees(math.atan2(ys[-1] - ys[0], xs[-1] - xs[0]))
+            if not -90 < angle <= 90:
+                angle -= math.copysign(180, angle)  # text reads left to right or upwards
+            ax.annotate(f"{zone.id} ({zone_rule(zone)})",
+                        ((xs[0] + xs[-1]) / 2, (ys[0] + ys[-1]) / 2), xytext=(0, 5),
+                        textcoords="offset points", rotation=angle, rotation_mode="anchor",
+                        ha="center", va="bottom", fontsize=6, color=colour, zorder=3)
+            continue
         pts = [layout.position(n) for n in sorted(zone.nodes)]
         x0 = min(p[0] for p in pts) - ZONE_MARGIN_M
         y0 = min(p[1] for p in pts) - ZONE_MARGIN_M
         x1 = max(p[0] for p in pts) + ZONE_MARGIN_M
         y1 = max(p[1] for p in pts) + ZONE_MARGIN_M
-        colour = ZONE_COLOUR[zone.kind]
         ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=True, alpha=0.08,
                                facecolor=colour, edgecolor=colour, lw=1.2, ls="--", zorder=0))
-        rule = f"max {zone.capacity}" if zone.kind == "mutex" \
-            else "no " + ", ".join(sorted(zone.banned_types))
-        ax.annotate(f"{zone.id} ({rule})", (x0, y1), xytext=(2, 2), textcoords="offset points",
-                    fontsize=6, color=colour, zorder=3)
+        ax.annotate(f"{zone.id} ({zone_rule(zone)})", (x0, y1), xytext=(2, 2),
+                    textcoords="offset points", fontsize=6, color=colour, zorder=3)
 
 
 def draw_layout(layout: Layout, path: Path, title: str | None = None) -> Path:

@@ -21,7 +21,14 @@ Decisions, where the issue is silent:
 * Parked AGVs are drawn side by side in a small grid beside their parking area's node; the
   page's `positionsAt(t)` gives the recorded position (the node), `drawn` what was drawn.
 * Colours: the states' are the report's (fleet_sim.report.figures.STATE_COLOURS), the places'
-  the layout drawing's (fleet_sim.report.layout_plot).
+  and traffic zones' the layout drawing's (fleet_sim.report.layout_plot).
+* Traffic zones are drawn under the track as the layout drawing draws them: mutex and ban
+  zones as dashed outlines round their nodes, same-direction zones as a band along the aisle
+  with an arrow the forward way; each labelled with its id and rule, and, for mutex and
+  same-direction zones, live while anyone holds or waits for it: how many AGVs hold it (and,
+  for a same-direction zone, the way they drive it, its arrow turned that way) and how many
+  wait for it, from the run's zone rows (fleet_sim.analysis.replay.zone_holders_at is the
+  Python twin). The side panel lists each zone's holders and waiters by AGV.
 """
 
 from __future__ import annotations
@@ -50,7 +57,7 @@ from fleet_sim.config.scenario import load_scenario
 from fleet_sim.errors import InputError
 from fleet_sim.model.states import VehicleState
 from fleet_sim.report.figures import LEAD_COLOURS, STATE_COLOURS
-from fleet_sim.report.layout_plot import KIND_STYLE, PLACE_COLOUR
+from fleet_sim.report.layout_plot import KIND_STYLE, PLACE_COLOUR, ZONE_COLOUR, zone_rule
 from fleet_sim.report.render import environment
 
 REPLAY_FILE = "replay.html"
@@ -59,6 +66,8 @@ STATE_INDEX = {s.value: i for i, s in enumerate(VehicleState)}
 """How the page's positional rows name their kind."""
 
 ProgressCallback = Callable[[float, float], None]
+_DIRECTION = {"forward": 1, "backward": -1}
+"""How the page's zone rows name the way a same-direction zone is driven (0: a mutex zone)."""
 
 
 def _ms(values: Any) -> list[float]:
@@ -185,6 +194,11 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
     found = found[(found["time_s"] >= from_s) & (found["time_s"] <= to_s)]
     leads = lead_times(run.orders, moves if len(moves) else None, from_s, to_s)
     profile_keys = list(profiles)
+    zones = layout.traffic_zones
+    zone_index = {z.id: i for i, z in enumerate(zones)}
+    holds = moves[(moves["kind"] == "zone") & (moves["end_s"] >= from_s)
+                  & (moves["start_s"] <= to_s)] if len(moves) else moves
+    holds = holds[holds["u"].isin(list(zone_index))] if len(holds) else holds
     return {
         "meta": {
             "scenario": scenario.name, "layout": layout.name, "agvs": fleet,
@@ -222,6 +236,16 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
             "t": _ms(charger_waits["start_s"]), "e": _ms(charger_waits["end_s"]),
             "n": [node_index[u] for u in charger_waits["u"].tolist()],
             "ch": [place_index.get(str(v), -1) for v in charger_waits["v"].tolist()]},
+        "zones": {"id": [z.id for z in zones], "kind": [z.kind for z in zones],
+                  "rule": [zone_rule(z) for z in zones],
+                  "colour": [ZONE_COLOUR[z.kind] for z in zones],
+                  "nodes": [[node_index[n] for n in sorted(z.nodes | set(z.path))]
+                            for z in zones],
+                  "path": [[node_index[n] for n in z.path] for z in zones]},
+        "zoneHolds": {"agv": [int(a) for a in holds["agv"]],
+                      "t": _ms(holds["start_s"]), "e": _ms(holds["end_s"]),
+                      "z": [zone_index[str(u)] for u in holds["u"].tolist()],
+                      "dir": [_DIRECTION.get(str(v), 0) for v in holds["v"].tolist()]},
         "blocks": [{"u": node_index[b.from_node], "v": node_index[b.to_node],
                     "t": b.at_s, "e": b.at_s + b.duration_s}
                    for b in scenario.incidents.blocks],

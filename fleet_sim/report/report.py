@@ -58,9 +58,9 @@ import yaml
 from fleet_sim.analysis.kpis import BY_REASON
 from fleet_sim.analysis.replay import LEAD_LABELS, LEAD_PARTS, lead_times, load_run, state_spells
 from fleet_sim.analysis.stats import check_targets, kpi_columns, paired_differences, point_stats
-from fleet_sim.config.experiment import FLEET, Target, layout_for
+from fleet_sim.config.experiment import FLEET, Target, layout_for, point_text
 from fleet_sim.config.layout import Layout
-from fleet_sim.config.scenario import Scenario, load_scenario
+from fleet_sim.config.scenario import Scenario, load_scenario, type_count_path
 from fleet_sim.errors import InputError
 from fleet_sim.model.not_dispatched import NotDispatched
 from fleet_sim.model.states import VehicleState
@@ -287,8 +287,22 @@ class ReportData:
     problem: str = ""
 
     @property
+    def fleet(self) -> str:
+        """The fleet's factor: fleet.size, or a mixed fleet's count of `sizing.vary_type`."""
+        vary = (self.experiment.get("sizing") or {}).get("vary_type")
+        return FLEET if vary is None else type_count_path(str(vary))
+
+    @property
+    def fleet_unit(self) -> str:
+        """What the fleet factor counts: "AGVs", or "heavy AGVs"."""
+        vary = (self.experiment.get("sizing") or {}).get("vary_type")
+        return "AGVs" if vary is None else f"{vary} AGVs"
+
+    @property
     def x(self) -> str:
-        return FLEET if FLEET in self.factors else (self.factors[0] if self.factors else "")
+        if self.fleet in self.factors:
+            return self.fleet
+        return self.factors[0] if self.factors else ""
 
     @property
     def others(self) -> list[str]:
@@ -299,7 +313,7 @@ class ReportData:
         return self.summary[self.summary["status"] == "ok"]
 
     def series_key(self, row: dict[str, Any]) -> str:
-        return ", ".join(f"{k}={row[k]}" for k in self.others)
+        return point_text({k: row[k] for k in self.others})
 
 
 def load(out_dir: Path) -> ReportData:
@@ -357,21 +371,22 @@ def recommendations(data: ReportData) -> tuple[dict[str, int | None], list[str],
                     f"{est['capacity_per_agv_per_hour']:.1f} orders/h. So at least "
                     f"{est['minimum']} AGVs; the simulation adds waiting and traffic.")
         return recommended, statements, estimates
-    if data.x != FLEET or not data.targets:
-        return recommended, ["No recommendation: the experiment has no fleet.size factor or no "
-                             "targets (run `fleet-sim size` for a fleet-size search)."], []
+    if data.x != data.fleet or not data.targets:
+        return recommended, [f"No recommendation: the experiment has no {data.fleet} factor or "
+                             "no targets (run `fleet-sim size` for a fleet-size search)."], []
     checks = check_targets(data.summary, data.factors, data.targets)
     by_series: dict[str, dict[int, list[str]]] = {}
     for check in checks:
         key = data.series_key(check.point)
-        by_series.setdefault(key, {}).setdefault(int(check.point[FLEET]), []).append(
+        by_series.setdefault(key, {}).setdefault(int(check.point[data.fleet]), []).append(
             check.decision)
     for key, sizes in by_series.items():
         meeting = [n for n, ds in sorted(sizes.items()) if all(d == "meets" for d in ds)]
         recommended[key] = meeting[0] if meeting else None
         head = f"{key}: " if key else ""
         if meeting:
-            statements.append(f"{head}{meeting[0]} AGVs is the smallest fleet of the grid that "
+            statements.append(f"{head}{meeting[0]} {data.fleet_unit} is the smallest fleet of "
+                              "the grid that "
                               "meets every target with 95 % confidence (grid of the sweep; "
                               "`fleet-sim size` refines it).")
         else:

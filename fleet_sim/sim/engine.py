@@ -5,10 +5,12 @@ Random streams come from one `numpy.random.SeedSequence(seed)`, spawned in a fix
 the same scenario and seed give the same run, and runs that differ only in fleet size still
 share their order streams.
 
-Vehicle types: a mixed fleet (`fleet.vehicles`), or a layout that opens segments or stations to
-some types only (`allowed_types`), gives each type its own routes and motion in `Traffic` and
-tells the fleet manager each AGV's type. A one-type fleet on a layout without `allowed_types`
-is built exactly as before (the same routes, the same random streams, the same results).
+Vehicle types: a mixed fleet (`fleet.vehicles`), a layout that opens segments or stations to
+some types only (`allowed_types`), or one that gives a type of the fleet a speed limit of its
+own on some segment (`speed_limit_mps_by_type`), gives each type its own routes and motion in
+`Traffic` and tells the fleet manager each AGV's type. A one-type fleet on a layout without
+either is built exactly as before (the same routes, the same random streams, the same
+results).
 
 What a run records stays in its `Recorder` (in memory) unless `simulate` is handed a
 `RecordSink`: then the recorder streams its rows to the sink as the run goes and closes it when
@@ -85,7 +87,7 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
         from fleet_sim.sim.motion.sumo import SumoMotion
 
-        traffic.motion_backend = SumoMotion(env, layout, scenario, profile.turn_speed_mps)
+        traffic.motion_backend = SumoMotion(env, layout, scenario)
     arrivals, handling, backoff, incident, link = np.random.SeedSequence(scenario.seed).spawn(5)
     commands = CommandPath(env, scenario.fleet.command_profile, scenario.fleet.status_poll_s,
                            np.random.default_rng(link), recorder)
@@ -93,7 +95,8 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     vehicle_seeds = backoff.spawn(scenario.fleet.size)
     incident_seeds = incident.spawn(2 * scenario.fleet.size)
     profiles = scenario.fleet.agv_profiles
-    if scenario.fleet.vehicles or layout.restricts_types:
+    if scenario.fleet.vehicles or layout.restricts_types \
+            or layout.speed_limited_types & set(scenario.fleet.agv_types):
         _set_types(scenario, traffic, fleet)
     vehicles = [
         Vehicle(i, env, traffic, fleet, recorder, scenario,

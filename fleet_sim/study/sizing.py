@@ -38,6 +38,11 @@ of each target's KPI between the recommended size and the one below, replication
 replication, beside the interval the same runs would give unpaired: the pairing cancels the
 demand's noise, which both sizes share.
 
+A mixed fleet is sized one type at a time (`sizing.vary_type`, fleet_sim.config.experiment): the
+search varies that type's count, the other types keep theirs, and the answer reads "3 heavy
+AGVs (beside 8 carrier)". The analytic estimate is then of a fleet of that type alone, and the
+search starts from it less the other types' AGVs.
+
 The warm-up is the scenario's, or estimated from pilot runs by MSER-5 (experiment
 ``warmup.method: mser5``, fleet_sim.study.warmup) before the search starts.
 
@@ -80,13 +85,13 @@ from fleet_sim.analysis.stats import (
     target_check,
 )
 from fleet_sim.config.experiment import (
-    FLEET,
     MAX_RUNS,
     Experiment,
     RunSpec,
     Target,
     layout_for,
     load_trace_for,
+    point_text,
 )
 from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.study.progress import Progress
@@ -177,20 +182,33 @@ class GroupResult:
     max_agvs: int = DEFAULT_MAX_AGVS
     stopped: str | None = None
     """Why the search stopped before an answer (the run limit), if it did."""
+    vary_type: str | None = None
+    """The vehicle type whose count is searched (a mixed fleet), else None (fleet.size)."""
+    beside: dict[str, int] = field(default_factory=dict)
+    """With `vary_type`: the other types' counts, fixed during the search."""
+
+    @property
+    def unit(self) -> str:
+        """What a count of the search counts: "AGVs", or "heavy AGVs" (a mixed fleet)."""
+        return "AGVs" if self.vary_type is None else f"{self.vary_type} AGVs"
+
+    def _beside(self) -> str:
+        return "" if not self.beside else " (beside " + ", ".join(
+            f"{n} {t}" for t, n in self.beside.items()) + ")"
 
     def statement(self) -> str:
         """The recommendation in a planner's words, with its confidence."""
         where = ", ".join(f"{k} = {v}" for k, v in self.fixed.items())
         head = f"{where}: " if where else ""
         if self.stopped is not None:
-            done = ", ".join(f"{n} AGVs {self.evaluations[n].verdict}"
+            done = ", ".join(f"{n} {self.unit} {self.evaluations[n].verdict}"
                              for n in sorted(self.evaluations)) or "no fleet evaluated"
             return f"{head}no answer ({done}): {self.stopped}"
         if self.recommended is None:
             tried = self.evaluations.get(self.max_agvs)
             why = _why_not(tried) if tried else ""
-            return (f"{head}no fleet of {self.min_agvs} to {self.max_agvs} AGVs meets every "
-                    f"target with 95 % confidence{why}")
+            return (f"{head}no fleet of {self.min_agvs} to {self.max_agvs} {self.unit}"
+                    f"{self._beside()} meets every target with 95 % confidence{why}")
         ev = self.evaluations[self.recommended]
         parts = [f"{c.target.kpi} {c.interval.mean:.4g} (95 % CI {c.interval.low:.4g} to "
                  f"{c.interval.high:.4g}; target {c.target.describe().split(' ', 1)[1]})"
@@ -198,13 +216,15 @@ class GroupResult:
         level = "" if ev.meets_at == CONFIDENCE else \
             f" (each interval clear of its bound at {100 * ev.meets_at:.4g} %: the 5 % spent " \
             "over the looks of sequential stopping)"
-        text = (f"{head}{self.recommended} AGVs meet every target with 95 % confidence over "
-                f"{ev.replications} replications{level}: " + "; ".join(parts) + ".")
+        text = (f"{head}{self.recommended} {self.unit}{self._beside()} meet every target with "
+                f"95 % confidence over {ev.replications} replications{level}: "
+                + "; ".join(parts) + ".")
         below = self.evaluations.get(self.recommended - 1)
         if below is not None:
-            text += f" {below.agvs} AGVs: {below.verdict}{_why_not(below)}."
+            text += f" {below.agvs} {self.unit}: {below.verdict}{_why_not(below)}."
             for diff in self.paired():
-                text += (f" {diff['kpi']} from {diff['from_agvs']} to {diff['to_agvs']} AGVs: "
+                text += (f" {diff['kpi']} from {diff['from_agvs']} to {diff['to_agvs']} "
+                         f"{self.unit}: "
                          f"{diff['mean_diff']:+.4g} (paired 95 % CI +/- "
                          f"{diff['half_width']:.3g} over {diff['pairs']} common replications;"
                          f" unpaired +/- {diff['unpaired_half_width']:.3g}).")
@@ -242,6 +262,8 @@ class GroupResult:
 
     def as_dict(self) -> dict[str, Any]:
         return {"fixed": self.fixed, "estimate": self.estimate.as_dict(),
+                **({"vary_type": self.vary_type, "beside": self.beside}
+                   if self.vary_type is not None else {}),
                 "recommended": self.recommended, "min_agvs": self.min_agvs,
                 "max_agvs": self.max_agvs, "stopped": self.stopped,
                 "statement": self.statement(),
@@ -289,6 +311,10 @@ class Sizer:
         self.pool = pool
         self.progress = progress
         self.targets: Sequence[Target] = experiment.spec.targets
+        self.factor = experiment.fleet_factor
+        """What the search varies: fleet.size, or a mixed fleet's count of one type."""
+        vary = experiment.spec.sizing.vary_type
+        self.unit = "AGVs" if vary is None else f"{vary} AGVs"
 
     def looks(self) -> list[int]:
         """The replication counts at which a fleet size is looked at."""
@@ -306,7 +332,7 @@ class Sizer:
                                                                      Evaluation]:
         """Evaluate a fleet size: yields each batch of runs it needs (the caller makes them,
         with other groups' batches), and returns the evaluation."""
-        factors = {**self.fixed, FLEET: agvs}
+        factors = {**self.fixed, self.factor: agvs}
         looks = self.looks()
         alpha = 1.0 - CONFIDENCE
         early = min(EARLY_ALPHA, alpha / (2 * len(looks)))
@@ -335,7 +361,7 @@ class Sizer:
             note = " (hopeless: a mean on or near the wrong side of its bound; not meeting)"
         elif ev.verdict == "undecided":
             note = " (undecided at the replication limit: counted as not meeting)"
-        self.progress.note(f"{_where(self.fixed)}{agvs} AGVs, {ev.replications} "
+        self.progress.note(f"{_where(self.fixed)}{agvs} {self.unit}, {ev.replications} "
                            f"replications: {ev.verdict}{note}")
         return ev
 
@@ -353,18 +379,23 @@ class Sizer:
                 values[kpi][spec.replication] = math.nan if value is None else float(value)
         return values, failed
 
-    def search(self, estimate: Estimate, lo_limit: int,
-               hi_limit: int) -> Generator[list[RunSpec], None, GroupResult]:
+    def search(self, estimate: Estimate, lo_limit: int, hi_limit: int,
+               beside: dict[str, int] | None = None
+               ) -> Generator[list[RunSpec], None, GroupResult]:
         """The search; yields the batches of runs it needs (see `run_searches`); stopped
-        (result.stopped) where the run budget runs out."""
-        result = GroupResult(self.fixed, estimate, min_agvs=lo_limit, max_agvs=hi_limit)
+        (result.stopped) where the run budget runs out. `beside`: a mixed fleet's other
+        types and their fixed counts (the search starts from the estimate less them)."""
+        result = GroupResult(self.fixed, estimate, min_agvs=lo_limit, max_agvs=hi_limit,
+                             vary_type=self.experiment.spec.sizing.vary_type,
+                             beside=dict(beside or {}))
         try:
-            yield from self._search(result, estimate, lo_limit, hi_limit)
+            yield from self._search(result, start_count(estimate, result.beside, lo_limit,
+                                                        hi_limit), lo_limit, hi_limit)
         except SizingLimit as exc:
             result.stopped = str(exc)
         return result
 
-    def _search(self, result: GroupResult, estimate: Estimate, lo_limit: int,
+    def _search(self, result: GroupResult, start: int, lo_limit: int,
                 hi_limit: int) -> Generator[list[RunSpec], None, None]:
         def meets(n: int) -> Generator[list[RunSpec], None, bool]:
             ev = result.evaluations.get(n)
@@ -372,7 +403,6 @@ class Sizer:
                 ev = yield from self.evaluate(n, result)
             return ev.verdict == "meets"
 
-        start = min(max(estimate.minimum, lo_limit), hi_limit)
         lo = lo_limit - 1  # largest size known not to meet (lo_limit - 1: none below)
         hi: int | None = None  # smallest size known to meet
         if (yield from meets(start)):
@@ -403,6 +433,13 @@ class Sizer:
         result.recommended = hi
 
 
+def start_count(estimate: Estimate, beside: dict[str, int], lo_limit: int,
+                hi_limit: int) -> int:
+    """Where the search starts: the estimate's least whole fleet, less the other types' fixed
+    counts of a mixed fleet, within the limits."""
+    return min(max(estimate.minimum - sum(beside.values()), lo_limit), hi_limit)
+
+
 def run_searches(searches: Sequence[Generator[list[RunSpec], None, GroupResult]],
                  out_dir: Path, pool: LocalPool | DaskPool) -> list[GroupResult]:
     """Drive every group's search together: the batches they ask for at the same step run as
@@ -429,7 +466,7 @@ def run_searches(searches: Sequence[Generator[list[RunSpec], None, GroupResult]]
 
 def groups(experiment: Experiment) -> list[dict[str, Any]]:
     """The combinations of the other factors' values, one sizing search each."""
-    others = [f for f in experiment.factor_names if f != FLEET]
+    others = [f for f in experiment.factor_names if f != experiment.fleet_factor]
     for name in others:
         value = experiment.spec.factors[name]
         if not isinstance(value, list):
@@ -454,7 +491,9 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
     if not spec.targets:
         raise InputError(str(experiment.file), "targets", [],
                          "at least one target for `fleet-sim size` to meet")
-    levels = [v for v in (spec.factors.get(FLEET) or []) if isinstance(v, int)]
+    _check_fleet_varies(experiment)
+    levels = [v for v in (spec.factors.get(experiment.fleet_factor) or [])
+              if isinstance(v, int)]
     lo_limit = spec.sizing.min_agvs or (min(levels) if levels else 1)
     hi_limit = spec.sizing.max_agvs or (max(levels) if levels else DEFAULT_MAX_AGVS)
     if hi_limit < lo_limit:
@@ -489,6 +528,17 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
     return results
 
 
+def _check_fleet_varies(experiment: Experiment) -> None:
+    """A mixed fleet is sized one type at a time: `sizing.vary_type` must name it."""
+    fleet = experiment.scenario().fleet
+    if fleet.vehicles and experiment.spec.sizing.vary_type is None:
+        types = [t.type for t in fleet.vehicles]
+        raise InputError(str(experiment.file), "sizing.vary_type", None,
+                         "the vehicle type whose count the search varies, the other types "
+                         f"keeping theirs (the base scenario's fleet mixes {', '.join(types)}; "
+                         f"for example sizing: {{vary_type: {types[-1]}}})")
+
+
 def _size_group(experiment: Experiment, out_dir: Path, fixed: dict[str, Any], lo_limit: int,
                 hi_limit: int, pool: LocalPool | DaskPool, progress: Progress,
                 budget: RunBudget) -> Generator[list[RunSpec], None, GroupResult]:
@@ -496,15 +546,21 @@ def _size_group(experiment: Experiment, out_dir: Path, fixed: dict[str, Any], lo
     scenario = experiment.scenario(fixed)
     layout = layout_for(scenario, str(experiment.scenario_file))
     trace = load_trace_for(scenario, layout)
-    estimate = analytic_estimate(scenario, layout, spec.sizing.agv_availability, trace)
+    vary = spec.sizing.vary_type
+    beside = {t.type: t.count for t in scenario.fleet.vehicles if t.type != vary}
+    vehicle = scenario.fleet.type_profiles[vary] if vary is not None else None
+    estimate = analytic_estimate(scenario, layout, spec.sizing.agv_availability, trace,
+                                 vehicle)
+    unit = "AGVs" if vary is None else f"{vary} AGVs"
+    others = "" if not beside else " beside " + ", ".join(f"{n} {t}" for t, n in beside.items())
     progress.note(f"{_where(fixed)}analytic estimate {estimate.agvs:.2f} AGVs busy at the mean "
                   f"demand ({estimate.demand_per_hour:.1f} orders/h x {estimate.cycle_s:.1f} s "
-                  f"per order); searching {lo_limit} to {hi_limit} AGVs from "
-                  f"{min(max(estimate.minimum, lo_limit), hi_limit)}")
-    return Sizer(experiment, out_dir, fixed, pool, progress, budget).search(estimate, lo_limit,
-                                                                            hi_limit)
+                  f"per order); searching {lo_limit} to {hi_limit} {unit}{others} from "
+                  f"{start_count(estimate, beside, lo_limit, hi_limit)}")
+    return Sizer(experiment, out_dir, fixed, pool, progress, budget).search(
+        estimate, lo_limit, hi_limit, beside)
 
 
 def _where(fixed: dict[str, Any]) -> str:
     """The fixed factor values as a message prefix ("demand.rate_per_hour=90: "), or ""."""
-    return ", ".join(f"{k}={v}" for k, v in fixed.items()) + ": " if fixed else ""
+    return point_text(fixed) + ": " if fixed else ""

@@ -90,6 +90,7 @@ import pandas as pd
 import yaml
 
 from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, layout_for, load_trace_for
+from fleet_sim.config.scenario import VEHICLE_TYPES
 from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.model.records import OccupancySpell
 from fleet_sim.study.progress import Progress
@@ -649,7 +650,13 @@ def execute(specs: Iterable[RunSpec], out_dir: Path, workers: int = 0,
 
 
 def _cost(spec: RunSpec) -> float:
-    size = spec.override_dict().get(FLEET, 1)
+    """A run's relative cost, for scheduling: its fleet size where a factor gives it (a mixed
+    fleet: the counts its factors give)."""
+    overrides = spec.override_dict()
+    size = overrides.get(FLEET)
+    if size is None:
+        size = sum(v for k, v in overrides.items() if k.startswith(f"{VEHICLE_TYPES}.")
+                   and k.endswith(".count") and isinstance(v, int)) or 1
     return float(size) if isinstance(size, (int, float)) else 1.0
 
 

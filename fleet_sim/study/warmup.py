@@ -34,7 +34,7 @@ from typing import Any
 import pandas as pd
 
 from fleet_sim.analysis.stats import mser5_truncation
-from fleet_sim.config.experiment import FLEET, Experiment, RunSpec
+from fleet_sim.config.experiment import Experiment, RunSpec
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.sweep import DaskPool, LocalPool, SweepError, execute
 
@@ -48,7 +48,7 @@ def pilot_groups(experiment: Experiment) -> list[dict[str, Any]]:
         return [{}]
     seen: list[dict[str, Any]] = []
     for point in experiment.points:
-        fixed = {k: v for k, v in point if k != FLEET}
+        fixed = {k: v for k, v in point if k != experiment.fleet_factor}
         if fixed not in seen:
             seen.append(fixed)
     return seen or [{}]
@@ -56,8 +56,10 @@ def pilot_groups(experiment: Experiment) -> list[dict[str, Any]]:
 
 def largest_fleet(experiment: Experiment) -> int | None:
     """The largest fleet the study looks at: sizing.max_agvs, else the largest fleet.size
-    level; None when the fleet is not a factor."""
-    levels = [v for v in (experiment.spec.factors.get(FLEET) or []) if isinstance(v, int)]
+    level (a mixed fleet sized by one type: that type's count); None when the fleet is not a
+    factor."""
+    levels = [v for v in (experiment.spec.factors.get(experiment.fleet_factor) or [])
+              if isinstance(v, int)]
     if experiment.spec.sizing.max_agvs is not None:
         return max([experiment.spec.sizing.max_agvs, *levels])
     return max(levels) if levels else None
@@ -69,7 +71,7 @@ def pilot_specs(experiment: Experiment, groups: Sequence[dict[str, Any]],
     (None: the scenario's own fleet)."""
     specs = []
     for fixed in groups:
-        factors = dict(fixed) if fleet is None else {**fixed, FLEET: fleet}
+        factors = dict(fixed) if fleet is None else {**fixed, experiment.fleet_factor: fleet}
         for r in range(experiment.spec.warmup.pilot_replications):
             spec = experiment.run(factors, r)
             specs.append(dataclasses.replace(

@@ -15,6 +15,10 @@ the interrupt on.
 
 Mutex zones: before it takes its first node in a zone, the AGV takes the zone (waiting outside
 when it is full, the wait counted in `zone_wait_s`); it lets go once it holds no node in it.
+Same-direction zones (fleet_sim.sim.traffic.zones): before it takes the end node from which it
+drives into the aisle, the AGV takes the zone for the direction it will drive (waiting outside
+while AGVs drive it the other way, counted in `zone_wait_s`); every hop along the aisle must be
+the way its claim says; it lets go once it holds no node inside, or when it gives up entering.
 
 `Driver` is the base of `fleet_sim.sim.agents.vehicle.Vehicle`; the hooks `_speed_cap_mps`,
 `_travel` and `_arrived` let the vehicle add markers, obstacles, battery use and slow modes to
@@ -26,12 +30,12 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import simpy
 
-from fleet_sim.config.layout import Place
+from fleet_sim.config.layout import BACKWARD, FORWARD, Place, TrafficZone
 from fleet_sim.config.scenario import TrafficConfig
 from fleet_sim.config.vehicle import VehicleProfile
 from fleet_sim.errors import SimulationError
@@ -41,11 +45,14 @@ from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.traffic.control import Traffic
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim
 from fleet_sim.sim.traffic.locks import Claim, Lock
+from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate
 
 Proc = Generator[simpy.Event, Any, Any]
 
 STOP_MARKERS = ("spin", "pause")
 """RSS-AGV-001 5.3 markers that stop the AGV at their node."""
+_DIRECTION_NAMES = {FORWARD: "forward", BACKWARD: "backward", ANY_DIRECTION: ""}
+"""How the replay's zone rows name a same-direction claim's direction ("": a mutex zone)."""
 
 
 @dataclass(slots=True)
@@ -101,8 +108,12 @@ class Driver:
         self._corridors = traffic.corridors_of(self.id)
         """The corridors traffic has given this AGV (its view of the table, read-only)."""
         self._zones = traffic.zones_of(self.id)
-        """The mutex zones traffic has given this AGV (read-only view)."""
+        """The zones traffic has given this AGV (read-only view)."""
         self._zone_since: dict[str, float] = {}
+        """Zone id -> when the AGV was given the zone it holds."""
+        self._zone_entry: dict[str, str] = {}
+        """Same-direction zone id -> the end node from which the AGV will drive in, while it
+        holds the zone and is not inside yet."""
 
     def note(self, event: str, detail: str = "") -> None:
         """Record an event that changes no state (deadlock, reroute, assignment...)."""
@@ -186,7 +197,7 @@ class Driver:
             if not claim.triggered:
                 raise SimulationError(f"AGV {self.id} starts in corridor {corridor.id}, "
                                       "which another AGV already occupies")
-        for zone in traffic.layout.mutex_zones_at.get(node, ()):
+        for zone in self._zones_at(node):
             if not traffic.request(self.id, traffic.zone_locks[zone.id]).triggered:
                 raise SimulationError(f"AGV {self.id} starts on node {node} in zone {zone.id}, "
                                       "which is full")
@@ -251,7 +262,7 @@ class Driver:
             if not (yield from self._wait(lock, claim, may_escape=False)):
                 return False
             taken.append(claim)
-        for zone in traffic.layout.mutex_zones_at.get(access, ()):
+        for zone in self._zones_at(access):
             gate = traffic.zone_locks[zone.id]
             if not (yield from self._wait_zone(zone.id, gate, traffic.request(self.id, gate),
                                                False)):
@@ -301,6 +312,8 @@ class Driver:
                 self.goal = self.ahead[-1].node if self.ahead else self.node
         self.next_node = None
         self._drop_pending_corridors()
+        if self._zone_entry:
+            self._drop_pending_zones()
         if self.ahead or self.speed_mps > 1e-9:
             raise SimulationError(f"AGV {self.id} ended a drive at {self.node} still moving")
 
@@ -384,6 +397,18 @@ class Driver:
                     self._release_corridor(cid)
                 self._release_left_zones()
                 return False
+        if traffic.layout.direction_zones_at:
+            for a, b in ((self.node, node), (node, after)):
+                along = traffic.layout.direction_zone_of(a, b) if b is not None else None
+                if along is None:
+                    continue
+                ok = yield from self._take_direction(along[0].id, along[1], a)
+                if not ok:
+                    for cid in taken_corridors:
+                        self._release_corridor(cid)
+                    self._drop_pending_zones()
+                    self._release_left_zones()
+                    return False
         lock = traffic.node_locks[node]
         claim = traffic.request(self.id, lock)
         ok = yield from self._wait(lock, claim)
@@ -413,9 +438,28 @@ class Driver:
                  if z.id not in self._zones]
         if any(not traffic.zone_locks[z].is_free for z in zones):
             return False
+        directed: dict[str, tuple[int, str]] = {}
+        if traffic.layout.direction_zones_at:
+            for a, b in ((via, node), (node, after)):
+                along = traffic.layout.direction_zone_of(a, b) if b is not None else None
+                if along is None:
+                    continue
+                zone, direction = along
+                held = self._zones.get(zone.id)
+                if held is not None:
+                    if cast(DirectedClaim, held).direction != direction:
+                        return False  # never the other way on the claim it holds
+                    continue
+                if not cast(DirectionGate, traffic.zone_locks[zone.id]).admits(direction):
+                    return False
+                directed.setdefault(zone.id, (direction, a))
         for zone_id in zones:
             traffic.request(self.id, traffic.zone_locks[zone_id])
             self._zone_since[zone_id] = self.env.now
+        for zone_id, (direction, entry) in directed.items():
+            traffic.request(self.id, traffic.zone_locks[zone_id], direction=direction)
+            self._zone_since[zone_id] = self.env.now
+            self._note_entry(zone_id, entry)
         for cid, entry in needed:
             traffic.request(self.id, traffic.corridor_locks[cid], entry=entry)
         self.ahead.append(Held(node, traffic.request(self.id, lock), self.env.now))
@@ -470,7 +514,7 @@ class Driver:
 
     def _wait_zone(self, zone_id: str, gate: Lock, claim: Claim,
                    may_escape: bool = True) -> Generator[simpy.Event, Any, bool]:
-        """`_wait` for a mutex zone, its waiting time counted for the zone."""
+        """`_wait` for a zone, its waiting time counted for the zone."""
         start = self.env.now
         ok = yield from self._wait(gate, claim, may_escape)
         if start < self.env.now:
@@ -479,11 +523,50 @@ class Driver:
             self._zone_since[zone_id] = self.env.now
         return ok
 
+    def _zones_at(self, node: str) -> list[TrafficZone]:
+        """The mutex zones and the same-direction zone that `node` lies inside."""
+        layout = self.traffic.layout
+        zones = list(layout.mutex_zones_at.get(node, ()))
+        aisle = layout.direction_zones_at.get(node)
+        if aisle is not None:
+            zones.append(aisle)
+        return zones
+
+    def _take_direction(self, zone_id: str, direction: int,
+                        entry: str) -> Generator[simpy.Event, Any, bool]:
+        """Hold same-direction zone `zone_id` for `direction` before driving along it from
+        `entry`: at once if the AGV holds it that way, else by asking (waiting outside, or,
+        holding it the other way, turning once alone inside). False if it gave up waiting."""
+        traffic = self.traffic
+        held = self._zones.get(zone_id)
+        if held is not None and cast(DirectedClaim, held).direction == direction:
+            return True
+        gate = traffic.zone_locks[zone_id]
+        since = self._zone_since.get(zone_id, self.env.now)
+        claim = traffic.request(self.id, gate, direction=direction)
+        ok = yield from self._wait_zone(zone_id, gate, claim)
+        if not ok:
+            return False
+        if held is not None:  # a turn inside: the old claim ends here
+            self._record_zone(zone_id, cast(DirectedClaim, held), since)
+            traffic.turned(self.id, claim)
+            self.note("zone_turn", f"{zone_id} {_DIRECTION_NAMES[direction]}")
+        self._note_entry(zone_id, entry)
+        return True
+
+    def _note_entry(self, zone_id: str, entry: str) -> None:
+        """The AGV holds same-direction zone `zone_id` and will drive in from `entry` (if
+        `entry` is an end of it, not inside)."""
+        if entry not in self.traffic.layout.traffic_zone_by_id[zone_id].nodes:
+            self._zone_entry[zone_id] = entry
+
     def _get_out(self) -> Generator[simpy.Event, Any, list[str]]:
         """After giving up a wait: take the escape (another route, or one hop back), or wait a
         little and try the usual route again. Returns the new path from the current node."""
         escape = self.traffic.take_escape(self.id) or self.traffic.escape_for(self)
         self._drop_pending_corridors()
+        if self._zone_entry:
+            self._drop_pending_zones()
         if self._zones:
             self._release_left_zones()
         assert self.goal is not None
@@ -536,9 +619,14 @@ class Driver:
                                        holder))
 
     def end_of_run(self) -> None:
-        """The run ends: record the stretch or the wait under way, as far as it got."""
+        """The run ends: record the stretch, the wait and the zones under way, as far as they
+        got."""
         self._close_drive()
         self._close_wait()
+        if self.recorder.record_moves:
+            for zone_id, claim in self._zones.items():
+                if claim.triggered and zone_id in self._zone_since:
+                    self._record_zone(zone_id, claim, self._zone_since[zone_id])
 
     # ---- releasing ------------------------------------------------------------------------------
     def _release(self, held: Held) -> None:
@@ -571,15 +659,43 @@ class Driver:
             self._release_corridor(cid)
 
     def _release_left_zones(self) -> None:
-        """Let go of the mutex zones in which the AGV holds no node (and is not driving to
-        one)."""
+        """Let go of the zones in which the AGV holds no node (and is not driving to one),
+        but for a same-direction zone it is about to drive into from the node it holds."""
         spots = {h.node for h in self.held} | {h.node for h in self.ahead}
-        zones = {z.id: z for z in self.traffic.layout.traffic_zones}
+        zones = self.traffic.layout.traffic_zone_by_id
         for zone_id, claim in list(self._zones.items()):
-            if claim.triggered and not spots & zones[zone_id].nodes:
-                self.traffic.free(self.id, claim)
-                self.recorder.occupied("zone", zone_id, self.id,
-                                       self._zone_since.pop(zone_id, self.env.now), self.env.now)
+            if not claim.triggered:
+                continue
+            if spots & zones[zone_id].nodes:
+                self._zone_entry.pop(zone_id, None)  # inside
+                continue
+            entry = self._zone_entry.get(zone_id)
+            if entry is not None and entry in spots:
+                continue
+            self._free_zone(zone_id, claim)
+
+    def _drop_pending_zones(self) -> None:
+        """Let go of the same-direction zones the AGV holds but has not driven into."""
+        for zone_id in list(self._zone_entry):
+            claim = self._zones.get(zone_id)
+            if claim is not None and claim.triggered:
+                self._free_zone(zone_id, claim)
+            else:
+                del self._zone_entry[zone_id]
+
+    def _free_zone(self, zone_id: str, claim: Claim) -> None:
+        self._zone_entry.pop(zone_id, None)
+        self.traffic.free(self.id, claim)
+        self._record_zone(zone_id, claim, self._zone_since.pop(zone_id, self.env.now))
+
+    def _record_zone(self, zone_id: str, claim: Claim, since: float) -> None:
+        """The AGV held zone `zone_id` from `since` until now (the replay's holders)."""
+        now = self.env.now
+        self.recorder.occupied("zone", zone_id, self.id, since, now)
+        if self.recorder.record_moves:
+            direction = claim.direction if isinstance(claim, DirectedClaim) else 0
+            self.recorder.moved(MoveRecord(self.id, "zone", since, now, zone_id,
+                                           _DIRECTION_NAMES[direction]))
 
     def _drop_pending_corridors(self) -> None:
         for cid, (_, entry) in list(self._corridors.items()):

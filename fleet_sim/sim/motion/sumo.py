@@ -12,9 +12,12 @@ keeps one stop at the end of the last edge the AGV may enter, so that SUMO brake
 closed form would: at v when the AGV must stop there, else at w (which it must be able to). The
 slow branch curve after a left or right turn (Req.Nav.005) is a SUMO waypoint at the turn speed
 over the first `turn_length_m` of the edge. A marker or comm-loss speed cap is the vehicle's
-maximum speed. Obstacles and line searches hold the vehicle (brake to the creep speed or to a
-stop) and let it go again; a fault halts it; leaving the track removes it; the next hop inserts
-it again at the node where it comes back.
+maximum speed. A mixed fleet: each AGV is inserted as its type's vType (top speed,
+acceleration, deceleration, length, gap), its turn waypoints use its type's turn speed, and a
+segment's per-type speed limits are its class's limits in SUMO's network
+(fleet_sim.sim.motion.sumo_network.vehicle_classes). Obstacles and line searches hold the
+vehicle (brake to the creep speed or to a stop) and let it go again; a fault halts it;
+leaving the track removes it; the next hop inserts it again at the node where it comes back.
 
 libsumo runs one simulation per process, is not thread-safe, and a crash in it ends the
 process: one `SumoMotion` at a time (a second raises), and the commands that run several SUMO
@@ -39,7 +42,7 @@ import simpy
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario
 from fleet_sim.errors import FleetSimError, SimulationError
-from fleet_sim.sim.motion.sumo_network import VTYPE_ID, edge_id, export
+from fleet_sim.sim.motion.sumo_network import VehicleClass, edge_id, export, vehicle_classes
 
 STOP_S = 1e9
 """Duration of the stop that holds an AGV at a node until its next hop resumes it."""
@@ -66,6 +69,8 @@ def load_libsumo() -> ModuleType:
 @dataclass
 class _Car:
     vid: str
+    kind: VehicleClass
+    """Its vehicle type: SUMO vType, top speed and turn speed."""
     present: bool = False
     route: list[str] = field(default_factory=list)
     """Edges SUMO knows the vehicle will drive, from the one it is on."""
@@ -89,19 +94,21 @@ class _Watch:
 class SumoMotion:
     """The libsumo simulation behind the AGVs of one run (a MotionBackend)."""
 
-    def __init__(self, env: simpy.Environment, layout: Layout, scenario: Scenario,
-                 turn_speed_mps: float) -> None:
+    def __init__(self, env: simpy.Environment, layout: Layout, scenario: Scenario) -> None:
         global _active
         if _active is not None:
             raise SimulationError("a SUMO simulation is already running in this process "
                                   "(libsumo allows one per process)")
         self.env = env
         self.layout = layout
-        self.profile = scenario.fleet.vehicle
         self.step_s = scenario.sumo.step_length_s
-        self.turn_speed_mps = turn_speed_mps
+        classes = vehicle_classes(scenario.fleet.type_profiles, layout)
+        by_name = {c.name: c for c in classes}
+        self.kinds = [by_name[name] for name in scenario.fleet.agv_types]
+        """Each AGV's vehicle type, in AGV order."""
         self._tmp = tempfile.TemporaryDirectory(prefix="fleet_sim_sumo_")
-        network = export(layout, Path(self._tmp.name), self.profile, scenario.sumo.tau_s)
+        network = export(layout, Path(self._tmp.name), tau_s=scenario.sumo.tau_s,
+                         classes=classes)
         self.lengths = {edge_id(u, v): float(d["length_m"])
                         for u, v, d in layout.graph.edges(data=True)}
         self.limits = {edge_id(u, v): float(d["speed_limit_mps"])
@@ -189,7 +196,7 @@ class SumoMotion:
     def _car(self, agv_id: int) -> _Car:
         car = self.cars.get(agv_id)
         if car is None:
-            car = self.cars[agv_id] = _Car(f"agv{agv_id}")
+            car = self.cars[agv_id] = _Car(f"agv{agv_id}", self.kinds[agv_id])
         return car
 
     def hop(self, agv_id: int, prev: str | None, u: str, v: str, after: str | None,
@@ -204,10 +211,10 @@ class SumoMotion:
             self._routes += 1
             route_id = f"r{self._routes}"
             self.sumo.route.add(route_id, ahead)
-            vehicle.add(car.vid, route_id, typeID=VTYPE_ID, depart="now", departPos="0",
-                        departSpeed="0", departLane="0")
+            vehicle.add(car.vid, route_id, typeID=car.kind.vtype_id, depart="now",
+                        departPos="0", departSpeed="0", departLane="0")
             car.present, car.route, car.stop_edge = True, list(ahead), None
-            car.max_speed_mps = self.profile.max_speed_mps
+            car.max_speed_mps = car.kind.profile.max_speed_mps
             self._curve(car, prev, u, v)
             if after is not None:
                 self._curve(car, u, v, after)
@@ -239,14 +246,15 @@ class SumoMotion:
         if car.stop_edge != last:
             vehicle.setStop(car.vid, last, pos=self.lengths[last], laneIndex=0, duration=STOP_S)
             car.stop_edge = last
-        speed = self.profile.max_speed_mps if cap_mps is None else cap_mps
+        speed = car.kind.profile.max_speed_mps if cap_mps is None else cap_mps
         if speed != car.max_speed_mps:
             vehicle.setMaxSpeed(car.vid, speed)
             car.max_speed_mps = speed
         return self._watch(agv_id, "leave" if after is not None else "stop", edge)
 
     def _curve(self, car: _Car, prev: str | None, u: str, v: str) -> None:
-        """A waypoint at the turn speed over the curve at the start of u -> v, if it turns."""
+        """A waypoint at the turn speed over the curve at the start of u -> v, if it turns
+        (at most the segment's limit for the car's type)."""
         if self.layout.turn(prev, u, v) not in ("left", "right"):
             return
         edge = edge_id(u, v)
@@ -258,8 +266,10 @@ class SumoMotion:
         for index, stop in enumerate(vehicle.getStops(car.vid)):
             if stop.lane == f"{edge}_0" and abs(stop.endPos - curve) < 1e-6 \
                     and stop.duration == 0.0:
+                limit = self.layout.speed_limit_mps(u, v, car.kind.name) \
+                    if car.kind.vclass is not None else self.limits[edge]
                 vehicle.setStopParameter(car.vid, index, "speed",
-                                         repr(min(self.turn_speed_mps, self.limits[edge])))
+                                         repr(min(car.kind.profile.turn_speed_mps, limit)))
                 return
         raise SimulationError(f"SUMO did not take the turn waypoint on {edge} for {car.vid}")
 
@@ -311,7 +321,7 @@ class SumoMotion:
         self._sync()
         with contextlib.suppress(self.sumo.TraCIException):
             self.sumo.vehicle.remove(car.vid)
-        self.cars[agv_id] = _Car(car.vid)
+        self.cars[agv_id] = _Car(car.vid, car.kind)
 
     def close(self) -> None:
         global _active

@@ -17,6 +17,18 @@ The export is what a SUMO user would build by hand for tape-guided AGVs:
   deceleration, minimum gap; ``sigma=0`` (no driver imperfection: runs are deterministic) and
   ``tau`` (time headway; 1.0 s by default, so that at 1 m/s the following gap is
   min_gap_m + 1.0 m = 1.5 m, P_005's detection distance).
+* Mixed fleets (`vehicle_classes`): one SUMO vType per vehicle type of the fleet (``agv0_carrier``,
+  ``agv1_heavy``: its length, top speed, acceleration, deceleration and gap), each with a SUMO
+  vehicle class of its own (``custom1``, ``custom2``, then other road classes SUMO lets drive
+  everywhere), so that a segment's per-type speed limits (``speed_limit_mps_by_type``) are
+  SUMO's vClass-specific speed limits: an edge type with a ``<restriction vClass speed>`` per
+  limited type (SUMO brakes ahead of a lane slower for the vehicle's class as it does for any
+  slower lane). A one-type fleet whose type the layout gives no limit of its own keeps the
+  single ``agv`` vType without a class and the plain network, as before.
+* Segments open to some types only (``allowed_types``, ban zones) are not lane permissions: the
+  fleet model's routes already keep each type off them and SUMO only drives the hops it is
+  given, and netconvert would drop the turns between lanes that share no class, making a
+  network that differs from the layout where `check_network` does not look.
 
 Edge ids are ``<from>~<to>``; node ids must be valid SUMO ids (no spaces, no ``~``, none of
 ``|\\'";<>&``), which every bundled layout satisfies; others get an InputError naming the node.
@@ -28,14 +40,22 @@ import math
 import shutil
 import subprocess
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Final
 
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.vehicle import VehicleProfile
 from fleet_sim.errors import FleetSimError, InputError
 
 VTYPE_ID = "agv"
+VCLASSES: Final = ("custom1", "custom2", "delivery", "truck", "trailer", "bus", "coach", "taxi",
+                   "hov", "emergency", "authority", "army", "vip", "private", "evehicle",
+                   "motorcycle", "moped")
+"""SUMO vehicle classes given to a mixed fleet's types, in fleet order: the two custom
+classes, then road classes that every edge allows by default (their other defaults are
+overridden by the vType's explicit attributes)."""
 EDGE_SEP = "~"
 BAD_ID_CHARS = frozenset(" \t\n\r|\\'\";<>&" + EDGE_SEP)
 LENGTH_TOLERANCE_M = 1e-5
@@ -56,6 +76,51 @@ class SumoNetwork:
     nodes_file: Path
     edges_file: Path
     connections_file: Path
+    types_file: Path | None = None
+    """The edge types carrying per-type speed limits, if any segment has one."""
+
+
+@dataclass(frozen=True)
+class VehicleClass:
+    """A vehicle type of the fleet as SUMO sees it."""
+
+    name: str
+    """The fleet's type (fleet.vehicles[].type, or a one-type fleet's vehicle.name)."""
+    vtype_id: str
+    vclass: str | None
+    """SUMO's vehicle class; None: SUMO's default (a one-type fleet, no limits of its own)."""
+    profile: VehicleProfile
+
+
+def vehicle_classes(type_profiles: Mapping[str, VehicleProfile],
+                    layout: Layout) -> tuple[VehicleClass, ...]:
+    """The SUMO vType and class of each vehicle type (see the module docstring)."""
+    if len(type_profiles) == 1 and not layout.speed_limited_types & set(type_profiles):
+        ((name, profile),) = type_profiles.items()
+        return (VehicleClass(name, VTYPE_ID, None, profile),)
+    if len(type_profiles) > len(VCLASSES):
+        raise FleetSimError(f"motion: sumo drives at most {len(VCLASSES)} vehicle types (one "
+                            f"SUMO vehicle class each); the fleet has {len(type_profiles)}")
+    return tuple(VehicleClass(name, f"{VTYPE_ID}{i}_{_safe_id(name)}", VCLASSES[i], profile)
+                 for i, (name, profile) in enumerate(type_profiles.items()))
+
+
+def _safe_id(name: str) -> str:
+    return "".join("_" if c in BAD_ID_CHARS else c for c in name)
+
+
+def class_limits(layout: Layout, classes: Sequence[VehicleClass]
+                 ) -> dict[tuple[str, str], dict[str, float]]:
+    """Segment -> SUMO class -> its speed limit there, for the segments that give a type of
+    `classes` a limit of its own."""
+    by_name = {c.name: c.vclass for c in classes if c.vclass is not None}
+    out: dict[tuple[str, str], dict[str, float]] = {}
+    for u, v, data in layout.graph.edges(data=True):
+        limits = {by_name[name]: layout.speed_limit_mps(u, v, name)
+                  for name in data["speed_limit_mps_by_type"] if name in by_name}
+        if limits:
+            out[u, v] = limits
+    return out
 
 
 def sumo_binary(name: str) -> str:
@@ -83,9 +148,12 @@ def _check_ids(layout: Layout) -> None:
                              "|\\'\";<>&)")
 
 
-def write_plain(layout: Layout, out_dir: Path) -> tuple[Path, Path, Path]:
-    """Write the plain node, edge and connection files; returns their paths."""
+def write_plain(layout: Layout, out_dir: Path,
+                classes: Sequence[VehicleClass] = ()) -> tuple[Path, Path, Path]:
+    """Write the plain node, edge and connection files (and, where `classes` have per-type
+    speed limits, the edge types: `write_edge_types`); returns the three paths."""
     _check_ids(layout)
+    edge_types = _edge_types(layout, classes)
     graph = layout.graph
     out_dir.mkdir(parents=True, exist_ok=True)
     nodes = ET.Element("nodes")
@@ -94,9 +162,11 @@ def write_plain(layout: Layout, out_dir: Path) -> tuple[Path, Path, Path]:
                       type="unregulated")
     edges = ET.Element("edges")
     for u, v, data in graph.edges(data=True):
-        ET.SubElement(edges, "edge", id=edge_id(u, v), attrib={
+        element = ET.SubElement(edges, "edge", id=edge_id(u, v), attrib={
             "from": u, "to": v, "numLanes": "1", "speed": _num(data["speed_limit_mps"]),
             "length": _num(data["length_m"]), "spreadType": "center"})
+        if (u, v) in edge_types:
+            element.set("type", edge_types[u, v][0])
     connections = ET.Element("connections")
     for node in graph.nodes:
         for t in graph.predecessors(node):
@@ -113,10 +183,51 @@ def write_plain(layout: Layout, out_dir: Path) -> tuple[Path, Path, Path]:
     return paths[0], paths[1], paths[2]
 
 
-def write_vtype(profile: VehicleProfile, path: Path, tau_s: float = 1.0) -> Path:
-    """A SUMO additional file with the AGV vehicle type of `profile`."""
+def _edge_types(layout: Layout, classes: Sequence[VehicleClass]
+                ) -> dict[tuple[str, str], tuple[str, dict[str, float]]]:
+    """Segment -> (its edge type id, class -> speed), one edge type per distinct set of
+    per-class limits."""
+    ids: dict[tuple[tuple[str, float], ...], str] = {}
+    out: dict[tuple[str, str], tuple[str, dict[str, float]]] = {}
+    for segment, limits in class_limits(layout, classes).items():
+        key = tuple(sorted(limits.items()))
+        type_id = ids.setdefault(key, f"limits{len(ids)}")
+        out[segment] = (type_id, limits)
+    return out
+
+
+def write_edge_types(layout: Layout, out_dir: Path,
+                     classes: Sequence[VehicleClass]) -> Path | None:
+    """The edge types file of the per-type speed limits (None: no segment has one)."""
+    edge_types = _edge_types(layout, classes)
+    if not edge_types:
+        return None
+    root = ET.Element("types")
+    written: set[str] = set()
+    for type_id, limits in edge_types.values():
+        if type_id in written:
+            continue
+        written.add(type_id)
+        element = ET.SubElement(root, "type", id=type_id, numLanes="1", priority="-1")
+        for vclass, speed in limits.items():
+            ET.SubElement(element, "restriction", vClass=vclass, speed=_num(speed))
+    path = out_dir / f"{layout.name}.typ.xml"
+    ET.indent(root)
+    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+    return path
+
+
+def write_vtype(profile: VehicleProfile | Sequence[VehicleClass], path: Path,
+                tau_s: float = 1.0) -> Path:
+    """A SUMO additional file with the AGV vehicle type of `profile`, or one per class."""
     root = ET.Element("additional")
-    ET.SubElement(root, "vType", attrib=vtype_attributes(profile, tau_s))
+    classes = profile if not isinstance(profile, VehicleProfile) else \
+        (VehicleClass(profile.name, VTYPE_ID, None, profile),)
+    for item in classes:
+        attrib = vtype_attributes(item.profile, tau_s) | {"id": item.vtype_id}
+        if item.vclass is not None:
+            attrib["vClass"] = item.vclass
+        ET.SubElement(root, "vType", attrib=attrib)
     ET.indent(root)
     path.parent.mkdir(parents=True, exist_ok=True)
     ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
@@ -134,14 +245,17 @@ def vtype_attributes(profile: VehicleProfile, tau_s: float) -> dict[str, str]:
 
 
 def export(layout: Layout, out_dir: Path, profile: VehicleProfile | None = None,
-           tau_s: float = 1.0) -> SumoNetwork:
+           tau_s: float = 1.0, classes: Sequence[VehicleClass] = ()) -> SumoNetwork:
     """Write the plain files, the vehicle type and the converted `<name>.net.xml` to out_dir,
-    and check the network against the layout."""
+    and check the network against the layout. `classes` (`vehicle_classes`): a vType per
+    vehicle type and their per-type speed limits instead of the one `profile`."""
     out_dir = Path(out_dir)
-    nodes_file, edges_file, connections_file = write_plain(layout, out_dir)
+    nodes_file, edges_file, connections_file = write_plain(layout, out_dir, classes)
+    types_file = write_edge_types(layout, out_dir, classes)
     net_file = out_dir / f"{layout.name}.net.xml"
     cmd = [sumo_binary("netconvert"), "--node-files", str(nodes_file),
            "--edge-files", str(edges_file), "--connection-files", str(connections_file),
+           *(["--type-files", str(types_file)] if types_file is not None else []),
            "--output-file", str(net_file), "--no-internal-links", "true",
            "--offset.disable-normalization", "true", "--precision", "6",
            "--junctions.join", "false", "--geometry.remove", "false",
@@ -150,10 +264,11 @@ def export(layout: Layout, out_dir: Path, profile: VehicleProfile | None = None,
     if result.returncode != 0:
         raise FleetSimError(f"netconvert failed on layout {layout.name}: "
                             f"{(result.stderr or result.stdout).strip()}")
-    vtype_file = write_vtype(profile or VehicleProfile(), out_dir / f"{layout.name}.vtype.xml",
-                             tau_s)
-    check_network(layout, net_file)
-    return SumoNetwork(net_file, vtype_file, nodes_file, edges_file, connections_file)
+    vtype_file = write_vtype(classes or profile or VehicleProfile(),
+                             out_dir / f"{layout.name}.vtype.xml", tau_s)
+    check_network(layout, net_file, classes)
+    return SumoNetwork(net_file, vtype_file, nodes_file, edges_file, connections_file,
+                       types_file)
 
 
 def read_edges(net_file: Path) -> dict[str, tuple[float, float]]:
@@ -172,8 +287,28 @@ def read_edges(net_file: Path) -> dict[str, tuple[float, float]]:
     return out
 
 
-def check_network(layout: Layout, net_file: Path) -> None:
-    """Every segment is an edge of the same length and speed limit, and nothing else is."""
+def read_class_limits(net_file: Path) -> dict[str, dict[str, float]]:
+    """Edge id -> SUMO class -> speed, from the edge types' restrictions of a network."""
+    root = ET.parse(net_file).getroot()
+    types = {str(t.get("id")): {str(r.get("vClass")): float(r.get("speed", "nan"))
+                                for r in t.iter("restriction")} for t in root.iter("type")}
+    return {str(edge.get("id")): types[str(edge.get("type"))] for edge in root.iter("edge")
+            if edge.get("function") != "internal" and types.get(str(edge.get("type")))}
+
+
+def check_network(layout: Layout, net_file: Path, classes: Sequence[VehicleClass] = ()) -> None:
+    """Every segment is an edge of the same length and speed limit, and nothing else is; each
+    per-type speed limit is its class's speed limit on that edge."""
+    expected_limits = {edge_id(u, v): limits
+                       for (u, v), limits in class_limits(layout, classes).items()}
+    got_limits = read_class_limits(net_file)
+    for eid in sorted(set(expected_limits) | set(got_limits)):
+        want, got = expected_limits.get(eid, {}), got_limits.get(eid, {})
+        if set(want) != set(got) or any(not math.isclose(got[c], want[c],
+                                                         abs_tol=LENGTH_TOLERANCE_M)
+                                        for c in want):
+            raise FleetSimError(f"{net_file}: edge {eid} has class speed limits {got}; the "
+                                f"layout says {want}")
     edges = read_edges(net_file)
     expected = {edge_id(u, v): (d["length_m"], d["speed_limit_mps"])
                 for u, v, d in layout.graph.edges(data=True)}

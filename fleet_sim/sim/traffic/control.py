@@ -35,6 +35,10 @@ Rules (see docs/engine.md for why):
   period, the largest cost of a congested run with 200 AGVs.
 * Mutex zones (the layout's `traffic_zones`, fleet_sim.sim.traffic.zones): at most N AGVs
   inside; an AGV takes the zone's lock (a `Gate`) before its first node in it.
+* Same-direction zones (fleet_sim.sim.traffic.zones): AGVs inside all drive the aisle one
+  way; an AGV takes the zone's lock (a `DirectionGate`) for the direction it enters by, and
+  while it holds it with others, its routes and escapes keep off the aisle's hops the other
+  way (alone, it may turn round).
 * Giving way: an AGV that has waited `give_way_after_s` for a corridor or a side track while
   another AGV queues behind it drives on and comes back round (circulates) instead of blocking
   the main loop. This keeps loops flowing, which avoids most deadlocks by construction.
@@ -51,7 +55,7 @@ from typing import Protocol, cast
 
 import simpy
 
-from fleet_sim.config.layout import Corridor, Layout
+from fleet_sim.config.layout import BACKWARD, FORWARD, Corridor, Layout
 from fleet_sim.errors import SimulationError
 from fleet_sim.model.kinematics import Motion, MotionBackend
 from fleet_sim.model.records import Recorder
@@ -65,7 +69,7 @@ from fleet_sim.sim.traffic.deadlock import (
 )
 from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock, ZoneLock
 from fleet_sim.sim.traffic.routing import Routes
-from fleet_sim.sim.traffic.zones import Gate
+from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate, Gate
 
 
 @dataclass(frozen=True)
@@ -156,10 +160,18 @@ class Traffic:
         """Vehicle type -> its routes (mixed fleets, layouts with `allowed_types`)."""
         self._client_routes: dict[int, Routes] = {}
         """Client id -> its type's routes; clients not listed use `routes`."""
-        self.zone_locks: dict[str, Gate] = {
-            z.id: Gate(env, ZoneLock(z.id), z.capacity) for z in layout.traffic_zones
-            if z.kind == "mutex"}
-        """Mutex zone id -> its lock."""
+        self.zone_locks: dict[str, Gate] = {}
+        """Mutex and same-direction zone id -> its lock."""
+        for z in layout.traffic_zones:
+            if z.kind == "mutex":
+                self.zone_locks[z.id] = Gate(env, ZoneLock(z.id), z.capacity or 1)
+            elif z.kind == "same_direction":
+                self.zone_locks[z.id] = DirectionGate(env, ZoneLock(z.id), z.capacity)
+        self._against_hops: dict[str, dict[int, frozenset[tuple[str, str]]]] = {
+            z.id: {way: frozenset(hop for hop, d in z.hops.items() if d != way)
+                   for way in (FORWARD, BACKWARD)}
+            for z in layout.traffic_zones if z.kind == "same_direction"}
+        """Same-direction zone id -> direction -> the aisle's hops the other way."""
         self._zones: dict[int, dict[str, Claim]] = {}
         """Client id -> zone id -> its zone claims (granted or waiting)."""
         self.costs = costs if costs is not None else RouteCosts()
@@ -193,12 +205,24 @@ class Traffic:
         self._corridors[client.id] = {}
         self._zones[client.id] = {}
 
-    def request(self, client_id: int, lock: Lock, entry: str | None = None) -> Claim:
+    def request(self, client_id: int, lock: Lock, entry: str | None = None,
+                direction: int = ANY_DIRECTION) -> Claim:
         """Ask for `lock`: the claim is granted (`triggered`) at once if the lock is free, else
         when the client's turn comes. `entry`: for a corridor, the node from which the client
-        will enter it (None: it is inside already)."""
-        claim = Claim(lock, client_id)
+        will enter it (None: it is inside already). `direction`: for a same-direction zone,
+        the way the client will drive it; a client holding the zone the other way asks to
+        turn (`turned` once granted)."""
         key = lock.key
+        if isinstance(lock, DirectionGate):
+            assert isinstance(key, ZoneLock)
+            held = self._zones[client_id].get(key.zone_id)
+            turn = held is not None and held.triggered
+            claim: Claim = DirectedClaim(lock, client_id, direction, turn)
+            if not turn:
+                self._zones[client_id][key.zone_id] = claim
+            self.version += 1
+            return claim
+        claim = Claim(lock, client_id)
         if isinstance(key, NodeLock):
             self._nodes[client_id].add(claim)
         elif isinstance(key, ZoneLock):
@@ -211,7 +235,7 @@ class Traffic:
     def free(self, client_id: int, claim: Claim) -> None:
         """Give back a lock the client holds."""
         lock = cast(Lock, claim.resource)
-        if claim.client_id != client_id or not lock.users or lock.users[0] is not claim:
+        if claim.client_id != client_id or claim not in lock.users:
             raise SimulationError(f"AGV {client_id} cannot free {lock.key}: it does not hold "
                                   f"it (holder: {lock.holder})")
         lock.release(claim)
@@ -239,6 +263,14 @@ class Traffic:
                 del self._corridors[client_id][key.corridor_id]
         self.version += 1
 
+    def turned(self, client_id: int, claim: Claim) -> None:
+        """A turn the client asked for inside a same-direction zone is granted: its claim the
+        old way is given back, the new one is the client's claim on the zone."""
+        key = cast(Lock, claim.resource).key
+        assert isinstance(key, ZoneLock) and claim.triggered
+        self.free(client_id, self._zones[client_id][key.zone_id])
+        self._zones[client_id][key.zone_id] = claim
+
     def entered_corridor(self, client_id: int, corridor_id: int) -> None:
         """The client has driven into a corridor it reserved."""
         claim, _ = self._corridors[client_id][corridor_id]
@@ -249,8 +281,22 @@ class Traffic:
         return self._corridors[client_id]
 
     def zones_of(self, client_id: int) -> Mapping[str, Claim]:
-        """The client's mutex zone claims (zone id -> claim)."""
+        """The client's zone claims (zone id -> claim)."""
         return self._zones[client_id]
+
+    def against(self, client_id: int | None) -> set[tuple[str, str]]:
+        """The hops the client may not drive: along each same-direction zone it holds with
+        other AGVs, the other way. Alone in one, it may turn round (and would get the turn at
+        once)."""
+        if client_id is None:
+            return set()
+        out: set[tuple[str, str]] = set()
+        for zone_id, claim in self._zones[client_id].items():
+            if isinstance(claim, DirectedClaim) and claim.triggered \
+                    and any(cast(Claim, c).client_id != client_id
+                            for c in self.zone_locks[zone_id].users):
+                out |= self._against_hops[zone_id][claim.direction]
+        return out
 
     def holds_corridor(self, client_id: int, corridor_id: int) -> bool:
         hold = self._corridors[client_id].get(corridor_id)
@@ -301,6 +347,15 @@ class Traffic:
         if self.known_blocks:
             now = self.env.now
             self.known_blocks = {k: t for k, t in self.known_blocks.items() if t > now}
+        against = self.against(client_id) if self._against_hops else None
+        if against:  # on through a same-direction zone it holds with others, never back
+            tries = [against | set(self.known_blocks), against] if self.known_blocks \
+                else [against]
+            for avoid in tries:
+                forward = routes.route_costed(src, dest, self._extra_cost, frozenset(avoid)) \
+                    if self.costs.active else routes.route_avoiding(src, dest, set(), avoid)
+                if forward is not None:
+                    return forward
         if self.costs.active:
             if self.known_blocks:
                 around = routes.route_costed(src, dest, self._extra_cost,
@@ -402,19 +457,18 @@ class Traffic:
                 return Escape("yield", (node,))
             inside = self.layout.corridors[cid]
         if must_free is not None and isinstance(must_free.key, ZoneLock):
-            zone = next(z for z in self.layout.traffic_zones if z.id == must_free.key.zone_id)
+            zone = self.layout.traffic_zone_by_id[must_free.key.zone_id]
             if not any(c.triggered and cast(Lock, c.resource).key in
                        {NodeLock(n) for n in zone.nodes} for c in self._nodes[client_id]):
                 return Escape("yield", (node,))  # holds the zone, not yet inside: give it up
         avoid_nodes: set[str] = set()
-        avoid_edges: set[tuple[str, str]] = set()
+        avoid_edges = self.against(client_id) if self._against_hops else set()
         if waited is not None:
             key = waited.key
             if isinstance(key, NodeLock):
                 avoid_nodes.add(key.node)
             elif isinstance(key, ZoneLock):
-                avoid_nodes |= next(z.nodes for z in self.layout.traffic_zones
-                                    if z.id == key.zone_id)
+                avoid_nodes |= self.layout.traffic_zone_by_id[key.zone_id].nodes
             else:
                 corridor = self.layout.corridors[key.corridor_id]
                 avoid_nodes |= corridor.members
@@ -458,7 +512,8 @@ class Traffic:
                     continue
                 if not routes.allows(first, second):
                     continue
-                if self.layout.corridor_of(first, second) is not None:
+                if self.layout.corridor_of(first, second) is not None \
+                        or self.layout.direction_zone_of(first, second) is not None:
                     continue  # circulate on one-way track only
                 back = self.route(second, goal, client_id)
                 return Escape("circulate", (node, first, *back))
@@ -482,6 +537,15 @@ class Traffic:
             return False
         for zone in self.layout.mutex_zones_at.get(nxt, ()):
             if zone.id not in self._zones[client_id] and not self.zone_locks[zone.id].is_free:
+                return False
+        along = self.layout.direction_zone_of(node, nxt)
+        if along is not None:
+            zone, direction = along
+            held = self._zones[client_id].get(zone.id)
+            if held is not None and held.triggered:
+                if cast(DirectedClaim, held).direction != direction:
+                    return False
+            elif not cast(DirectionGate, self.zone_locks[zone.id]).admits(direction):
                 return False
         corridor = self.layout.corridor_of(node, nxt)
         if corridor is None or self.holds_corridor(client_id, corridor.id):

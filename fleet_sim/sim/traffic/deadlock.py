@@ -45,24 +45,32 @@ class DeadlockVictim:
 
 def find_cycle(start: int, waiting: Mapping[int, Lock]) -> list[int] | None:
     """The wait-for cycle through client `start`, as client ids in wait order, if there is one.
-    `waiting` maps each waiting client to the lock it waits for."""
+    `waiting` maps each waiting client to the lock it waits for; a client waits for the
+    lock's `blockers` (its holder; a same-direction zone may name several, each of which
+    must let go). Depth first, so with one blocker per lock this walks the one chain."""
+    lock = waiting.get(start)
+    if lock is None:
+        return None
     chain = [start]
     seen = {start}
-    client = start
-    while True:
+    stack = [iter(lock.blockers(start))]
+    while stack:
+        client = next(stack[-1], None)
+        if client is None:
+            stack.pop()
+            chain.pop()
+            continue
+        if client == start:
+            return chain
+        if client in seen:
+            continue  # on the chain (a cycle not through start: its members handle it) or done
+        seen.add(client)
         lock = waiting.get(client)
         if lock is None:
-            return None
-        holder = lock.holder
-        if holder is None or holder == client:
-            return None
-        if holder == start:
-            return chain
-        if holder in seen:
-            return None  # a cycle that does not pass through start: its members handle it
-        seen.add(holder)
-        chain.append(holder)
-        client = holder
+            continue
+        chain.append(client)
+        stack.append(iter(lock.blockers(client)))
+    return None
 
 
 class KnownCycles:

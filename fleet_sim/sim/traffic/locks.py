@@ -38,7 +38,7 @@ class CorridorLock:
 
 @dataclass(frozen=True, slots=True)
 class ZoneLock:
-    """The lock on one mutex zone (fleet_sim.sim.traffic.zones.Gate)."""
+    """The lock on one mutex or same-direction zone (fleet_sim.sim.traffic.zones)."""
 
     zone_id: str
 
@@ -76,3 +76,9 @@ class Lock(simpy.Resource):
     def is_free(self) -> bool:
         """Nobody holds it and nobody waits for it."""
         return not self.users and not self.put_queue
+
+    def blockers(self, client_id: int) -> tuple[int, ...]:
+        """The clients that `client_id`, waiting for this lock, waits for: its holder (a
+        same-direction zone may name several, fleet_sim.sim.traffic.zones)."""
+        holder = self.holder
+        return () if holder is None or holder == client_id else (holder,)

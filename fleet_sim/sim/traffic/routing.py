@@ -1,7 +1,10 @@
 """Routes and hop kinematics on a layout: what traffic control asks about the track.
 
 * Routes follow the shortest free-flow travel time (length / min(limit, VEL_MAX)), from
-  per-destination tables computed once (Dijkstra on the reversed graph).
+  per-destination tables computed once (Dijkstra on the reversed graph). A vehicle type's
+  routes (mixed fleets) use its own top speed and, where a segment gives one, the segment's
+  speed limit for that type (`speed_limit_mps_by_type`): both the route costs and the hop
+  kinematics below, so a type slowed in an aisle also routes around it when that is quicker.
 * Detours (`route_avoiding`) keep off given nodes and segments; they are computed when an AGV is
   blocked and cached by (source, destination, what to avoid), the most recent
   `DETOUR_CACHE_SIZE` questions only (a long run asks ever new ones). The search is A* on plain
@@ -61,7 +64,8 @@ class Routes:
         self.motion = motion
         self.vehicle_type = vehicle_type
         """None: every segment, the graph's `free_time_s`. A type (mixed fleets, layouts
-        with `allowed_types`): only the segments open to it, at its own top speed."""
+        with `allowed_types` or `speed_limit_mps_by_type`): only the segments open to it, at
+        its own top speed and its type's speed limits."""
         self.weight: Weight = "free_time_s"
         """The edge weight of routes (networkx: an attribute name or a function)."""
         self._reverse_weight: Weight = "free_time_s"
@@ -71,8 +75,7 @@ class Routes:
                 data["free_time_s"] = data["length_m"] / min(data["speed_limit_mps"],
                                                              motion.max_speed_mps)
         else:
-            times = {(u, v): data["length_m"] / min(data["speed_limit_mps"],
-                                                    motion.max_speed_mps)
+            times = {(u, v): data["length_m"] / self._limit(data)
                      for u, v, data in layout.type_graph(vehicle_type).edges(data=True)}
             self._times = times
             self.weight = self._type_weight
@@ -92,6 +95,14 @@ class Routes:
             for u in self.graph.nodes}
         """Successors and free-flow hop times, in the graph's order (A* of the detours); for a
         vehicle type only the segments open to it, at its own speed."""
+
+    def _limit(self, data: dict[str, Any]) -> float:
+        """The speed an AGV of this type may drive a segment at (its attributes `data`): the
+        least of its top speed, the segment's limit and the segment's limit for its type."""
+        limit: float = data["speed_limit_mps"]
+        if self.vehicle_type is not None:
+            limit = min(limit, data["speed_limit_mps_by_type"].get(self.vehicle_type, limit))
+        return min(limit, self.motion.max_speed_mps)
 
     def _type_weight(self, u: str, v: str, _data: dict[str, Any]) -> float | None:
         """Free-flow time of u -> v for this type; None (closed) off its segments."""
@@ -203,7 +214,7 @@ class Routes:
         if found is None:
             data = self.graph.edges[u, v]
             length = data["length_m"]
-            limit = min(data["speed_limit_mps"], self.motion.max_speed_mps)
+            limit = self._limit(data)
             turn = self.layout.turn(prev, u, v)
             curve = min(self.layout.turn_length_m, length)
             if turn in ("left", "right") and curve > 0:
