@@ -87,12 +87,12 @@ def _fleet_overrides(agvs: int | dict[str, int], scenario_file: Path) -> dict[st
     if isinstance(agvs, int):
         if fleet.vehicles:
             types = [t.type for t in fleet.vehicles]
-            raise InputError("--agvs", "--agvs", agvs, "TYPE=N for a mixed fleet (fleet."
+            raise InputError("--agvs", "fleet.vehicles", agvs, "TYPE=N for a mixed fleet (fleet."
                              f"vehicles: {', '.join(types)}), e.g. --agvs {types[-1]}=N; "
                              f"several: --agvs {types[0]}=N,{types[-1]}=M")
         return {"fleet.size": agvs}
     if not fleet.vehicles:
-        raise InputError("--agvs", "--agvs", ",".join(f"{t}={n}" for t, n in agvs.items()),
+        raise InputError("--agvs", "fleet.size", ",".join(f"{t}={n}" for t, n in agvs.items()),
                          "a number of AGVs (the scenario's fleet has one vehicle type)")
     return {type_count_path(name): n for name, n in agvs.items()}
 

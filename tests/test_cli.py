@@ -124,14 +124,14 @@ def test_agvs_of_a_mixed_fleet_name_the_types(tmp_path: Path) -> None:
     assert [(t["type"], t["count"]) for t in fleet["vehicles"]] == [("carrier", 1), ("heavy", 2)]
     for args, message in [
         (("run", str(scenario), "--agvs", "3"),
-         "--agvs: got 3; expected TYPE=N for a mixed fleet (fleet.vehicles: carrier, heavy), "
-         "e.g. --agvs heavy=N"),
+         "fleet-sim: error: --agvs: fleet.vehicles: got 3; expected TYPE=N for a mixed fleet "
+         "(fleet.vehicles: carrier, heavy), e.g. --agvs heavy=N"),
         (("run", str(scenario), "--agvs", "hevy=2"),
          "fleet.vehicles.hevy.count: got 'hevy'; expected a type of fleet.vehicles "
          "(carrier, heavy)"),
         (("run", "experiments/tiny_loop.yaml", "--agvs", "heavy=2"),
-         "--agvs: got 'heavy=2'; expected a number of AGVs (the scenario's fleet has one "
-         "vehicle type)"),
+         "fleet-sim: error: --agvs: fleet.size: got 'heavy=2'; expected a number of AGVs "
+         "(the scenario's fleet has one vehicle type)"),
         (("run", str(scenario), "--agvs", "heavy=0"), "number of heavy AGVs >= 1"),
     ]:
         result = fleet_sim(*args)
