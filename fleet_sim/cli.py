@@ -502,7 +502,8 @@ def _check_workers(args: argparse.Namespace) -> None:
 def _sweep(args: argparse.Namespace) -> int:
     from fleet_sim.analysis.stats import check_targets
     from fleet_sim.config.experiment import load_experiment
-    from fleet_sim.study.sweep import default_out, sweep
+    from fleet_sim.study.runner import default_out
+    from fleet_sim.study.sweep import sweep
     from fleet_sim.study.targets import check_targets_known
 
     _check_workers(args)
@@ -540,8 +541,8 @@ def _sweep(args: argparse.Namespace) -> int:
 
 def _size(args: argparse.Namespace) -> int:
     from fleet_sim.config.experiment import load_experiment
+    from fleet_sim.study.runner import default_out
     from fleet_sim.study.sizing import size_fleet
-    from fleet_sim.study.sweep import default_out
     from fleet_sim.study.targets import check_targets_known
 
     _check_workers(args)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 
 from fleet_sim.config.experiment import RunSpec
-from fleet_sim.study.sweep import RunResult, execute_run
+from fleet_sim.study.runner import RunResult, execute_run
 
 CRASH = "fleet.size=2__r01"
 FAIL = "fleet.size=3__r00"

@@ -22,7 +22,7 @@ from fleet_sim.analysis.kpis import (
 from fleet_sim.config.experiment import load_experiment
 from fleet_sim.model.not_dispatched import NotDispatched
 from fleet_sim.model.records import Order, Recorder
-from fleet_sim.study.sweep import OK, execute_run
+from fleet_sim.study.runner import OK, execute_run
 
 from .conftest import LAYOUTS, ROOT, make_scenario, write_yaml
 

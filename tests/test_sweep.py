@@ -17,8 +17,10 @@ import duckdb
 import pandas as pd
 import pytest
 
+from fleet_sim.analysis.congestion import node_waits
 from fleet_sim.config.experiment import Experiment, load_experiment
-from fleet_sim.study.sweep import CRASHED, FAILED, OK, execute_run, node_waits, sweep
+from fleet_sim.study.runner import CRASHED, FAILED, OK, execute_run
+from fleet_sim.study.sweep import sweep
 
 from . import sweep_helpers
 from .conftest import ROOT, write_yaml
@@ -192,7 +194,7 @@ def test_node_waits_add_up_to_the_engine_blocked_time(tmp_path: Path) -> None:
 
 
 def test_results_folder_of_another_experiment_is_refused(tmp_path: Path) -> None:
-    from fleet_sim.study.sweep import SweepError
+    from fleet_sim.study.runner import SweepError
 
     out = tmp_path / "out"
     sweep(tiny_experiment(tmp_path, factors={"fleet.size": [1]}, replications=1), out,
@@ -282,7 +284,7 @@ def test_a_second_sweep_into_a_busy_folder_is_refused(tmp_path: Path) -> None:
 
 
 def test_a_stale_lock_is_taken_over(tmp_path: Path) -> None:
-    from fleet_sim.study.sweep import LOCK_FILE
+    from fleet_sim.study.runner import LOCK_FILE
 
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
@@ -299,7 +301,7 @@ def test_a_stale_lock_is_taken_over(tmp_path: Path) -> None:
 
 def test_a_summary_behind_its_run_folders_is_rebuilt_for_the_report(tmp_path: Path) -> None:
     from fleet_sim.report.report import load, section_runs
-    from fleet_sim.study.sweep import read_summary
+    from fleet_sim.study.results import read_summary
 
     out = tmp_path / "out"
     sweep(tiny_experiment(tmp_path, factors={"fleet.size": [1, 2]}, replications=1), out,

@@ -30,7 +30,7 @@ import pandas as pd
 
 from fleet_sim.analysis.kpis import CATALOGUE, RUN_FIELDS
 from fleet_sim.errors import InputError
-from fleet_sim.study.sweep import read_summary
+from fleet_sim.study.results import read_summary
 
 EXCEL_MAX_ROWS = 1_048_575
 """Data rows per sheet (Excel's 1,048,576 rows, less the header)."""

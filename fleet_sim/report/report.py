@@ -21,7 +21,7 @@ Decisions, where the issue is silent:
 * The x axis is fleet.size when it is a factor, else the first factor; each combination of the
   other factors is one line (series).
 * The heat map shows the mean seconds per hour that AGVs with work to do stood waiting at each
-  node (fleet_sim.study.sweep.node_waits), over the replications of the recommended fleet (else the
+  node (fleet_sim.analysis.congestion), over the replications of the recommended fleet (else the
   largest fleet run).
 * A run in detail: the first replication of the recommended fleet (of the first series; else
   of its largest fleet run) is simulated again from its config.resolved.yaml with the AGVs'
@@ -65,7 +65,7 @@ from fleet_sim.errors import InputError
 from fleet_sim.model.not_dispatched import NotDispatched
 from fleet_sim.model.states import VehicleState
 from fleet_sim.report import figures as figs
-from fleet_sim.study.sweep import read_summary
+from fleet_sim.study.results import read_summary
 
 INCIDENT_EVENTS = ("deadlock_detected", "deadlock_unresolved", "reroute", "circulate", "backoff")
 MAIN_KPIS = ("throughput_per_hour", "lead_time_p95_s")

@@ -46,7 +46,7 @@ search starts from it less the other types' AGVs.
 The warm-up is the scenario's, or estimated from pilot runs by MSER-5 (experiment
 ``warmup.method: mser5``, fleet_sim.study.warmup) before the search starts.
 
-Every run goes through fleet_sim.study.sweep with the experiment's seeds, so a sizing search over a
+Every run goes through fleet_sim.study.runner with the experiment's seeds, so a sizing search over a
 folder that already holds a sweep reuses its runs, and an interrupted search resumes.
 Other factors of the experiment (say, two demand levels) each get their own search; the
 searches run side by side (`run_searches`): each asks for its next batch of runs, and the
@@ -95,7 +95,8 @@ from fleet_sim.config.experiment import (
 )
 from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.study.progress import Progress
-from fleet_sim.study.sweep import DaskPool, LocalPool, execute, folder_lock, prepare, tables_written
+from fleet_sim.study.results import tables_written
+from fleet_sim.study.runner import DaskPool, LocalPool, execute, folder_lock, prepare
 from fleet_sim.study.warmup import largest_fleet, settle_warmup
 
 DEFAULT_MAX_AGVS = 50
@@ -485,7 +486,7 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
                scheduler: str | None = None, quiet: bool = False,
                stream: IO[str] | None = None, max_runs: int = MAX_RUNS) -> list[GroupResult]:
     """Search every group; write sizing.json and refresh the summary tables (holding the
-    results folder: see fleet_sim.study.sweep.folder_lock). Raises SizingLimit, after writing
+    results folder: see fleet_sim.study.runner.folder_lock). Raises SizingLimit, after writing
     them, if the search would need more than `max_runs` runs."""
     spec = experiment.spec
     if not spec.targets:

@@ -36,7 +36,7 @@ import pandas as pd
 from fleet_sim.analysis.stats import mser5_truncation
 from fleet_sim.config.experiment import Experiment, RunSpec
 from fleet_sim.study.progress import Progress
-from fleet_sim.study.sweep import DaskPool, LocalPool, SweepError, execute
+from fleet_sim.study.runner import DaskPool, LocalPool, SweepError, execute
 
 ROUND_H = 0.05
 WARMUP_FILE = "warmup.json"

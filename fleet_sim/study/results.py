@@ -1,0 +1,181 @@
+"""The results of many runs: the summary (one row per run), the statistics per design point
+and the DuckDB database over both and every run's tables; what report and export read.
+
+Files in a results folder::
+
+    summary.parquet            one row per run: status, factors, replication, seed, every KPI
+    stats.parquet              per design point: mean and 95 % CI of every KPI (analysis.stats)
+    sweep.duckdb               DuckDB: table summary, stats; views orders, events, node_waits
+                               over every run's Parquet files (with run_id)
+
+Decisions, where the issues are silent:
+
+* summary.parquet and stats.parquet are rewritten at the end of every sweep, sizing search and
+  comparison; one killed before its end leaves them behind its run folders. Readers go through
+  `read_summary`, which compares the summary's (run, status) pairs with the run folders and
+  rebuilds the summary from the folders (in memory: a reader never writes the folder) when
+  they differ, so a report never counts 24 runs when 28 exist. A study ended by an exception
+  (Ctrl-C included) still rewrites the tables on its way out (`tables_written`).
+* DuckDB views read the Parquet files by absolute path: the database works from any folder;
+  after moving a results folder, run the study again (nothing is recomputed) to rebuild it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from fleet_sim.config.experiment import Experiment
+from fleet_sim.study.runner import FAILED, OK
+
+
+@contextmanager
+def tables_written(experiment: Experiment, out_dir: Path) -> Iterator[None]:
+    """Write the summary tables when the block ends, also when an exception (Ctrl-C, a run
+    function that fails to report) ends it, so the tables keep up with the runs finished."""
+    try:
+        yield
+    except BaseException:
+        with contextlib.suppress(Exception):  # the exception that ended the block matters more
+            write_tables(experiment, out_dir)
+        raise
+    write_tables(experiment, out_dir)
+
+
+
+# ---- tables --------------------------------------------------------------------------------
+
+
+def collect_summary(out_dir: Path, factor_names: Sequence[str]) -> pd.DataFrame:
+    """One row per run folder: status, factors, replication, seed, KPIs, runtime, error."""
+    rows: list[dict[str, Any]] = []
+    runs_dir = out_dir / "runs"
+    for run_dir in sorted(p for p in runs_dir.iterdir() if p.is_dir()) if runs_dir.exists() \
+            else []:
+        spec_file = run_dir / "spec.json"
+        if not spec_file.exists():
+            continue
+        spec = json.loads(spec_file.read_text(encoding="utf-8"))
+        row: dict[str, Any] = {"run_id": spec["run_id"], "status": "incomplete",
+                               "replication": spec["replication"], "seed": spec["seed"]}
+        for name in factor_names:
+            row[name] = spec["factors"].get(name)
+        kpi_file, error_file = run_dir / "kpis.json", run_dir / "error.json"
+        if kpi_file.exists():
+            row["status"] = OK
+            figures = json.loads(kpi_file.read_text(encoding="utf-8"))
+            for key, value in figures.items():
+                if isinstance(value, dict):  # errors_by_code -> errors_by_code.E_101, ...
+                    row.update({f"{key}.{k}": v for k, v in value.items()})
+                elif isinstance(value, list):  # setup_warnings: one line each
+                    row[key] = "\n".join(str(v) for v in value)
+                elif key not in row:
+                    row[key] = value
+            row["error"] = ""
+        elif error_file.exists():
+            error = json.loads(error_file.read_text(encoding="utf-8"))
+            row["status"] = error.get("status", FAILED)
+            row["error"] = error.get("error", "")
+            row["wall_s"] = error.get("wall_s")
+        rows.append(row)
+    frame = pd.DataFrame(rows)
+    counts = [c for c in frame.columns if c.startswith(("errors_by_code.", "warnings_by_code."))]
+    frame[counts] = frame[counts].fillna(0)  # a code a run never raised: zero times
+    if frame.empty:
+        return pd.DataFrame({"run_id": pd.Series(dtype="string"),
+                             "status": pd.Series(dtype="string")})
+    for column in frame.columns:
+        if frame[column].dtype == object:
+            values = frame[column].dropna()
+            if len(values) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                   for v in values):
+                frame[column] = pd.to_numeric(frame[column])
+            elif len(values) and all(isinstance(v, str) for v in values):
+                frame[column] = frame[column].astype("string")
+    return frame
+
+
+def run_statuses(out_dir: Path) -> dict[str, str]:
+    """Per run folder (with spec.json): its status as collect_summary gives it."""
+    statuses: dict[str, str] = {}
+    runs_dir = out_dir / "runs"
+    for run_dir in runs_dir.iterdir() if runs_dir.exists() else []:
+        if not (run_dir / "spec.json").exists():
+            continue
+        status = "incomplete"
+        if (run_dir / "kpis.json").exists():
+            status = OK
+        elif (run_dir / "error.json").exists():
+            try:
+                error = json.loads((run_dir / "error.json").read_text(encoding="utf-8"))
+                status = str(error.get("status", FAILED))
+            except (OSError, json.JSONDecodeError):
+                status = FAILED
+        statuses[run_dir.name] = status
+    return statuses
+
+
+def read_summary(out_dir: Path, factor_names: Sequence[str]) -> tuple[pd.DataFrame, bool]:
+    """The results folder's summary and whether it had to be rebuilt: summary.parquet if its
+    runs and their statuses are those of the run folders, else one collected from them."""
+    summary_file = out_dir / "summary.parquet"
+    if summary_file.exists():
+        summary = pd.read_parquet(summary_file)
+        if {"run_id", "status"} <= set(summary.columns):
+            recorded = dict(zip(summary["run_id"].astype(str), summary["status"].astype(str),
+                                strict=True))
+            if len(recorded) == len(summary) and recorded == run_statuses(out_dir):
+                return summary, False
+    return collect_summary(out_dir, factor_names), True
+
+
+def write_tables(experiment: Experiment, out_dir: Path) -> pd.DataFrame:
+    """summary.parquet, stats.parquet and sweep.duckdb from the run folders on disk."""
+    from fleet_sim.analysis.stats import point_stats
+
+    summary = collect_summary(out_dir, experiment.factor_names)
+    summary.to_parquet(out_dir / "summary.parquet", index=False)
+    stats = point_stats(summary, experiment.factor_names)
+    stats.to_parquet(out_dir / "stats.parquet", index=False)
+    write_duckdb(out_dir)
+    return summary
+
+
+def write_duckdb(out_dir: Path) -> Path:
+    """sweep.duckdb: tables summary and stats, views over every run's Parquet tables."""
+    import duckdb
+
+    db_path = out_dir / "sweep.duckdb"
+    tmp = out_dir / ".sweep.duckdb.tmp"
+    tmp.unlink(missing_ok=True)
+    runs = (out_dir / "runs").resolve()
+    con = duckdb.connect(str(tmp))
+    try:
+        for table in ("summary", "stats"):
+            source = (out_dir / f"{table}.parquet").resolve()
+            if source.exists():
+                con.execute(f"CREATE TABLE {table} AS SELECT * FROM read_parquet('{_sql(source)}')")
+        for view in ("orders", "events", "node_waits"):
+            if any(runs.glob(f"*/{view}.parquet")):
+                pattern = _sql(runs / "*" / f"{view}.parquet")
+                con.execute(
+                    f"CREATE VIEW {view} AS SELECT regexp_extract(filename, "
+                    f"'([^/]+)/{view}.parquet$', 1) AS run_id, * EXCLUDE (filename) "
+                    f"FROM read_parquet('{pattern}', filename = true, union_by_name = true)")
+    finally:
+        con.close()
+    os.replace(tmp, db_path)
+    (out_dir / ".sweep.duckdb.tmp.wal").unlink(missing_ok=True)
+    return db_path
+
+
+def _sql(path: Path) -> str:
+    return str(path).replace("'", "''")
+

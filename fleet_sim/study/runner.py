@@ -1,0 +1,569 @@
+"""Executing runs: one run in a worker, pools of workers (processes here, or a Dask cluster),
+and the lock that keeps one study per results folder. Sweep, size and compare decide which runs
+to make; this module makes them and never decides.
+
+A run's folder (``<results>/runs/<run id>/``)::
+
+    spec.json              factors, replication, seed, overrides (written first)
+    config.resolved.yaml   the run's scenario, every default written out
+    events.parquet, orders.parquet, run_info.json    as `fleet-sim run` writes them
+    node_waits.parquet     per node: AGV passes and seconds AGVs stood there waiting
+                           (fleet_sim.analysis.congestion)
+    kpis.json              written last and atomically: its presence means "finished"
+    error.json             instead of kpis.json when the run failed (type, message, trace)
+
+Decisions, where the issues are silent:
+
+* A run is finished when its kpis.json exists. The engine's files are written to
+  ``runs/<id>/.partial`` and moved in, kpis.json last (``os.replace``), so a study killed at any
+  moment leaves either a finished run or one that is run again; re-running skips finished
+  runs and retries failed ones. A run folder whose spec.json differs from what the experiment
+  now asks for (another master seed, other overrides) stops the study with an error rather
+  than mixing two experiments in one folder.
+* Failures: an exception inside a run is caught in the worker and written to error.json (status
+  ``failed``). A worker process that dies (a segfault, ``os._exit``, the OOM killer) breaks the
+  process pool; the pool is rebuilt, and the runs that were in flight are retried one at a time
+  so the one that kills its worker is identified and recorded (status ``crashed``) while the
+  others finish normally. On Dask, the scheduler retries a task whose worker died and gives up
+  with KilledWorker after its allowed failures; that run is recorded as crashed.
+* Runs start largest fleet first (longest first), which keeps every worker busy to the end.
+* Worker processes start with the ``forkserver`` method where available (else ``spawn``): no
+  state of the parent leaks into runs; the fork server imports the engine once, so workers
+  start at once. A sizing search keeps one pool for all its batches.
+* KPIs: every run's are summed as it runs (fleet_sim.analysis.kpis, as for `fleet-sim run`);
+  the runner adds ``wall_s``, the run's wall time including writing its files.
+* Memory: a run streams its tables to Parquet as `fleet-sim run` does, but the occupancy
+  trace that node waits need stays in memory (a record per node hold and segment
+  traversal), and node_waits reads the columns it needs of events.parquet back once the run
+  is over. A study run's memory therefore still grows with its simulated time; studies run
+  shifts of hours, not years.
+* One study per results folder: a sweep, size or compare holds an exclusive ``fcntl.flock`` on
+  ``<folder>/.fleet-sim.lock`` while it runs, and writes its pid, host and start time into it.
+  flock (not a file created with O_EXCL) because the kernel releases it when the process
+  dies, however it dies, so a lock can never be left stale; a lock file that still names a
+  process which no longer holds it is taken over with a note. A second study into a busy
+  folder stops with one line naming the folder and the owner's pid. Where fcntl does not
+  exist (Windows) the owner's pid is checked instead. The file stays (emptied) after the run.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import importlib
+import json
+import multiprocessing
+import os
+import shutil
+import socket
+import sys
+import threading
+import time
+import traceback
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+import pandas as pd
+import yaml
+
+from fleet_sim.analysis.congestion import WORK_SPELL_COLUMNS, node_waits
+from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, layout_for, load_trace_for
+from fleet_sim.config.scenario import VEHICLE_TYPES
+from fleet_sim.errors import FleetSimError, InputError
+from fleet_sim.study.progress import Progress
+
+RunFn = Callable[[RunSpec, str], "RunResult"]
+"""A function that executes one run into `runs_dir` (module level, so workers can import it)."""
+
+OK, FAILED, CRASHED = "ok", "failed", "crashed"
+
+
+@dataclass(frozen=True)
+class RunResult:
+    run_id: str
+    status: str
+    wall_s: float
+    error: str = ""
+
+
+class SweepError(FleetSimError):
+    """The sweep cannot go on (such as a results folder holding another experiment)."""
+
+
+class FolderBusy(SweepError):
+    """Another sweep or sizing search is writing into the results folder."""
+
+
+
+# ---- one sweep per folder ------------------------------------------------------------------
+
+LOCK_FILE = ".fleet-sim.lock"
+
+try:
+    import fcntl
+except ImportError:  # not POSIX
+    fcntl = None  # type: ignore[assignment]
+
+
+@contextmanager
+def folder_lock(out_dir: Path, stream: IO[str] | None = None) -> Iterator[None]:
+    """Hold the results folder for this process (see the module docstring), or raise
+    FolderBusy naming the owner; `stream` gets the note when a stale lock is taken over."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / LOCK_FILE
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        owner = _lock_owner(fd)
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise _busy(out_dir, _lock_owner(fd) or owner) from None
+        elif owner and owner.get("pid") != os.getpid() and pid_alive(int(owner["pid"])):
+            raise _busy(out_dir, owner)
+        if owner:
+            print(f"fleet-sim: note: {out_dir}: taking over the lock of pid {owner.get('pid')} "
+                  f"(host {owner.get('host')}, started {owner.get('started')}), which is no "
+                  "longer running", file=stream or sys.stderr)
+        os.ftruncate(fd, 0)
+        mine = {"pid": os.getpid(), "host": socket.gethostname(),
+                "started": time.strftime("%Y-%m-%dT%H:%M:%S")}
+        os.pwrite(fd, (json.dumps(mine) + "\n").encode(), 0)
+        try:
+            yield
+        finally:
+            os.ftruncate(fd, 0)  # released: an empty lock file names no owner
+    finally:
+        os.close(fd)  # releases the flock
+
+
+def _lock_owner(fd: int) -> dict[str, Any] | None:
+    try:
+        owner = json.loads(os.pread(fd, 4096, 0).decode() or "null")
+    except (OSError, ValueError):
+        return None
+    return owner if isinstance(owner, dict) and "pid" in owner else None
+
+
+def _busy(out_dir: Path, owner: dict[str, Any] | None) -> FolderBusy:
+    who = (f"pid {owner.get('pid')} on {owner.get('host')}, started {owner.get('started')}"
+           if owner else "pid unknown")
+    return FolderBusy(f"{out_dir}: the results folder is in use by another sweep or size "
+                      f"({who}); wait for it to finish or use --out for another folder")
+
+
+# ---- one run, in a worker ------------------------------------------------------------------
+
+
+def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
+    """Run `spec` into ``runs_dir/<run id>``; never raises for a failing run."""
+    from fleet_sim.analysis.tables import stream_run
+    from fleet_sim.config.scenario import load_scenario
+
+    start = time.perf_counter()
+    run_dir = Path(runs_dir) / spec.run_id
+    run_dir.mkdir(parents=True, exist_ok=True)
+    if (run_dir / "kpis.json").exists():
+        return RunResult(spec.run_id, OK, 0.0)
+    for stale in ("error.json",):
+        (run_dir / stale).unlink(missing_ok=True)
+    info = {**spec.as_json(), "pid": os.getpid(), "host": socket.gethostname(),
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    _write_json_atomic(run_dir / "spec.json", info)
+    partial = run_dir / ".partial"
+    try:
+        shutil.rmtree(partial, ignore_errors=True)
+        scenario = load_scenario(spec.scenario_file, spec.override_dict())
+        layout = layout_for(scenario, spec.scenario_file)
+        run, figures = stream_run(scenario, layout, partial, load_trace_for(scenario, layout),
+                                  record_occupancy=True)
+        events = pd.read_parquet(partial / "events.parquet", columns=list(WORK_SPELL_COLUMNS))
+        waits = node_waits(run.recorder.occupancy, events, scenario.warmup_s,
+                           scenario.duration_s)
+        waits.to_parquet(partial / "node_waits.parquet", index=False)
+        wall = time.perf_counter() - start
+        figures["wall_s"] = round(wall, 3)
+        _write_json_atomic(partial / "kpis.json", figures)
+        for item in sorted(partial.iterdir(), key=lambda p: p.name == "kpis.json"):
+            os.replace(item, run_dir / item.name)  # kpis.json last: the run is finished
+        partial.rmdir()
+        return RunResult(spec.run_id, OK, wall)
+    except Exception as exc:  # a failing run is recorded, never raised
+        wall = time.perf_counter() - start
+        message = str(exc) if isinstance(exc, FleetSimError | InputError) \
+            else f"{type(exc).__name__}: {exc}"
+        record_failure(run_dir, FAILED, message, traceback.format_exc(), wall)
+        shutil.rmtree(partial, ignore_errors=True)
+        return RunResult(spec.run_id, FAILED, wall, message)
+
+
+def record_failure(run_dir: Path, status: str, message: str, trace: str, wall_s: float) -> None:
+    run_dir.mkdir(parents=True, exist_ok=True)
+    _write_json_atomic(run_dir / "error.json", {"status": status, "error": message,
+                                                "traceback": trace, "wall_s": round(wall_s, 3)})
+
+
+def _write_json_atomic(path: Path, data: Any) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=str) + "\n", encoding="utf-8")
+    os.replace(tmp, path)
+
+
+
+# ---- progress ------------------------------------------------------------------------------
+
+
+@dataclass
+class RunTally:
+    """Counts runs as they finish and shows them through `progress`."""
+
+    progress: Progress
+    total: int
+    done: int
+    failed: int = 0
+
+    def __call__(self, result: RunResult) -> None:
+        self.done += 1
+        if result.status != OK:
+            self.failed += 1
+            self.progress.note(f"run {result.run_id} {result.status}: {result.error}")
+        self.progress.update(self.done, f"runs {self.done}/{self.total} done, "
+                                        f"{self.failed} failed")
+
+
+# ---- runners -------------------------------------------------------------------------------
+
+
+PARENT_POLL_S = 0.5
+"""How often a worker checks that the sweep process is still alive."""
+
+
+def _process_start(pid: int) -> str | None:
+    """The process's start time (field 22 of /proc/<pid>/stat), "Z" for a zombie, or None
+    where /proc cannot tell (not Linux, no such process)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text(encoding="ascii", errors="replace")
+    except OSError:
+        return None
+    fields = stat[stat.rfind(")") + 2:].split()
+    return "Z" if fields[0] in ("Z", "X") else fields[19]
+
+
+def pid_alive(pid: int, start: str | None = None) -> bool:
+    """True if process `pid` runs (and, given its /proc start time `start`, is that process)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    now = _process_start(pid)
+    return now != "Z" and (start is None or now is None or now == start)
+
+
+def _die_with(sweep_pid: int) -> None:
+    """Worker initializer: end this worker when the sweep process `sweep_pid` is gone."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            libc = ctypes.CDLL(None, use_errno=True)
+            pr_set_pdeathsig = 1
+            libc.prctl(pr_set_pdeathsig, 9, 0, 0, 0)  # SIGKILL when the parent (fork server) dies
+        except (OSError, AttributeError):
+            pass
+    start = _process_start(sweep_pid)
+    if not pid_alive(sweep_pid, start):
+        os._exit(1)
+
+    def watch() -> None:
+        while pid_alive(sweep_pid, start):
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)  # the sweep is gone: no one would take this run's result
+
+    threading.Thread(target=watch, name="fleet-sim-watch-sweep", daemon=True).start()
+
+
+def _mp_context() -> Any:
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload(["fleet_sim.study.runner", "fleet_sim.sim.engine",
+                                        "fleet_sim.analysis.kpis", "fleet_sim.analysis.tables"])
+        return context
+    return multiprocessing.get_context("spawn")
+
+
+class LocalPool:
+    """Worker processes on this machine, kept across batches of runs (the sizing search sends
+    many small batches); a dying worker never sinks the sweep (see the module docstring)."""
+
+    def __init__(self, workers: int, run_fn: RunFn = execute_run) -> None:
+        self.workers = max(1, workers)
+        self.run_fn = run_fn
+        self.pool: cf.ProcessPoolExecutor | None = None
+
+    def __enter__(self) -> LocalPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            self.pool = None
+
+    def _kill(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            self.pool = None
+
+    def run(self, specs: Sequence[RunSpec], runs_dir: Path,
+            on_result: Callable[[RunResult], None]) -> list[RunResult]:
+        pending: deque[RunSpec] = deque(specs)
+        suspects: deque[RunSpec] = deque()
+        results: list[RunResult] = []
+        inflight: dict[cf.Future[RunResult], RunSpec] = {}
+        isolated = False
+        try:
+            while pending or suspects or inflight:
+                if self.pool is None:
+                    self.pool = cf.ProcessPoolExecutor(max_workers=self.workers,
+                                                       mp_context=_mp_context(),
+                                                       initializer=_die_with,
+                                                       initargs=(os.getpid(),))
+                pool = self.pool
+                if not inflight:
+                    isolated = bool(suspects)
+                    if isolated:
+                        spec = suspects.popleft()
+                        inflight[pool.submit(self.run_fn, spec, str(runs_dir))] = spec
+                if not isolated:
+                    while pending and len(inflight) < self.workers:
+                        spec = pending.popleft()
+                        inflight[pool.submit(self.run_fn, spec, str(runs_dir))] = spec
+                done, _ = cf.wait(inflight, return_when=cf.FIRST_COMPLETED)
+                broken = False
+                for future in done:
+                    spec = inflight.pop(future)
+                    try:
+                        result = future.result()
+                    except cf.process.BrokenProcessPool:
+                        broken = True
+                        if not isolated:
+                            suspects.append(spec)
+                            continue
+                        result = _crashed(spec, runs_dir)
+                    except Exception as exc:  # the run function itself failed to report
+                        result = _failed_outside(spec, runs_dir, FAILED,
+                                                 f"{type(exc).__name__}: {exc}",
+                                                 traceback.format_exc())
+                    results.append(result)
+                    on_result(result)
+                if broken:
+                    # every other run in flight was lost with the pool: retry each alone
+                    suspects.extend(inflight.values())
+                    inflight.clear()
+                    self._kill()
+        except BaseException:
+            self._kill()  # interrupted: do not wait for runs in flight
+            raise
+        return results
+
+
+def run_local(specs: Sequence[RunSpec], runs_dir: Path, workers: int,
+              on_result: Callable[[RunResult], None], run_fn: RunFn = execute_run
+              ) -> list[RunResult]:
+    """Run `specs` in a pool of `workers` processes started for them."""
+    with LocalPool(workers, run_fn) as pool:
+        return pool.run(specs, runs_dir, on_result)
+
+
+def _crashed(spec: RunSpec, runs_dir: Path) -> RunResult:
+    message = ("the worker process running it died without a Python exception "
+               "(killed, out of memory, or a crash in native code)")
+    _failed_outside(spec, runs_dir, CRASHED, message, "")
+    shutil.rmtree(runs_dir / spec.run_id / ".partial", ignore_errors=True)
+    return RunResult(spec.run_id, CRASHED, 0.0, message)
+
+
+def _failed_outside(spec: RunSpec, runs_dir: Path, status: str, message: str,
+                    trace: str) -> RunResult:
+    """Record a run that failed outside the run function (which may never have started)."""
+    run_dir = runs_dir / spec.run_id
+    run_dir.mkdir(parents=True, exist_ok=True)
+    if not (run_dir / "spec.json").exists():
+        _write_json_atomic(run_dir / "spec.json", spec.as_json())
+    record_failure(run_dir, status, message, trace, 0.0)
+    return RunResult(spec.run_id, status, 0.0, message)
+
+
+def run_serial(specs: Sequence[RunSpec], runs_dir: Path, on_result: Callable[[RunResult], None],
+               run_fn: RunFn = execute_run) -> list[RunResult]:
+    """Run `specs` one after another in this process (benchmarks, debugging)."""
+    results = []
+    for spec in specs:
+        result = run_fn(spec, str(runs_dir))
+        results.append(result)
+        on_result(result)
+    return results
+
+
+class DaskPool:
+    """Runs on a Dask cluster: the scheduler at `scheduler`, or "local" for a LocalCluster of
+    `workers` single-threaded worker processes on this machine. The results folder must be
+    reachable by the workers at the same path (a shared file system on a real cluster)."""
+
+    def __init__(self, scheduler: str, workers: int, run_fn: RunFn = execute_run) -> None:
+        self.scheduler = scheduler
+        self.workers = max(1, workers)
+        self.run_fn = run_fn
+        self.client: Any = None
+        self.cluster: Any = None
+
+    def __enter__(self) -> DaskPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if self.client is not None:
+            self.client.close()
+            self.client = None
+        if self.cluster is not None:
+            self.cluster.close()
+            self.cluster = None
+
+    def _connect(self) -> Any:
+        distributed: Any = importlib.import_module("dask.distributed")  # untyped
+        Client, LocalCluster = distributed.Client, distributed.LocalCluster
+        if self.client is None:
+            address: Any = self.scheduler
+            if self.scheduler == "local":
+                self.cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1,
+                                            processes=True, dashboard_address=None)
+                address = self.cluster
+            try:
+                self.client = Client(address, timeout="20s")
+            except OSError as exc:
+                raise InputError("--scheduler", "address", self.scheduler,
+                                 f"a reachable Dask scheduler ({exc})") from None
+        return self.client
+
+    def run(self, specs: Sequence[RunSpec], runs_dir: Path,
+            on_result: Callable[[RunResult], None]) -> list[RunResult]:
+        client = self._connect()
+        as_completed = importlib.import_module("dask.distributed").as_completed
+        results: list[RunResult] = []
+        stamp = time.time_ns()
+        futures = {client.submit(self.run_fn, spec, str(runs_dir.resolve()), pure=False,
+                                 key=f"fleet-sim-run-{spec.run_id}-{stamp}"): spec
+                   for spec in specs}
+        for future in as_completed(futures):
+            spec = futures[future]
+            try:
+                result = future.result()
+            except Exception as exc:
+                if type(exc).__name__ == "KilledWorker":
+                    result = _crashed(spec, runs_dir)
+                else:
+                    result = _failed_outside(spec, runs_dir, FAILED,
+                                             f"{type(exc).__name__}: {exc}",
+                                             "".join(traceback.format_exception(exc)))
+            results.append(result)
+            on_result(result)
+        return results
+
+
+
+# ---- a batch of runs -------------------------------------------------------------------------
+
+
+@dataclass
+class SweepOutcome:
+    out_dir: Path
+    total: int
+    skipped: int
+    results: list[RunResult]
+
+    @property
+    def failed(self) -> list[RunResult]:
+        return [r for r in self.results if r.status != OK]
+
+
+def default_out(experiment: Experiment) -> Path:
+    return Path("results") / experiment.name
+
+
+def prepare(experiment: Experiment, out_dir: Path) -> None:
+    """Create the results folder and record the experiment in it."""
+    (out_dir / "runs").mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(experiment.file, out_dir / "experiment.yaml")
+    (out_dir / "experiment.resolved.yaml").write_text(
+        yaml.safe_dump(experiment.resolved(), sort_keys=False, allow_unicode=True),
+        encoding="utf-8")
+
+
+def finished(spec: RunSpec, runs_dir: Path) -> bool:
+    """True if the run's kpis.json exists; an error if the folder holds a different run."""
+    run_dir = runs_dir / spec.run_id
+    spec_file = run_dir / "spec.json"
+    if spec_file.exists():
+        try:
+            recorded = json.loads(spec_file.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError):
+            recorded = None
+        wanted = json.loads(json.dumps(spec.as_json(), default=str))
+        if recorded is not None:
+            for key in ("seed", "overrides", "scenario_file"):
+                if recorded.get(key) != wanted[key]:
+                    raise SweepError(
+                        f"{run_dir}: this run was made with another {key} "
+                        f"({recorded.get(key)!r}, now {wanted[key]!r}): the results folder "
+                        "holds another experiment; use --out for a new folder or delete it")
+    return (run_dir / "kpis.json").exists()
+
+
+def execute(specs: Iterable[RunSpec], out_dir: Path, workers: int = 0,
+            scheduler: str | None = None, quiet: bool = False,
+            run_fn: RunFn = execute_run, stream: IO[str] | None = None,
+            pool: LocalPool | DaskPool | None = None) -> SweepOutcome:
+    """Run every spec not yet finished in `out_dir/runs`; workers=0 means one per core.
+    `pool`: worker processes to reuse (else a pool is started for these runs)."""
+    runs_dir = out_dir / "runs"
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    specs = list(specs)
+    todo = [s for s in specs if not finished(s, runs_dir)]
+    todo.sort(key=lambda s: -_cost(s))
+    workers = workers or os.cpu_count() or 1
+    already = len(specs) - len(todo)
+    with Progress(len(specs), already, stream=stream, quiet=quiet) as progress:
+        if already:
+            progress.note(f"{already} of {len(specs)} runs already finished: skipped")
+        tally = RunTally(progress, len(specs), already)
+        if not todo:
+            results: list[RunResult] = []
+        elif pool is not None:
+            results = pool.run(todo, runs_dir, tally)
+        elif scheduler:
+            with DaskPool(scheduler, workers, run_fn) as dask_pool:
+                results = dask_pool.run(todo, runs_dir, tally)
+        else:
+            results = run_local(todo, runs_dir, min(workers, len(todo)), tally, run_fn)
+    return SweepOutcome(out_dir, len(specs), len(specs) - len(todo), results)
+
+
+def _cost(spec: RunSpec) -> float:
+    """A run's relative cost, for scheduling: its fleet size where a factor gives it (a mixed
+    fleet: the counts its factors give)."""
+    overrides = spec.override_dict()
+    size = overrides.get(FLEET)
+    if size is None:
+        size = sum(v for k, v in overrides.items() if k.startswith(f"{VEHICLE_TYPES}.")
+                   and k.endswith(".count") and isinstance(v, int)) or 1
+    return float(size) if isinstance(size, (int, float)) else 1.0
+
+
