@@ -117,3 +117,20 @@ def test_fleet_sim_run_of_a_locked_layout_exits_0_with_its_tables(tmp_path: Path
     assert "ring__r00" in statement
     assert f"at most {figures['orders_open_at_end']}" in open_orders_line(summary)
     assert gridlock_statement(summary.iloc[1:]) is None and open_orders_line(summary[1:]) == ""
+
+
+def test_a_lead_time_target_is_not_met_by_a_fleet_that_leaves_a_backlog() -> None:
+    """Four replications deliver fast (p95 500 s) but leave orders open 5,000 s at p95: the
+    p95 target of 900 s fails; with young open orders (300 s) it is met."""
+    from fleet_sim.analysis.stats import check_targets
+    from fleet_sim.config.experiment import Target
+
+    target = Target(kpi="lead_time_p95_s", at_most=900.0)
+    rows = [{"run_id": f"r{i}", "status": "ok", "fleet.size": 4,
+             "lead_time_p95_s": 500.0 + i, "open_order_age_p95_s": 5000.0 + i}
+            for i in range(4)]
+    (backlog,) = check_targets(pd.DataFrame(rows), ["fleet.size"], [target])
+    assert backlog.decision == "fails" and backlog.interval.mean > 5000
+    young = pd.DataFrame([{**r, "open_order_age_p95_s": 300.0} for r in rows])
+    (fine,) = check_targets(young, ["fleet.size"], [target])
+    assert fine.decision == "meets" and abs(fine.interval.mean - 501.5) < 1e-9
