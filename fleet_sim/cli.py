@@ -525,6 +525,7 @@ def _sweep(args: argparse.Namespace) -> int:
           f"{done} finished in all, {len(outcome.failed)} failed in this sweep")
     for failure in outcome.failed:
         print(f"  failed: {failure.run_id} ({failure.status}): {failure.error}")
+    _warn_gridlock(summary)
     warnings = [w for w in (c.warning() for c in check_targets(
         summary, experiment.factor_names, experiment.spec.targets)) if w]
     for warning in warnings[:MAX_WARNINGS]:
@@ -560,8 +561,21 @@ def _size(args: argparse.Namespace) -> int:
               f"{est.empty_travel_s:.1f} s empty + {est.loaded_travel_s:.1f} s loaded travel + "
               f"{est.handling_s:.1f} s handling; {est.demand_per_hour:.1f} orders/h)")
         print(f"  simulation: {result.statement()}")
+    if (out / "summary.parquet").is_file():
+        import pandas as pd
+
+        _warn_gridlock(pd.read_parquet(out / "summary.parquet"))
     print(f"  sizing       {out / 'sizing.json'}")
     return 0
+
+
+def _warn_gridlock(summary: typing.Any) -> None:
+    """The warning line of a sweep or sizing search whose runs locked solid, if any did."""
+    from fleet_sim.report.report import gridlock_statement
+
+    statement = gridlock_statement(summary) if len(summary) else None
+    if statement is not None:
+        print(f"  {statement}")
 
 
 def _report(args: argparse.Namespace) -> int:

@@ -14,10 +14,12 @@ import yaml
 
 from fleet_sim.analysis.kpis import (
     CATALOGUE,
+    NOTE_FIELDS,
     RUN_FIELDS,
     compute_kpis,
     kpi_names,
     kpi_value,
+    target_value,
 )
 from fleet_sim.config.experiment import load_experiment
 from fleet_sim.model.not_dispatched import NotDispatched
@@ -106,6 +108,7 @@ def test_every_kpi_of_a_hand_made_run() -> None:
         "deadlocks_detected": 2,
         "distance_km": 12.345,
         "order_wait_mean_s": 160.0,  # (100 + 200 + 100 + 300 + 100) / 5; order 5 waits on
+        "order_wait_incl_unassigned_mean_s": 150.0,  # (800 + order 5: 3600 - 3500) / 6
         "order_queue_mean": 1.0,  # (2 x 900 + 1 x 900 + 0 x 900) / 2700
         # AGV 0: Idle 300 + 1600, Moving 800; AGV 1: Idle 900 + 600, Error 600, Maint. 600
         "state_booting_pct": 0.0, "state_idle_pct": 62.962963, "state_moving_pct": 14.814815,
@@ -125,12 +128,57 @@ def test_every_kpi_of_a_hand_made_run() -> None:
             "admission_full": 0.0},
         "orders_failed": 1, "orders_reassigned": 1,
         "charges": 2, "charging_queue_wait_mean_s": 40.0,  # (60 + 20) / 2
+        "charger_waits_open_at_end": 0,
         "commands_sent": 7, "command_retries": 1, "obstacle_pauses": 4, "comm_losses": 1,
         "errors_by_code": {"E_101": 2, "E_999": 1}, "warnings_by_code": {"E_002": 3},
         "demand_per_hour": 5.333333,  # orders 2, 3, 4, 5 created in 0.75 h
         "throughput_pct_of_demand": 75.0,  # 4 of 5.33 per hour
-        "orders_open_at_end": 2,  # orders 4 (failed) and 5
+        "orders_open_at_end": 1,  # order 5 (order 4 failed: not open)
+        "open_order_age_mean_s": 100.0, "open_order_age_p95_s": 100.0,  # 3600 - 3500
+        "open_order_age_max_s": 100.0, "orders_unassigned_at_end": 1,
+        "gridlock_at_h": None, "gridlock_where": None,
     }
+
+
+def test_spells_open_at_the_end_count_to_the_end() -> None:
+    """The hand-made run, but at the end (3600 s) AGV 0 still waits for a lock since 3000 s,
+    for zone Z's gate, AGV 1 for a node since 500 s (in the warm-up), and AGV 1 for a charger
+    since 3300 s; orders 7 (assigned, not delivered) and 8 (never assigned) are open."""
+    rec = hand_made_recorder()
+    rec.zone_wait_s = {"Z": 40.0}
+    record_orders(rec, [Order(7, 2600.0, "PICK", "DROP", agv=0, assigned_s=3000.0),
+                        Order(8, 3240.0, "PICK", "DROP")])
+    rec.wait_began(0, 3000.0, "Z")
+    rec.wait_began(1, 500.0)
+    rec.charger_asked(1, 3300.0)
+    rec.wait_began(0, 3100.0)  # a later wait of AGV 0 (the one before it ended) ...
+    rec.blocked(3000.0, 3100.0, 0)  # ... its end is counted once, as a closed wait
+    rec.wait_began(0, 3100.0, "Z")
+    rec.end_of_run()
+    rec.blocked(3100.0, 3600.0, 0)  # a wait closed after the end (garbage collection): no
+    scenario = make_scenario(name="hand", seed=3, duration_h=1.0, warmup_h=0.25,
+                             fleet={"size": 2})
+    figures = compute_kpis(rec, scenario, "tiny_loop")
+    # 270 before + 100 (3000-3100) + 500 (3100-3600, open) + 2700 (AGV 1: 900-3600, open)
+    assert figures["blocked_time_pct"] == round(100 * 3570 / 5400, 6)
+    assert figures["zone_wait_s"] == {"Z": 540.0}  # 40 + 500 still open
+    assert figures["charging_queue_wait_mean_s"] == 126.666667  # (60 + 20 + 300 open) / 3
+    assert figures["charger_waits_open_at_end"] == 1 and figures["charges"] == 2
+    assert figures["orders_open_at_end"] == 3  # orders 5, 7 and 8
+    assert figures["open_order_age_max_s"] == 1000.0  # order 7: 3600 - 2600
+    assert figures["open_order_age_mean_s"] == round((100 + 1000 + 360) / 3, 6)
+    assert figures["open_order_age_p95_s"] == 936.0  # 360 + 0.9 x (1000 - 360)
+    assert figures["orders_unassigned_at_end"] == 2  # 5 and 8
+    # assigned: 800 over 5, and order 7 400; never assigned: 100 and 360 -> 1660 / 8
+    assert figures["order_wait_mean_s"] == 200.0
+    assert figures["order_wait_incl_unassigned_mean_s"] == 207.5
+    # lead time targets: held against the open orders' age of the same statistic
+    assert figures["lead_time_p95_s"] == 1450.0
+    assert target_value(figures, "lead_time_p95_s") == 1450.0  # above the open ages' 936
+    assert target_value(figures, "lead_time_mean_s") == figures["lead_time_mean_s"]
+    assert target_value({**figures, "open_order_age_mean_s": 5000.0},
+                        "lead_time_mean_s") == 5000.0
+    assert target_value(figures, "throughput_per_hour") == 4.0  # other KPIs as they are
 
 
 def test_throughput_pct_of_demand_uses_the_rounded_throughput() -> None:
@@ -163,7 +211,8 @@ def test_no_orders_no_demand_no_ratio() -> None:
 
 def test_catalogue_names_every_kpi_a_run_reports_once() -> None:
     figures = hand_made_figures()
-    reported = {k for k in figures if k not in RUN_FIELDS and not isinstance(figures[k], dict)}
+    reported = {k for k in figures if k not in RUN_FIELDS + NOTE_FIELDS
+                and not isinstance(figures[k], dict)}
     names = [k.name for k in CATALOGUE]
     assert len(names) == len(set(names))
     assert reported <= kpi_names()
@@ -172,7 +221,7 @@ def test_catalogue_names_every_kpi_a_run_reports_once() -> None:
         "errors_by_code.E_202", "errors_by_code.E_301", "errors_by_code.E_999",
         "warnings_by_code.E_001", "warnings_by_code.E_002",
         *(f"idle_with_orders_waiting_pct_by_reason.{r}" for r in NotDispatched)}
-    assert not set(RUN_FIELDS) & kpi_names()
+    assert not set(RUN_FIELDS + NOTE_FIELDS) & kpi_names()
     assert all(k.unit and k.meaning for k in CATALOGUE)
 
 

@@ -308,7 +308,8 @@ def test_every_value_the_templates_print_is_escaped() -> None:
 def test_a_value_the_code_did_not_give_is_an_error() -> None:
     """StrictUndefined: a template printing a missing value fails instead of leaving a blank."""
     section = SimpleNamespace(title="Runs", template="runs.html.j2", figures=[], runs=2,
-                              finished=2, failed=0, failed_runs=None, database="db")
+                              finished=2, failed=0, failed_runs=None, database="db",
+                              gridlocked_runs=None, open_orders="")
     report = SimpleNamespace(title="t", lead="l", statements=[], estimates=[],
                              sections=[section])
     with pytest.raises(UndefinedError, match="wall_s"):

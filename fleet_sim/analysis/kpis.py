@@ -63,7 +63,7 @@ import math
 from array import array
 from bisect import bisect_right
 from collections import Counter, deque
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -91,6 +91,10 @@ DOWN_STATES = (VehicleState.ERROR, VehicleState.MAINTENANCE, VehicleState.SAFE_M
 RUN_FIELDS = ("scenario", "layout", "agvs", "seed", "duration_h", "warmup_h",
               "setup_warnings")
 """What kpis.json says about the run before its KPIs (not KPIs themselves)."""
+
+NOTE_FIELDS = ("gridlock_where",)
+"""What kpis.json says beside a KPI, as text, not a KPI: gridlock_where (after gridlock_at_h:
+``agvs 3 5 at nodes M007 M008 (wait-for cycle)``, none if no gridlock)."""
 
 
 @dataclass(frozen=True)
@@ -132,26 +136,36 @@ CATALOGUE: tuple[Kpi, ...] = (
     Kpi("orders_completed", "orders", "orders delivered over the whole run"),
     Kpi("throughput_per_hour", "orders/h", "orders delivered in the window, per hour"),
     Kpi("lead_time_mean_s", "s", "mean time from creation to delivery of the orders delivered "
-        "in the window (none if none was)"),
-    Kpi("lead_time_p95_s", "s", "95th percentile of the same lead times"),
+        "in the window (none if none was); orders not delivered are not in it: see "
+        "open_order_age_*, which a lead-time target also holds to its bound"),
+    Kpi("lead_time_p95_s", "s", "95th percentile of the same lead times (delivered orders "
+        "only)"),
     Kpi("agv_utilisation_pct", "%", "share of AGV time busy with an order (assigned to "
-        "delivered, or to failed)"),
-    Kpi("blocked_time_pct", "%", "share of AGV time spent waiting for a node or corridor held "
-        "by another AGV"),
-    Kpi("deadlocks_detected", "count", "wait-for cycles found (each also an event)"),
-    Kpi("distance_km", "km", "distance driven in the window, all AGVs"),
-    Kpi("order_wait_mean_s", "s", "mean time from creation to assignment, orders assigned"),
-    Kpi("order_queue_mean", "orders", "time-average number of orders waiting for an AGV"),
+        "delivered, or to failed; an order still open is busy to the end)"),
+    Kpi("blocked_time_pct", "%", "share of AGV time spent waiting for a node, corridor or zone "
+        "held by another AGV (a wait still open at the end counts to the end)"),
+    Kpi("deadlocks_detected", "count", "wait-for cycles found (each also an event; resolved "
+        "or not)"),
+    Kpi("distance_km", "km", "distance driven in the window, all AGVs (each hop counted when "
+        "it ends: a hop under way at the end, at most one per AGV, is not)"),
+    Kpi("order_wait_mean_s", "s", "mean time from creation to assignment, orders assigned "
+        "(orders never assigned: order_wait_incl_unassigned_mean_s)"),
+    Kpi("order_wait_incl_unassigned_mean_s", "s", "mean time from creation to assignment over "
+        "every order created, those never assigned counted to the end of the run"),
+    Kpi("order_queue_mean", "orders", "time-average number of orders waiting for an AGV (to "
+        "the end)"),
     *_state_kpis(),
     Kpi("availability_pct", "%", "share of AGV time not in Error, Maintenance or SafeMode"),
     Kpi("idle_with_orders_waiting_pct", "%", "share of AGV time in state Idle while at least "
-        "one order waited unassigned (each such moment has a reason below)"),
+        "one order waited unassigned (each such moment has a reason below; spells open at "
+        "the end count to the end)"),
     *_reason_kpis(),
     Kpi("orders_failed", "orders", "loaded orders lost with a failed AGV, whole run"),
     Kpi("orders_reassigned", "orders", "times an order went back to the queue, whole run"),
     Kpi("charges", "count", "charging stops, whole run"),
-    Kpi("charging_queue_wait_mean_s", "s", "mean time from asking for a charger to getting one "
-        "(none if no AGV charged)"),
+    Kpi("charging_queue_wait_mean_s", "s", "mean time from asking for a charger to getting one, "
+        "requests still waiting at the end counted to the end (none if no AGV asked)"),
+    Kpi("charger_waits_open_at_end", "count", "AGVs still waiting for a charger at the end"),
     Kpi("commands_sent", "count", "commands the fleet manager sent, whole run"),
     Kpi("command_retries", "count", "commands sent again after no answer, whole run"),
     Kpi("obstacle_pauses", "count", "obstacle pauses (RSS-AGV-001 4.2.3), whole run"),
@@ -160,7 +174,17 @@ CATALOGUE: tuple[Kpi, ...] = (
     Kpi("demand_per_hour", "orders/h", "orders created in the window, per hour"),
     Kpi("throughput_pct_of_demand", "%", "throughput_per_hour over demand_per_hour (none "
         "without demand)"),
-    Kpi("orders_open_at_end", "orders", "orders created but not delivered by the end"),
+    Kpi("orders_open_at_end", "orders", "orders created and neither delivered nor failed by "
+        "the end"),
+    Kpi("open_order_age_mean_s", "s", "mean age at the end of the orders open at the end (none "
+        "if none is)"),
+    Kpi("open_order_age_p95_s", "s", "95th percentile of the same ages"),
+    Kpi("open_order_age_max_s", "s", "age at the end of the oldest order open at the end"),
+    Kpi("orders_unassigned_at_end", "orders", "orders open at the end never assigned to an "
+        "AGV"),
+    Kpi("gridlock_at_h", "h", "when the fleet locked solid (an unresolved wait-for cycle, or "
+        "no AGV moving while orders waited and AGVs waited for locks, for "
+        "traffic.gridlock_after_s), hours from the start; none if it never did"),
     Kpi("wall_s", "s", "wall-clock time of the run (sweeps only; not a result)"),
 )
 """Every KPI a run reports, in the order of kpis.json (per-code ones flattened)."""
@@ -239,6 +263,11 @@ class KpiSums:
         """Per AGV, seconds in the window with an order (assigned to delivered or failed)."""
         self.wait_sum_s = 0.0
         self.waits = 0
+        self.unassigned_wait_sum_s = 0.0
+        """Orders never assigned: creation to the end of the run."""
+        self.unassigned = 0
+        self.open_age_s = array("d")
+        """Orders open at the end (neither delivered nor failed): their age at the end."""
         self.state_s: dict[int, dict[str, float]] = {}
         """Per AGV, seconds in the window in each state."""
         self._state_since: dict[int, tuple[str, float]] = {}
@@ -271,7 +300,9 @@ class KpiSums:
 
     def orders(self, rows: Sequence[Order]) -> None:
         """Each order once, with its final timestamps. Busy: from its assignment to its
-        delivery, or its failure, or the end of the run."""
+        delivery, or its failure, or the end of the run. Orders neither delivered nor failed
+        are open at the end (they come last): their age then, and their wait for an AGV if
+        they never got one."""
         start, end = self.start_s, self.end_s
         for o in rows:
             self.orders_created += 1
@@ -286,6 +317,11 @@ class KpiSums:
                 if start <= o.delivered_s <= end:
                     self.lead_s.append(o.delivered_s - o.created_s)
                     self.lead_agv.append(agv)
+            if o.delivered_s is None and o.failed_s is None:
+                self.open_age_s.append(end - o.created_s)
+                if o.assigned_s is None:
+                    self.unassigned += 1
+                    self.unassigned_wait_sum_s += end - o.created_s
             if o.assigned_s is not None:
                 self.wait_sum_s += o.assigned_s - o.created_s
                 self.waits += 1
@@ -401,6 +437,9 @@ class KpiSums:
             "deadlocks_detected": recorder.deadlocks,
             "distance_km": _round(recorder.distance_m / 1000.0),
             "order_wait_mean_s": _round(self.wait_sum_s / self.waits) if self.waits else None,
+            "order_wait_incl_unassigned_mean_s": _round(
+                (self.wait_sum_s + self.unassigned_wait_sum_s) / (self.waits + self.unassigned))
+            if self.waits + self.unassigned else None,
             "order_queue_mean": _round(queue / (end - start)),
         }
         states = fleet["states"]
@@ -416,8 +455,9 @@ class KpiSums:
             "orders_failed": self.orders_failed,
             "orders_reassigned": self.orders_reassigned,
             "charges": self.charges,
-            "charging_queue_wait_mean_s": _round(self.charge_wait_sum_s / self.charges)
-            if self.charges else None,
+            "charging_queue_wait_mean_s": _charge_wait_mean(
+                self.charge_wait_sum_s, self.charges, recorder.charger_waits_open, end),
+            "charger_waits_open_at_end": len(recorder.charger_waits_open),
             "commands_sent": recorder.commands_sent,
             "command_retries": recorder.command_retries,
             "obstacle_pauses": recorder.obstacle_pauses,
@@ -427,7 +467,12 @@ class KpiSums:
             "demand_per_hour": _round(demand),
             "throughput_pct_of_demand": _round(100.0 * throughput / demand) if demand > 0
             else None,
-            "orders_open_at_end": self.orders_created - fleet["orders_completed"],
+            "orders_open_at_end": len(self.open_age_s),
+            **_ages(self.open_age_s),
+            "orders_unassigned_at_end": self.unassigned,
+            "gridlock_at_h": None if recorder.gridlock is None
+            else _round(recorder.gridlock.since_s / 3600.0),
+            "gridlock_where": None if recorder.gridlock is None else recorder.gridlock.where(),
         })
         if scenario.fleet.vehicles:
             out["by_type"] = self.by_type(scenario)
@@ -678,6 +723,30 @@ def compute_kpis(recorder: Recorder, scenario: Scenario, layout_name: str,
     return sums.figures(recorder, scenario, layout_name, warnings)
 
 
+def _charge_wait_mean(closed_sum_s: float, closed: int, open_asked_s: Sequence[float],
+                      end_s: float) -> float | None:
+    """Mean wait for a charger: the charges made, then the requests open at the end, counted
+    to the end (none open: the sum of the charges alone, to the last bit as before)."""
+    count = closed + len(open_asked_s)
+    if not count:
+        return None
+    total = closed_sum_s
+    for asked in open_asked_s:
+        total += end_s - asked
+    return _round(total / count)
+
+
+def _ages(ages_s: array[float]) -> dict[str, float | None]:
+    """open_order_age_mean_s, _p95_s, _max_s (None without open orders)."""
+    if not ages_s:
+        return {"open_order_age_mean_s": None, "open_order_age_p95_s": None,
+                "open_order_age_max_s": None}
+    ages = np.frombuffer(ages_s, dtype=float)
+    return {"open_order_age_mean_s": _round(float(ages.mean())),
+            "open_order_age_p95_s": _round(float(np.percentile(ages, 95))),
+            "open_order_age_max_s": _round(float(ages.max()))}
+
+
 def _no_state_time() -> dict[str, float]:
     return {s.value: 0.0 for s in VehicleState}
 
@@ -709,7 +778,9 @@ def summary_text(figures: Mapping[str, Any]) -> str:
         f"  throughput / demand         {fmt(figures['throughput_pct_of_demand'], ' %')} "
         f"(demand {fmt(figures['demand_per_hour'], ' orders/h')})",
         f"  lead time mean / p95        {fmt(figures['lead_time_mean_s'], ' s')} / "
-        f"{fmt(figures['lead_time_p95_s'], ' s')}",
+        f"{fmt(figures['lead_time_p95_s'], ' s')}"
+        + (" (delivered orders only)" if figures.get("orders_open_at_end") else ""),
+        *_open_orders_text(figures, fmt),
         f"  AGV utilisation             {fmt(figures['agv_utilisation_pct'], ' %')}",
         f"  blocked by traffic          {fmt(figures['blocked_time_pct'], ' %')}",
         f"  deadlocks detected          {figures['deadlocks_detected']}",
@@ -724,6 +795,7 @@ def summary_text(figures: Mapping[str, Any]) -> str:
         f"{figures['orders_failed']} orders failed",
     ]
     by_type = figures.get("by_type") or {}
+    lines += gridlock_text(figures)
     for kind in dict.fromkeys(key.rpartition(".")[0] for key in by_type):
         lines.append(
             f"  type {kind:<22}{by_type[f'{kind}.agvs']} AGVs, "
@@ -731,6 +803,54 @@ def summary_text(figures: Mapping[str, Any]) -> str:
             f"{fmt(by_type[f'{kind}.agv_utilisation_pct'], ' %')}, lead time "
             f"{fmt(by_type[f'{kind}.lead_time_mean_s'], ' s')}")
     return "\n".join(lines)
+
+
+def _open_orders_text(figures: Mapping[str, Any], fmt: Callable[..., str]) -> list[str]:
+    """The orders open at the end and their age, when there are any."""
+    if not figures.get("orders_open_at_end"):
+        return []
+    return [f"  open at the end             {figures['orders_open_at_end']} orders "
+            f"({figures.get('orders_unassigned_at_end', 0)} never assigned), age mean / p95 "
+            f"/ max {fmt(figures['open_order_age_mean_s'], ' s')} / "
+            f"{fmt(figures['open_order_age_p95_s'], ' s')} / "
+            f"{fmt(figures['open_order_age_max_s'], ' s')}"]
+
+
+def gridlock_text(figures: Mapping[str, Any]) -> list[str]:
+    """The summary's warning when the run locked solid (none when it did not)."""
+    at_h = figures.get("gridlock_at_h")
+    if at_h is None:
+        return []
+    return [f"  WARNING: gridlock at {at_h:.2f} h: {figures.get('gridlock_where') or ''}; "
+            "nothing moved there from then on. Limit the AGVs on the floor (admission, "
+            "dispatch.max_active_agvs) or run fewer AGVs."]
+
+
+def gridlocked(figures: Mapping[str, Any]) -> bool:
+    """Did the run lock solid? (kpis.json, or a sweep summary row as a mapping.)"""
+    at_h = figures.get("gridlock_at_h")
+    return at_h is not None and not (isinstance(at_h, float) and math.isnan(at_h))
+
+
+OPEN_AGE_OF = {"lead_time_mean_s": "open_order_age_mean_s",
+               "lead_time_p95_s": "open_order_age_p95_s"}
+"""A target on a lead-time KPI is held against the larger of it and the same statistic of
+the open orders' age at the end (`target_value`)."""
+
+
+def target_value(figures: Mapping[str, Any], name: str) -> Any:
+    """The value a target on KPI `name` is judged by: `kpi_value`, but for a lead time the
+    larger of it and the open orders' age of the same statistic (`OPEN_AGE_OF`), so that a
+    fleet leaving a growing backlog cannot meet a lead-time target on the few orders it did
+    deliver; with no order delivered, the open orders' age alone."""
+    value = kpi_value(figures, name)
+    age_name = OPEN_AGE_OF.get(name)
+    age = None if age_name is None else figures.get(age_name)
+    if age is None or (isinstance(age, float) and math.isnan(age)):
+        return value
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return age
+    return max(value, age)
 
 
 def _reasons_text(by_reason: Mapping[str, float]) -> str:

@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 from scipy.special import stdtrit
 
-from fleet_sim.analysis.kpis import COUNTS_BY_CODE
+from fleet_sim.analysis.kpis import COUNTS_BY_CODE, OPEN_AGE_OF
 from fleet_sim.config.experiment import Target, point_text
 
 CONFIDENCE = 0.95
@@ -228,6 +228,10 @@ def check_targets(summary: pd.DataFrame, factor_names: Sequence[str],
         for target in targets:
             if target.kpi in group:
                 values = group[target.kpi].to_numpy(dtype=float, na_value=np.nan)
+                age = OPEN_AGE_OF.get(target.kpi)  # a lead time: the open orders' age too
+                if age is not None and age in group:
+                    values = np.fmax(values, group[age].to_numpy(dtype=float,
+                                                                 na_value=np.nan))
             elif target.kpi in COUNTS_BY_CODE:  # no run raised that code: zero times
                 values = np.zeros(len(group))
             else:

@@ -329,6 +329,10 @@ class TrafficConfig(StrictModel):
     round rather than block the way (assumed; see fleet_sim.sim.traffic.control)."""
     backoff_s: Positive = 5.0
     """Mean wait before a deadlocked AGV that cannot move tries again."""
+    gridlock_after_s: Positive = 600.0
+    """An unresolved wait-for cycle, or no AGV moving while orders are open and AGVs wait for
+    locks, that lasts this long is a gridlock: the run records it (event `gridlock`, KPI
+    gridlock_at_h) and its summary warns (fleet_sim.sim.gridlock says why 10 minutes)."""
     congestion_cost_s: float = Field(default=0.0, ge=0, le=3600)
     """Route cost (seconds) added per AGV standing on or queued for the node a segment leads
     to, when the route is planned: routes go round congested segments. 0 (default): shortest

@@ -35,6 +35,17 @@ Decisions:
 * Occupancy spells (node holds and segment traversals) are not streamed: they are recorded only
   when asked for (`record_occupancy`, which the sweep turns on for its per-node waits) and stay
   in memory then.
+* Spells still open when the run ends count up to the end (issue 20): a lock wait is opened
+  here when it begins (`wait_began`, with the zone it is for) and closed when it ends
+  (`blocked`); a charger request likewise (`charger_asked`, `charger_wait_over`). The engine
+  calls `end_of_run` once the clock has reached the end: every lock wait still open adds its
+  part of the window to `blocked_s` (and to its zone's `zone_wait_s`), and the charger
+  requests still waiting are kept in `charger_waits_open` (their ask times) for the KPIs. The
+  driving logic is untouched: it only tells the recorder when a wait starts. After
+  `end_of_run` the totals are final; a wait whose generator is closed later (garbage
+  collection) no longer adds to them.
+* Gridlock (fleet_sim.sim.gridlock): the first time the fleet locks solid is kept in
+  `gridlock` (a `Gridlock`), and recorded as a `gridlock` event.
 """
 
 from __future__ import annotations
@@ -197,6 +208,26 @@ class QueueLength(NamedTuple):
     orders: int
 
 
+class Gridlock(NamedTuple):
+    """The fleet locked solid: since when, which AGVs, where they stand, and why it counts."""
+
+    since_s: float
+    """When it locked: the cycle closed (its last member began to wait), or the last hop
+    ended with orders open and AGVs waiting for locks."""
+    agvs: tuple[int, ...]
+    nodes: tuple[str, ...]
+    """The nodes the AGVs stand at, in the same order."""
+    kind: str
+    """"cycle" (an unresolved wait-for cycle) or "standstill" (no AGV moved while orders
+    were open and AGVs waited for locks)."""
+
+    def where(self) -> str:
+        """``agvs 3 5 at nodes M007 M008 (wait-for cycle)``: who and where, in one line."""
+        why = "wait-for cycle" if self.kind == "cycle" else "nothing moving"
+        return (f"agvs {' '.join(map(str, self.agvs))} at nodes {' '.join(self.nodes)} "
+                f"({why})")
+
+
 class ChargeWait(NamedTuple):
     """One charging stop: when the AGV asked for a charger and when it got one."""
 
@@ -318,6 +349,18 @@ class Recorder:
     moves: list[MoveRecord] = field(default_factory=list)
     """Drives, lock waits and placements of every AGV, when traced (record_moves): the
     replay's data."""
+    open_waits: dict[int, tuple[float, str | None]] = field(default_factory=dict)
+    """AGV -> (since_s, zone id or None) of the lock wait under way (see the module)."""
+    charger_asked_s: dict[int, float] = field(default_factory=dict)
+    """AGV -> when it asked for the charger it still waits for."""
+    charger_waits_open: list[float] = field(default_factory=list)
+    """At the end of the run (`end_of_run`): the ask times of the charger requests still
+    waiting, by AGV."""
+    moved_s: float = 0.0
+    """When the latest hop ended (fleet_sim.sim.gridlock: nothing moving)."""
+    gridlock: Gridlock | None = None
+    ended: bool = False
+    """`end_of_run` has closed the open spells: the totals are final."""
     _full: float = field(init=False, repr=False)
     _closed: bool = field(default=False, init=False, repr=False)
 
@@ -334,8 +377,36 @@ class Recorder:
 
     # ---- what the model records ----------------------------------------------------------------
     def zone_waited(self, zone_id: str, start_s: float, end_s: float) -> None:
+        if self.ended:
+            return
         self.zone_wait_s[zone_id] = self.zone_wait_s.get(zone_id, 0.0) \
             + self.window(start_s, end_s)
+
+    def wait_began(self, agv: int, start_s: float, zone_id: str | None = None) -> None:
+        """AGV `agv` began waiting for a lock (for zone `zone_id`'s gate, if given)."""
+        self.open_waits[agv] = (start_s, zone_id)
+
+    def charger_asked(self, agv: int, asked_s: float) -> None:
+        self.charger_asked_s[agv] = asked_s
+
+    def charger_wait_over(self, agv: int) -> None:
+        """The AGV got its charger, or stopped waiting for one (it failed first)."""
+        self.charger_asked_s.pop(agv, None)
+
+    def end_of_run(self) -> None:
+        """The clock has reached the end: what is still open lasts to the end (once)."""
+        if self.ended:
+            return
+        for start_s, zone_id in self.open_waits.values():
+            self.blocked_s += self.window(start_s, self.end_s)
+            if zone_id is not None:
+                self.zone_wait_s[zone_id] = self.zone_wait_s.get(zone_id, 0.0) \
+                    + self.window(start_s, self.end_s)
+        self.open_waits.clear()
+        self.charger_waits_open = [self.charger_asked_s[agv]
+                                   for agv in sorted(self.charger_asked_s)]
+        self.charger_asked_s.clear()
+        self.ended = True
 
     def warning(self, code: str) -> None:
         self.warnings[code] += 1
@@ -382,11 +453,17 @@ class Recorder:
         """The part of [start_s, end_s] inside the measured window (after warm-up)."""
         return max(0.0, min(end_s, self.end_s) - max(start_s, self.warmup_s))
 
-    def blocked(self, start_s: float, end_s: float) -> None:
+    def blocked(self, start_s: float, end_s: float, agv: int | None = None) -> None:
+        """A lock wait ended (of `agv`: its open wait is closed)."""
+        if self.ended:
+            return
+        if agv is not None:
+            self.open_waits.pop(agv, None)
         self.blocked_s += self.window(start_s, end_s)
 
     def drove(self, start_s: float, end_s: float, length_m: float) -> None:
         self.distance_total_m += length_m
+        self.moved_s = max(self.moved_s, end_s)
         span = end_s - start_s
         if span > 0:
             self.distance_m += length_m * self.window(start_s, end_s) / span

@@ -28,7 +28,7 @@ from typing import Any
 
 import pandas as pd
 
-from fleet_sim.analysis.kpis import CATALOGUE, RUN_FIELDS
+from fleet_sim.analysis.kpis import CATALOGUE, NOTE_FIELDS, RUN_FIELDS
 from fleet_sim.errors import InputError
 from fleet_sim.study.results import read_summary
 
@@ -62,7 +62,9 @@ def _kpi_rows(figures: dict[str, Any]) -> pd.DataFrame:
             items = [(key, value)]
         for name, item in items:
             kpi = known.get(name)
-            meaning = kpi.meaning if kpi else ("about the run" if name in RUN_FIELDS else "")
+            meaning = kpi.meaning if kpi else ("about the run" if name in RUN_FIELDS
+                                               else "where the fleet locked solid"
+                                               if name in NOTE_FIELDS else "")
             rows.append((name, "" if item is None else str(item), kpi.unit if kpi else "",
                          meaning))
     return pd.DataFrame(rows, columns=["kpi", "value", "unit", "meaning"]).astype("string")

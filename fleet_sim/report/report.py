@@ -248,6 +248,10 @@ class RunsSection(Section):
     wall_s: str
     failed_runs: Table | None
     database: str
+    gridlocked_runs: Table | None = None
+    """Runs that locked solid (gridlock_at_h set): when, where, what they left open."""
+    open_orders: str = ""
+    """One line on the orders open at the end of the finished runs, when any run left some."""
 
 
 @dataclass(frozen=True)
@@ -795,7 +799,56 @@ def section_runs(data: ReportData) -> RunsSection:
                       database=str(data.out_dir / "sweep.duckdb"))
     sec.text += [f"run {r['run_id']}: {r['status']}: {r.get('error', '')}"
                  for _, r in bad.iterrows()]
+    locked = gridlocked_runs(summary)
+    if not locked.empty:
+        rows = [[str(r["run_id"]), fmt(r["gridlock_at_h"]), str(r.get("gridlock_where") or ""),
+                 fmt(r.get("orders_open_at_end")), fmt(r.get("open_order_age_max_s"))]
+                for _, r in locked.iterrows()]
+        sec.gridlocked_runs = Table(["run", "gridlock at (h)", "where", "orders open at end",
+                                     "oldest open order (s)"], rows)
+        sec.text += [f"run {r[0]}: GRIDLOCK at {r[1]} h, {r[2]}; {r[3]} orders open"
+                     for r in rows]
+    sec.open_orders = open_orders_line(summary)
+    if sec.open_orders:
+        sec.text.append(sec.open_orders)
     return sec
+
+
+def gridlocked_runs(summary: pd.DataFrame) -> pd.DataFrame:
+    """The finished runs of a summary that locked solid (a gridlock_at_h), by run id."""
+    if "gridlock_at_h" not in summary.columns:
+        return summary.iloc[0:0]
+    ok = summary[summary["status"] == "ok"]
+    return ok[ok["gridlock_at_h"].notna()].sort_values("run_id")
+
+
+def gridlock_statement(summary: pd.DataFrame) -> str | None:
+    """The report's warning when runs locked solid (None when none did)."""
+    locked = gridlocked_runs(summary)
+    if locked.empty:
+        return None
+    finished = int((summary["status"] == "ok").sum())
+    first = locked.sort_values("gridlock_at_h").iloc[0]
+    return (f"WARNING: {len(locked)} of {finished} finished runs locked solid (gridlock; the "
+            f"earliest {first['run_id']} at {float(first['gridlock_at_h']):.2f} h): their "
+            "throughput and lead times describe a stopped fleet. Limit the AGVs on the floor "
+            "(admission, dispatch.max_active_agvs) or run fewer AGVs; the runs are listed "
+            "under Runs.")
+
+
+def open_orders_line(summary: pd.DataFrame) -> str:
+    """Orders open at the end of the finished runs, when any run left some ("" if none)."""
+    if "orders_open_at_end" not in summary.columns:
+        return ""
+    ok = summary[summary["status"] == "ok"]
+    open_orders = ok["orders_open_at_end"].fillna(0)
+    if ok.empty or not (open_orders > 0).any():
+        return ""
+    oldest = ok["open_order_age_max_s"].max() if "open_order_age_max_s" in ok else None
+    return (f"Orders open at the end of a run: {open_orders.mean():.1f} on average, at most "
+            f"{int(open_orders.max())}; the oldest had waited {fmt(oldest)} s (lead times count "
+            "delivered orders only; a lead-time target also holds the open orders' age to "
+            "its bound).")
 
 
 # ---- the report ----------------------------------------------------------------------------
@@ -817,6 +870,9 @@ def build_report(out_dir: Path) -> Report:
         section_congestion(data, series, recommended), section_detail(data, recommended),
         section_incidents(data, recommended),
         section_statistics(data, stats), section_runs(data)]
+    warning = gridlock_statement(data.summary)
+    if warning is not None:
+        statements = [warning, *statements]
     name = data.experiment.get("name", "experiment")
     n_ok = int((data.summary["status"] == "ok").sum())
     scenario_name = data.scenario.name if data.scenario else "?"

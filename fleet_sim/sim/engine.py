@@ -15,7 +15,9 @@ results).
 What a run records stays in its `Recorder` (in memory) unless `simulate` is handed a
 `RecordSink`: then the recorder streams its rows to the sink as the run goes and closes it when
 the run has reached its end (fleet_sim.model.records). A run that raises leaves the sink open:
-its owner decides what a half-written sink becomes.
+its owner decides what a half-written sink becomes. At the end, before the sink is closed, the
+recorder closes the spells still open (lock and charger waits: `Recorder.end_of_run`). A
+watcher process (fleet_sim.sim.gridlock) tells when the fleet locks solid.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.agents.vehicle import Vehicle
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.demand import Demand
+from fleet_sim.sim.gridlock import watch
 from fleet_sim.sim.incidents import start_incidents
 from fleet_sim.sim.traffic.control import RouteCosts, Traffic
 
@@ -113,6 +116,7 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     for v in vehicles:
         v.start()
     demand.start()
+    env.process(watch(env, traffic, vehicles, recorder, scenario.traffic.gridlock_after_s))
     return Model(env, traffic, fleet, vehicles, demand, recorder, traffic.motion_backend)
 
 
@@ -163,6 +167,7 @@ def simulate(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (
             model.recorder.record_moves = False
     finally:
         model.close()
+    model.recorder.end_of_run()
     model.recorder.finish()
     sim_events = next(model.env._eid)  # SimPy's count of scheduled events
     return RunOutput(scenario, layout, model.recorder, model.vehicles, sim_events,

@@ -76,7 +76,7 @@ from typing import IO, Any
 import numpy as np
 
 from fleet_sim.analysis.estimate import Estimate, analytic_estimate
-from fleet_sim.analysis.kpis import kpi_value
+from fleet_sim.analysis.kpis import target_value
 from fleet_sim.analysis.stats import (
     CONFIDENCE,
     TargetCheck,
@@ -376,7 +376,7 @@ class Sizer:
                 continue
             figures = json.loads(kpi_file.read_text(encoding="utf-8"))
             for kpi in values:
-                value = kpi_value(figures, kpi)
+                value = target_value(figures, kpi)  # lead times: open orders' age too
                 values[kpi][spec.replication] = math.nan if value is None else float(value)
         return values, failed
 

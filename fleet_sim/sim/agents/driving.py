@@ -44,7 +44,7 @@ from fleet_sim.model.records import MoveRecord, Order, Recorder
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.traffic.control import Traffic
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim
-from fleet_sim.sim.traffic.locks import Claim, Lock
+from fleet_sim.sim.traffic.locks import Claim, Lock, ZoneLock
 from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate
 
 Proc = Generator[simpy.Event, Any, Any]
@@ -475,6 +475,8 @@ class Driver:
         traffic = self.traffic
         start = env.now
         traffic.start_waiting(self.id, lock)
+        self.recorder.wait_began(self.id, start,
+                                 lock.key.zone_id if isinstance(lock.key, ZoneLock) else None)
         if self.recorder.record_moves:
             holder = lock.holder
             self._wait_open = (start, str(lock.key), -1 if holder is None else holder)
@@ -509,7 +511,7 @@ class Driver:
                     return True
         finally:
             traffic.stop_waiting(self.id)
-            self.recorder.blocked(start, env.now)
+            self.recorder.blocked(start, env.now, self.id)
             self._close_wait()
 
     def _wait_zone(self, zone_id: str, gate: Lock, claim: Claim,

@@ -448,12 +448,14 @@ class Vehicle(Driver):
             events.append(self.env.timeout(until_dead + 1e-6))
         if self.recorder.record_moves:
             self._charger_asked_s = asked
+        self.recorder.charger_asked(self.id, asked)
         try:
             yield self.env.any_of(events)
         except simpy.Interrupt:  # failed while waiting: the charger must not wait for it
             self.fleet.cancel_charger_request(self, request)
             raise
         finally:
+            self.recorder.charger_wait_over(self.id)
             self._close_charger_wait(request)
         if not request.triggered:
             self.fleet.cancel_charger_request(self, request)

@@ -1,0 +1,92 @@
+"""Gridlock: telling when the fleet has locked solid (issue 20).
+
+Traffic resolves most wait-for cycles within seconds (fleet_sim.sim.traffic.deadlock); one that
+no escape can break (`deadlock_unresolved`: every member boxed in) stays for the rest of the
+run, and the AGVs queued behind it stop too. A watcher process looks every tenth of
+`traffic.gridlock_after_s` and records the first time either of these has lasted
+`gridlock_after_s`:
+
+* **cycle**: a wait-for cycle whose members have all been waiting, unbroken, for that long.
+  It locked when the cycle closed: when its last member began the wait it is still in.
+* **standstill**: no AGV has finished a hop for that long while orders are open and at least
+  one AGV has been waiting for a lock all along (a chain ending at an AGV that never moves
+  again, with no cycle). It locked at the later of the last hop's end and the oldest such
+  wait's start. A fleet standing still for other reasons (charging, Idle for want of
+  admission, down) has no lock waits that long and is not called locked.
+
+What it records: a `gridlock` event (at the moment it is told, on the first AGV named; the
+detail says since when, which AGVs and the nodes they stand at) and `Recorder.gridlock`, from
+which the KPIs take `gridlock_at_h` and the summary its warning.
+
+Decisions, where the issue is silent:
+
+* Default `gridlock_after_s` 600 s: ten minutes without a single hop for the members, sixty
+  rounds of `deadlock_check_s`, and twenty of `replan_after_s`. The longest waits the model
+  makes on purpose are shorter or no lock waits at all: an obstacle pause ends in E_101 after
+  5 minutes (the AGV is then down and traffic routes round it), a lost FMS link has the AGV
+  wait Idle at a tag (Req.Err.011, 10 minutes) but the AGVs behind it can still reroute or
+  circulate. A long single lock wait behind a busy station is not a cycle and does not stop
+  the whole fleet. Configurable per scenario.
+* Only the first gridlock is recorded and the watcher then stops: a locked fleet stays locked
+  (no rule in the model breaks a cycle without an escape), and the first time is the finding.
+* The watcher only reads (the waits traffic knows, the recorder's open waits and last hop);
+  it draws no random numbers and changes no lock, so a run that does not lock gives exactly
+  the results it gave before it existed (its timeouts are extra SimPy events, nothing more).
+* "No AGV moves" is read from hop ends: a hop longer than `gridlock_after_s` would look like
+  standing still, which no layout's segment comes near.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator, Sequence
+from typing import Any
+
+import simpy
+
+from fleet_sim.model.records import Gridlock, Recorder
+from fleet_sim.sim.traffic.control import Traffic
+from fleet_sim.sim.traffic.deadlock import find_cycle
+
+CHECKS_PER_THRESHOLD = 10
+"""The watcher looks every `gridlock_after_s / 10`: told at most that late (the time it
+records, when the fleet locked, is exact)."""
+
+
+def watch(env: simpy.Environment, traffic: Traffic, vehicles: Sequence[Any],
+          recorder: Recorder, after_s: float) -> Generator[simpy.Event, Any, None]:
+    """The watcher process (see the module)."""
+    step = after_s / CHECKS_PER_THRESHOLD
+    while True:
+        yield env.timeout(step)
+        found = locked(env.now, traffic, vehicles, recorder, after_s)
+        if found is not None:
+            recorder.gridlock = found
+            first = vehicles[found.agvs[0]]
+            state = first.state.value
+            recorder.event(env.now, first.id, "gridlock", state, state, first.node,
+                           f"since {found.since_s:.1f} s: {found.where()}")
+            return
+
+
+def locked(now_s: float, traffic: Traffic, vehicles: Sequence[Any], recorder: Recorder,
+           after_s: float) -> Gridlock | None:
+    """The gridlock standing at `now_s` for at least `after_s`, if any (cycle first)."""
+    waits = recorder.open_waits
+    old = sorted(agv for agv, (since, _) in waits.items() if since <= now_s - after_s)
+    if not old:
+        return None
+    waiting = traffic.waiting
+    for agv in old:
+        if agv not in waiting:
+            continue
+        cycle = find_cycle(agv, waiting)
+        if cycle is None:
+            continue
+        since = max(waits[m][0] if m in waits else now_s for m in cycle)
+        if now_s - since >= after_s:
+            return Gridlock(since, tuple(cycle), tuple(vehicles[m].node for m in cycle),
+                            "cycle")
+    if recorder.open_orders and now_s - recorder.moved_s >= after_s:
+        since = max(recorder.moved_s, min(waits[agv][0] for agv in old))
+        return Gridlock(since, tuple(old), tuple(vehicles[m].node for m in old), "standstill")
+    return None
