@@ -13,11 +13,11 @@ import pytest
 
 from .conftest import ROOT
 
-DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 
 
-@pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.name)
+@pytest.mark.parametrize("doc", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
 def test_relative_links_resolve(doc: Path) -> None:
     targets = [t.split("#", 1)[0] for t in LINK.findall(doc.read_text(encoding="utf-8"))
                if not re.match(r"[a-z]+:|#", t)]
@@ -26,8 +26,8 @@ def test_relative_links_resolve(doc: Path) -> None:
 
 
 def test_the_studies_page_shows_its_three_plots() -> None:
-    text = (ROOT / "docs" / "agv-model-studies.md").read_text(encoding="utf-8")
-    shown = re.findall(r"!\[[^\]]*\]\((img/[^)]+\.png)\)", text)
+    text = (ROOT / "docs" / "studies" / "2026-11-agv-model-dynamics.md").read_text(encoding="utf-8")
+    shown = re.findall(r"!\[[^\]]*\]\(\.\./(img/[^)]+\.png)\)", text)
     assert sorted(shown) == sorted(f"img/{p.name}" for p in (ROOT / "docs" / "img").glob("*.png"))
 
 
