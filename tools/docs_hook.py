@@ -155,7 +155,7 @@ def _models_in_order(schema: dict[str, Any]) -> list[tuple[str, dict[str, Any], 
 def render_schema(kind: str) -> str:
     """The JSON Schema of file kind `kind` as Markdown tables, one per model."""
     schema = json_schema(kind)
-    out = [f"Generated from `fleet-sim schema {kind}` ({schema['$id']}).", ""]
+    out: list[str] = []
     for name, model, paths in _models_in_order(schema):
         out.append(f"## {name} {{#{_anchor(name)}}}")
         out.append("")
