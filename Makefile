@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: run sweep shift test bench clean
+.PHONY: run sweep shift test bench docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -45,6 +45,12 @@ shift: $(STAMP)
 # The whole test suite, ruff and mypy included.
 test: $(STAMP)
 	$(VENV)/bin/python -m pytest -q
+
+# The documentation site into site/ (MkDocs, Material theme); --strict: a broken link fails.
+# The KPI catalogue and the file-format pages are generated from the code (tools/docs_hook.py).
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --site-dir site
+	@echo "make docs: open site/index.html"
 
 bench: $(STAMP)
 	$(VENV)/bin/python bench/engine_scaling.py

@@ -13,7 +13,7 @@ which this class computes for any time step as Kp*e + (Ki/cycle) * integral(e dt
 units Kp is 71.6 rad of steering per metre of error: the 16-bit sensor's 5 mm steps stay a few
 degrees, and a 90 degree branch curve of 1 m (radius 0.64 m) needs about 4 mm of error. Other
 readings (error normalised to the sensor half-width, output in radians, continuous-time gains)
-are one `PidGains(...)` away; docs/agv-model-studies.md says why this one was kept.
+are one `PidGains(...)` away; docs/studies/2026-11-agv-model-dynamics.md says why this one was kept.
 """
 
 from __future__ import annotations

@@ -1,23 +1,29 @@
 """The documents: pictures and relative links point at files that exist; quoted messages are
-today's; the README's DuckDB one-liner works."""
+today's; the README's commands and options exist and its DuckDB one-liner works; the site
+builds with --strict (broken links and anchors fail) and its generated reference pages hold the
+KPI catalogue and every file kind's schema."""
 
 from __future__ import annotations
 
+import importlib.util
+import json
+import os
 import re
 import shlex
 import subprocess
 import sys
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
 from .conftest import ROOT
 
-DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 
 
-@pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.name)
+@pytest.mark.parametrize("doc", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
 def test_relative_links_resolve(doc: Path) -> None:
     targets = [t.split("#", 1)[0] for t in LINK.findall(doc.read_text(encoding="utf-8"))
                if not re.match(r"[a-z]+:|#", t)]
@@ -26,8 +32,8 @@ def test_relative_links_resolve(doc: Path) -> None:
 
 
 def test_the_studies_page_shows_its_three_plots() -> None:
-    text = (ROOT / "docs" / "agv-model-studies.md").read_text(encoding="utf-8")
-    shown = re.findall(r"!\[[^\]]*\]\((img/[^)]+\.png)\)", text)
+    text = (ROOT / "docs" / "studies" / "2026-11-agv-model-dynamics.md").read_text(encoding="utf-8")
+    shown = re.findall(r"!\[[^\]]*\]\(\.\./(img/[^)]+\.png)\)", text)
     assert sorted(shown) == sorted(f"img/{p.name}" for p in (ROOT / "docs" / "img").glob("*.png"))
 
 
@@ -66,3 +72,85 @@ def test_the_readme_duckdb_one_liner_queries_a_sweep(tmp_path: Path) -> None:
     result = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert "throughput_per_hour" in result.stdout and "fleet.size=1__r00" in result.stdout
+
+
+def _readme_commands() -> list[list[str]]:
+    """Every `fleet-sim` command line of the README's code blocks, as arguments."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    lines = [line for block in re.findall(r"```sh\n(.*?)```", text, re.DOTALL)
+             for line in block.splitlines()]
+    commands = []
+    for line in lines:
+        words = shlex.split(line.split("#", 1)[0])
+        if words and words[0] in ("fleet-sim", ".venv/bin/fleet-sim"):
+            commands.append(words[1:])
+    return commands
+
+
+def test_the_readme_commands_and_their_options_exist(capsys: pytest.CaptureFixture[str]) -> None:
+    """Each command the README shows is a command today and takes the options it is shown
+    with (its --help names them), and each `make` target it names is in the Makefile."""
+    from fleet_sim.cli import main
+
+    commands = _readme_commands()
+    assert len({c[0] for c in commands}) >= 10  # the README shows the handful of commands
+    for args in commands:
+        two_words = args[:2] in (["layout", "import"], ["layout", "export"],
+                                 ["profile", "import"])
+        name = args[:2] if two_words else args[:1]
+        with pytest.raises(SystemExit) as stop:
+            main([*name, "--help"])
+        assert stop.value.code == 0, args
+        shown = capsys.readouterr().out
+        options = [a.split("=", 1)[0] for a in args if a.startswith("--")]
+        assert [o for o in options if o not in shown] == [], args
+    makefile = (ROOT / "Makefile").read_text(encoding="utf-8")
+    targets = set(re.findall(r"`make ([a-z]+)`|^make ([a-z]+)",
+                             (ROOT / "README.md").read_text(encoding="utf-8"), re.MULTILINE))
+    named = {t for pair in targets for t in pair if t}
+    assert {"run", "test", "docs"} <= named
+    assert [t for t in named if not re.search(rf"^{t}:", makefile, re.MULTILINE)] == []
+
+
+def _hook() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("docs_hook", ROOT / "tools" / "docs_hook.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_every_file_kind_has_its_generated_reference_page() -> None:
+    hook = _hook()
+    assert hook.missing_format_pages(ROOT / "docs") == []
+    with pytest.raises(ValueError, match="unknown generated part"):
+        hook.expand("<!-- fleet-sim: schema nope -->")
+
+
+def test_the_site_builds_strict_with_the_generated_reference(tmp_path: Path) -> None:
+    """`mkdocs build --strict` (as `make docs`) succeeds; the KPI page lists every KPI of the
+    catalogue and each format page every key of its file kind's schema, every model's."""
+    pytest.importorskip("mkdocs")
+    pytest.importorskip("material")
+    from fleet_sim.analysis.kpis import BY_TYPE, CATALOGUE
+    from fleet_sim.config.schemas import FILE_MODELS, json_schema
+
+    site = tmp_path / "site"
+    result = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(site)],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
+        env={**os.environ, "NO_MKDOCS_2_WARNING": "1"})
+    assert result.returncode == 0, result.stderr[-3000:]
+    kpi_page = (site / "reference" / "kpi-catalogue" / "index.html").read_text(encoding="utf-8")
+    assert "fleet-sim: kpi-catalogue" not in kpi_page
+    assert [k.name for k in CATALOGUE if f"<code>{k.name}</code>" not in kpi_page] == []
+    assert [k.name for k in BY_TYPE
+            if f"<code>by_type.&lt;type&gt;.{k.name}</code>" not in kpi_page] == []
+    for kind in FILE_MODELS:
+        page = (site / "reference" / "formats" / kind / "index.html").read_text(encoding="utf-8")
+        schema = json_schema(kind)
+        models = [schema, *schema.get("$defs", {}).values()]
+        keys = {key for model in models for key in model.get("properties", {})}
+        assert keys and [k for k in sorted(keys) if f"<code>{k}</code>" not in page] == [], kind
+    index = json.loads((site / "search" / "search_index.json").read_text(encoding="utf-8"))
+    assert any(doc["location"].startswith("studies/") for doc in index["docs"])

@@ -11,6 +11,7 @@ import os
 import re
 import shutil
 import subprocess
+import typing
 from pathlib import Path
 from typing import Any
 
@@ -36,12 +37,13 @@ from fleet_sim.cli import main
 from fleet_sim.config.scenario import load_layout_for, load_scenario
 from fleet_sim.errors import InputError
 from fleet_sim.model.kinematics import distance_at, traverse
-from fleet_sim.report.replay import write_replay
+from fleet_sim.report import replay_payload
+from fleet_sim.report.replay import page_data, write_replay
 from fleet_sim.sim.engine import RunOutput, simulate
 
 from .conftest import DATA, LAYOUTS, ROOT, write_yaml
 
-TEMPLATES = ROOT / "fleet_sim" / "report" / "templates"
+STATIC = ROOT / "fleet_sim" / "report" / "static"
 HOURS = 1.5
 
 
@@ -273,8 +275,7 @@ def test_a_run_without_moves_is_simulated_again(recorded: tuple[Path, RunOutput]
 
 
 def _kinematics_js() -> str:
-    text = (TEMPLATES / "replay_kinematics.js.j2").read_text(encoding="utf-8")
-    return text.replace("{% raw %}", "").replace("{% endraw %}", "")
+    return (STATIC / "replay_kinematics.js").read_text(encoding="utf-8")
 
 
 def test_the_pages_kinematics_are_the_pythons() -> None:
@@ -306,6 +307,73 @@ def test_the_pages_kinematics_are_the_pythons() -> None:
     assert result.returncode == 0, result.stderr
     js = json.loads(result.stdout)
     assert js == pytest.approx([c["py"] for c in cases], abs=1e-12)
+
+
+# ---- the page's script and its payload ---------------------------------------------------------
+
+
+@pytest.mark.parametrize("script", ["replay.js", "replay_kinematics.js"])
+def test_the_pages_scripts_are_valid_javascript(script: str) -> None:
+    """`node --check` on each plain script file the page inlines."""
+    node = shutil.which("node")
+    if node is None:
+        pytest.skip("node is not installed")
+    result = subprocess.run([node, "--check", str(STATIC / script)], capture_output=True,
+                            text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+
+
+def test_the_scripts_payload_typedefs_are_generated_from_the_payload_types() -> None:
+    """replay.js's JSDoc typedefs are those of fleet_sim.report.replay_payload today (rewrite
+    them with `python -m fleet_sim.report.replay_payload`)."""
+    text = (STATIC / "replay.js").read_text(encoding="utf-8")
+    assert replay_payload.script_typedefs(text) == replay_payload.jsdoc()
+    assert "@type {ReplayPayload}" in text
+
+
+def _declared(cls: type) -> set[str]:
+    return set(cls.__annotations__)
+
+
+def test_the_script_reads_only_declared_payload_fields() -> None:
+    """Every field the script reads off the payload's objects (through the names it gives
+    them) is declared in the payload's types: a field renamed in Python fails here."""
+    text = (STATIC / "replay.js").read_text(encoding="utf-8")
+    p = replay_payload
+    aliases = {"D": p.ReplayPayload, "M": p.Meta, "NODES": p.Nodes, "SEGS": p.Segs,
+               "PROF": p.Profiles, "PLACES": p.Places, "ZONES": p.Zones, "ZH": p.ZoneHolds,
+               "INC": p.Incidents, "LEADS": p.Leads, "D.chargerWaits": p.ChargerWaits}
+    for alias, cls in aliases.items():
+        if alias != "D":
+            assert re.search(rf"\b{re.escape(alias)}\b", text), alias
+        read = set(re.findall(rf"(?<![\w.]){re.escape(alias)}\.([A-Za-z_]\w*)", text))
+        assert read, alias
+        assert read - _declared(cls) == set(), alias
+
+
+def _keys_match(value: Any, cls: type, where: str) -> None:
+    assert set(value) == _declared(cls), where
+    hints = typing.get_type_hints(cls)
+    for name, hint in hints.items():
+        if hint in replay_payload.PAYLOAD_TYPES:
+            _keys_match(value[name], hint, f"{where}.{name}")
+        elif typing.get_origin(hint) is list and typing.get_args(hint)[0] in \
+                replay_payload.PAYLOAD_TYPES:
+            for i, item in enumerate(value[name]):
+                _keys_match(item, typing.get_args(hint)[0], f"{where}.{name}[{i}]")
+
+
+def test_the_payload_is_what_its_types_declare(recorded: tuple[Path, RunOutput]) -> None:
+    """page_data's objects have exactly the fields of their types, the lead parts too, and the
+    columns of one object have one length (a row per index)."""
+    run = load_run(recorded[0])
+    data = page_data(run, 0.0, run.scenario.duration_s)
+    _keys_match(data, replay_payload.ReplayPayload, "payload")
+    assert set(LEAD_PARTS) <= _declared(replay_payload.Leads)
+    for name in ("nodes", "segs", "places", "profiles", "chargerWaits", "zoneHolds",
+                 "incidents"):
+        assert len({len(column) for column in data[name].values()}) == 1, name
+    assert len(data["agv"]) == run.scenario.fleet.size and len(data["meta"]) > 0
 
 
 # ---- the page ---------------------------------------------------------------------------------

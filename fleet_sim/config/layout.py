@@ -1,8 +1,8 @@
 """Layout files -> a validated networkx graph of nodes (RFID tags, junctions, stations, chargers,
 parking) and segments (magnetic-tape paths between them).
 
-The file format is described in docs/layout-format.md. Every problem found while loading names
-the file, the element (``segments[12].to``), the bad value and what was expected.
+The file format is described in docs/reference/layout-format.md. Every problem found while
+loading names the file, the element (``segments[12].to``), the bad value and what was expected.
 
 Modelling decisions written down here because the engine relies on them:
 

@@ -1,6 +1,6 @@
 """A fleet_sim layout as a VDMA LIF 1.0.0 file and back: `fleet-sim layout export --lif` and
 `fleet-sim layout import`. The mapping, and what is dropped on the way in, is tabled in
-docs/standards.md; the decisions it rests on are these.
+docs/reference/standards.md; the decisions it rests on are these.
 
 * Export writes what LIF can say in LIF's own fields (node positions, directed edges with
   maxSpeed, stations with their interaction nodes, the purpose of a place as the VDA 5050 action

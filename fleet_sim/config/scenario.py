@@ -508,7 +508,7 @@ class Scenario(StrictModel):
     """How AGVs move between nodes: closed_form (exact trapezoidal profiles per hop,
     fleet_sim.model.kinematics) or sumo (SUMO's car-following model through libsumo,
     fleet_sim.sim.motion.sumo, stepping with SimPy; dispatching, states, charging, incidents and
-    traffic locks stay in the SimPy model). See docs/sumo.md."""
+    traffic locks stay in the SimPy model). See docs/background/sumo.md."""
     sumo: SumoConfig = SumoConfig()
     _base_dir: str = PrivateAttr(default=".")
     """The scenario file's folder (files it names are relative to it); not a key of the file."""

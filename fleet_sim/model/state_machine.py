@@ -16,7 +16,7 @@ model needs are marked `spec=None` with the reason; each follows a reading of DE
   no guard: the fleet model has no source of POST failures, and its AGVs stop exactly on the
   node (closed form, or SUMO's stop). Stop accuracy is modelled in `agv_model.dynamics`
   (bench/stop_accuracy.py), one vehicle at a time. A guard that can never fail would only
-  pretend to check something (docs/engine.md).
+  pretend to check something (docs/background/engine.md).
 
 Firing an event that has no row for the current state raises `InvalidTransition`, which names the
 AGV, the state and the event. A row whose guard fails does not fire (`fire` returns False).

@@ -7,7 +7,10 @@ Decisions:
   template: ``select_autoescape`` matches on the name's last suffix, and ours end in ``.j2``), so
   every value a template prints is HTML-escaped, names from user files included. Nothing is
   marked safe: the one value that is not plain text, a figure's data: URI, is base64, which has
-  no character to escape. The report has no scripts.
+  no character to escape. The report has no scripts. The replay page's scripts are our own
+  plain files in ``static/`` (`static_script`): each is marked safe whole, after checking it
+  cannot end its script element early (no ``</script``, no ``<!--``), as a Jinja ``{% raw %}``
+  include did before; data never goes through it.
 * ``StrictUndefined``: a template that prints a value the code did not give fails loudly
   instead of leaving a blank in the page.
 * The PDF is written with matplotlib (a text page with the recommendation and each section's
@@ -17,9 +20,11 @@ Decisions:
 from __future__ import annotations
 
 from functools import cache
+from importlib import resources
 from pathlib import Path
 
 from jinja2 import Environment, PackageLoader, StrictUndefined
+from markupsafe import Markup
 
 from fleet_sim.report import figures as figs
 from fleet_sim.report.report import Report, build_report
@@ -35,6 +40,17 @@ def environment() -> Environment:
     env.policies["json.dumps_kwargs"] = {"sort_keys": True, "separators": (",", ":"),
                                          "allow_nan": False}
     return env
+
+
+@cache
+def static_script(name: str) -> Markup:
+    """The text of our script ``static/<name>``, to inline in a <script> element."""
+    text = resources.files("fleet_sim.report").joinpath("static", name).read_text(
+        encoding="utf-8")
+    lowered = text.lower()
+    if "</script" in lowered or "<!--" in lowered:
+        raise ValueError(f"static/{name} would end its <script> element early")
+    return Markup(text)
 
 
 def render_html(report: Report) -> str:

@@ -4,8 +4,9 @@ lead-time breakdown.
 
 Decisions, where the issue is silent:
 
-* Plain canvas and our own JavaScript (templates/replay.js.j2, its kinematics twin in
-  templates/replay_kinematics.js.j2): no library, nothing fetched. The data is one JSON block in
+* Plain canvas and our own JavaScript (static/replay.js, its kinematics twin in
+  static/replay_kinematics.js: plain files, inlined into the page by `render.static_script`, so
+  the page stays one file): no library, nothing fetched. The data is one JSON block in
   the page (Jinja2's `tojson`, which escapes `<`, `>`, `&` and `'`, so no name from a user file
   can end the script); names reach the page only as canvas text and `textContent`, never as
   markup. A Content-Security-Policy meta tag (`default-src 'none'`, inline script and style,
@@ -14,7 +15,8 @@ Decisions, where the issue is silent:
   (an AGV at 1 m/s moves 1 mm in that time), each distinct hop profile (segment, entry and exit
   speed, curve, limit) written once and drive rows pointing at it, every text once in
   `strings`. Deterministic: keys sorted, no timestamp, no random id; same run and window, same
-  bytes.
+  bytes. Its every object and field is described once, in fleet_sim.report.replay_payload
+  (TypedDicts that mypy holds `page_data` to, and that replay.js's JSDoc typedefs come from).
 * The window (`--from/--to`, hours of simulated time since the start) cuts every table to what
   is needed from `from` to `to`: the rows that overlap it, plus for each AGV the last
   placement before it (where it stands when the window opens) and its state, order and SOC then.
@@ -58,7 +60,8 @@ from fleet_sim.errors import InputError
 from fleet_sim.model.states import VehicleState
 from fleet_sim.report.figures import LEAD_COLOURS, STATE_COLOURS
 from fleet_sim.report.layout_plot import KIND_STYLE, PLACE_COLOUR, ZONE_COLOUR, zone_rule
-from fleet_sim.report.render import environment
+from fleet_sim.report.render import environment, static_script
+from fleet_sim.report.replay_payload import Agv, Leads, ReplayPayload
 
 REPLAY_FILE = "replay.html"
 KIND_CODES = {"drive": 0, "track": 1, "parking": 2, "off": 3}
@@ -115,8 +118,9 @@ def check_window(run_dir: Path, from_h: float | None, to_h: float | None) -> tup
     return lo * 3600.0, hi * 3600.0
 
 
-def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
-    """Everything the page draws, as JSON-ready columns (see the module docstring)."""
+def page_data(run: RunRecord, from_s: float, to_s: float) -> ReplayPayload:
+    """Everything the page draws, as JSON-ready columns (see the module docstring; every field
+    is described in fleet_sim.report.replay_payload)."""
     layout = run.layout
     scenario = run.scenario
     text = _Strings()
@@ -130,7 +134,7 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
 
     moves = run.moves
     profiles: dict[tuple[int, float, float, float, float, float, float, float], int] = {}
-    agvs: list[dict[str, Any]] = []
+    agvs: list[Agv] = []
     spells = state_spells(run.events, from_s, to_s)
     held = orders_held(run.events)
     fleet = scenario.fleet.size
@@ -252,14 +256,23 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> dict[str, Any]:
         "incidents": {"t": _ms(found["time_s"]), "agv": [int(a) for a in found["agv"]],
                       "kind": text.many(found["kind"]), "code": text.many(found["code"]),
                       "det": text.many(found["detail"])},
-        "leads": {"parts": list(LEAD_PARTS), "labels": [LEAD_LABELS[p] for p in LEAD_PARTS],
-                  "colours": [LEAD_COLOURS[p] for p in LEAD_PARTS],
-                  "id": [int(i) for i in leads["order_id"]],
-                  "agv": [int(a) for a in leads["agv"]],
-                  "created": _ms(leads["created_s"]), "lead": _ms(leads["lead_time_s"]),
-                  **{p: _ms(leads[p].fillna(-1.0)) for p in LEAD_PARTS}},
+        "leads": _leads(leads),
         "strings": text.strings,
     }
+
+
+def _leads(leads: pd.DataFrame) -> Leads:
+    """The lead-time breakdown of the orders delivered in the window (parts -1 where none)."""
+    def part(name: str) -> list[float]:
+        return _ms(leads[name].fillna(-1.0))
+
+    return {"parts": list(LEAD_PARTS), "labels": [LEAD_LABELS[p] for p in LEAD_PARTS],
+            "colours": [LEAD_COLOURS[p] for p in LEAD_PARTS],
+            "id": [int(i) for i in leads["order_id"]], "agv": [int(a) for a in leads["agv"]],
+            "created": _ms(leads["created_s"]), "lead": _ms(leads["lead_time_s"]),
+            "wait_assign_s": part("wait_assign_s"), "drive_empty_s": part("drive_empty_s"),
+            "load_s": part("load_s"), "drive_loaded_s": part("drive_loaded_s"),
+            "unload_s": part("unload_s"), "blocked_s": part("blocked_s")}
 
 
 def lead_summary(leads: pd.DataFrame) -> list[dict[str, str]]:
@@ -286,6 +299,7 @@ def render_replay(run: RunRecord, from_s: float, to_s: float) -> str:
             f"seed {scenario.seed}"
     return environment().get_template("replay.html.j2").render(
         title=title, data=data, lead_rows=lead_summary(leads), orders=len(leads),
+        scripts=[static_script("replay_kinematics.js"), static_script("replay.js")],
         window=f"{_clock(from_s)} to {_clock(to_s)} of the run "
                f"({scenario.duration_h:g} h, warm-up {scenario.warmup_h:g} h)",
         resimulated=run.resimulated)

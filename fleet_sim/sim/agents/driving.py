@@ -5,7 +5,7 @@ after it; with it, it may pass through the next node at the highest speed from w
 still stop at the one after; without it, it brakes to stop at the next node. Each hop's time is
 closed form (fleet_sim.model.kinematics), or, when the traffic has a motion backend
 (`motion: sumo`, fleet_sim.sim.motion.sumo), the time SUMO takes to drive it. See
-fleet_sim.sim.traffic and docs/engine.md for the rules.
+fleet_sim.sim.traffic and docs/background/engine.md for the rules.
 
 The driver is a client of the reservation table (`TrafficClient`): it asks `Traffic` for each
 lock, waits for the claim, and gives it back; it keeps only its own driving bookkeeping (which

@@ -7,7 +7,7 @@ hands back, and give it back (`free`, or `withdraw` a claim not yet granted). A 
 free what it does not hold. Nobody else writes locks; traffic never reads a client's own
 bookkeeping, only what `TrafficClient` declares.
 
-Rules (see docs/engine.md for why):
+Rules (see docs/background/engine.md for why):
 
 * One AGV per node. An AGV holds the node it stands on, the node it drives to, and the nodes
   behind it until its body and the minimum gap have cleared them. It reserves the node after the

@@ -1,4 +1,3 @@
-{% raw %}
 /* The twin of fleet_sim.model.kinematics.speed_bounds and distance_at: where an AGV is t seconds
    into a hop's closed-form trapezoid profile. Same formulas, same order of operations; the tests
    hold the two together. Pieces are [length_m, speed_limit_mps] pairs. */
@@ -65,4 +64,3 @@ var FleetKinematics = (function () {
 
   return {speedBounds: speedBounds, distanceAt: distanceAt, hopPieces: hopPieces};
 })();
-{% endraw %}

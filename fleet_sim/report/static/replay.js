@@ -1,6 +1,6 @@
-{% raw %}
 /* The replay page: the floor (canvas), the controls, the timeline (Gantt) and the lead-time
-   chart, from the JSON in #replay-data (fleet_sim.report.replay.page_data). Every text from the
+   chart, from the JSON in #replay-data (fleet_sim.report.replay.page_data; its objects are the
+   typedefs below, generated from fleet_sim.report.replay_payload). Every text from the
    data reaches the page as canvas text or textContent, never as markup.
 
    window.fleetReplay is for tests and the curious: positionsAt(t) (the twin of
@@ -8,8 +8,218 @@
    seek(t), drawn (what the last frame drew), timelineTotals(). With #t=SECONDS in the address
    the page seeks there at once and writes its state into the element #replay-check (a pre at
    the end of the body). */
+/* ---- the payload: generated from fleet_sim/report/replay_payload.py, do not edit
+   (python -m fleet_sim.report.replay_payload rewrites it). */
+
+/**
+ * Everything the page draws (`page_data`), in the page as JSON (#replay-data).
+ * @typedef {Object} ReplayPayload
+ * @property {Meta} meta
+ * @property {string[]} states The RSS-AGV-001 states, in index order.
+ * @property {string[]} stateColours
+ * @property {Nodes} nodes
+ * @property {Segs} segs
+ * @property {Object<string, number[]>} corridors Each single-track corridor's segments (indices).
+ * @property {Places} places
+ * @property {Profiles} profiles
+ * @property {Agv[]} agv
+ * @property {ChargerWaits} chargerWaits
+ * @property {Zones} zones
+ * @property {ZoneHolds} zoneHolds
+ * @property {Block[]} blocks
+ * @property {Incidents} incidents
+ * @property {Leads} leads
+ * @property {string[]} strings Every repeated text once.
+ */
+
+/**
+ * The run and the window the page shows.
+ * @typedef {Object} Meta
+ * @property {string} scenario
+ * @property {string} layout
+ * @property {number} agvs Fleet size.
+ * @property {number} seed
+ * @property {number} duration_s
+ * @property {number} warmup_s
+ * @property {number} start_h Clock time at t=0 (hours).
+ * @property {number} from_s Start of the window (s since the run's start).
+ * @property {number} to_s End of the window.
+ * @property {boolean} resimulated The motion was simulated again from config.resolved.yaml (a sweep's run).
+ */
+
+/**
+ * The layout's nodes, sorted by id; other objects point at them by index.
+ * @typedef {Object} Nodes
+ * @property {string[]} id
+ * @property {number[]} x Metres.
+ * @property {number[]} y
+ * @property {string[]} kind
+ * @property {string[]} colour CSS colour: the place's, else the node kind's.
+ * @property {number[]} place Index into places, -1: none.
+ */
+
+/**
+ * The layout's segments (one per direction), sorted by (from, to).
+ * @typedef {Object} Segs
+ * @property {number[]} u From node (index).
+ * @property {number[]} v To node (index).
+ * @property {number[]} len Metres.
+ * @property {number[]} twoWay 1 if the reverse segment exists.
+ */
+
+/**
+ * Stations, chargers and parking areas, sorted by id.
+ * @typedef {Object} Places
+ * @property {string[]} id
+ * @property {string[]} kind
+ * @property {number[]} node Its first node (index).
+ * @property {number[]} capacity
+ */
+
+/**
+ * Each distinct hop profile once; drives point at it.
+ * @typedef {Object} Profiles
+ * @property {number[]} seg Segment (index).
+ * @property {number[]} vin Entry speed (m/s).
+ * @property {number[]} vout Exit speed (m/s).
+ * @property {number[]} cm Branch curve length (m).
+ * @property {number[]} cv Branch curve speed (m/s).
+ * @property {number[]} lim Speed limit (m/s).
+ * @property {number[]} acc Acceleration (m/s2).
+ * @property {number[]} dec Deceleration (m/s2).
+ */
+
+/**
+ * One AGV, cut to the window.
+ * @typedef {Object} Agv
+ * @property {number} id
+ * @property {number} length_m
+ * @property {AgvPlacements} p
+ * @property {AgvSpells} s
+ * @property {AgvOrders} o
+ * @property {AgvSoc} b
+ * @property {AgvWaits} w
+ */
+
+/**
+ * Where an AGV is: its drives and placements in time order.
+ * @typedef {Object} AgvPlacements
+ * @property {number[]} t Start (s).
+ * @property {number[]} e End (s).
+ * @property {number[]} k Kind: 0 drive, 1 on the track, 2 in parking, 3 off the track.
+ * @property {number[]} a A drive's profile (index), else its node (index).
+ * @property {number[]} d Seconds of the drive actually driven (less than the hop when paused).
+ */
+
+/**
+ * The AGV's state spells (the timeline).
+ * @typedef {Object} AgvSpells
+ * @property {number[]} t
+ * @property {number[]} e
+ * @property {number[]} st State (index into states).
+ * @property {number[]} ev Event that started it (index into strings).
+ * @property {number[]} det Its detail (index into strings).
+ * @property {number[]} o Order held, -1: none.
+ * @property {number[]} l 1: loaded.
+ */
+
+/**
+ * The order the AGV holds, from each time on.
+ * @typedef {Object} AgvOrders
+ * @property {number[]} t
+ * @property {number[]} id Order id, -1: none.
+ */
+
+/**
+ * State of charge samples.
+ * @typedef {Object} AgvSoc
+ * @property {number[]} t
+ * @property {number[]} v SOC (%).
+ */
+
+/**
+ * The AGV's waits for a lock.
+ * @typedef {Object} AgvWaits
+ * @property {number[]} t
+ * @property {number[]} e
+ * @property {number[]} n Node it waits at (index).
+ * @property {number[]} lock The lock (index into strings).
+ * @property {number[]} h The AGV that held it when the wait began, -1: none.
+ */
+
+/**
+ * AGVs waiting for a charger.
+ * @typedef {Object} ChargerWaits
+ * @property {number[]} agv
+ * @property {number[]} t
+ * @property {number[]} e
+ * @property {number[]} n Node it waits at (index).
+ * @property {number[]} ch The charger (index into places), -1: none.
+ */
+
+/**
+ * The layout's traffic zones.
+ * @typedef {Object} Zones
+ * @property {string[]} id
+ * @property {string[]} kind mutex, ban or same_direction.
+ * @property {string[]} rule
+ * @property {string[]} colour
+ * @property {number[][]} nodes Nodes inside (indices).
+ * @property {number[][]} path A same-direction zone's path in its forward order (indices).
+ */
+
+/**
+ * Who held or waited for each mutex and same-direction zone.
+ * @typedef {Object} ZoneHolds
+ * @property {number[]} agv
+ * @property {number[]} t
+ * @property {number[]} e
+ * @property {number[]} z Zone (index).
+ * @property {number[]} dir 1 forward, -1 backward, 0 a mutex zone.
+ */
+
+/**
+ * A segment blocked by an incident.
+ * @typedef {Object} Block
+ * @property {number} u
+ * @property {number} v
+ * @property {number} t
+ * @property {number} e
+ */
+
+/**
+ * Deadlocks, errors and other incidents to jump to.
+ * @typedef {Object} Incidents
+ * @property {number[]} t
+ * @property {number[]} agv
+ * @property {number[]} kind Index into strings.
+ * @property {number[]} code Index into strings.
+ * @property {number[]} det Index into strings.
+ */
+
+/**
+ * Orders delivered in the window and the parts of their lead times (s; -1: none).
+ * @typedef {Object} Leads
+ * @property {string[]} parts The part keys below, in order.
+ * @property {string[]} labels
+ * @property {string[]} colours
+ * @property {number[]} id
+ * @property {number[]} agv
+ * @property {number[]} created
+ * @property {number[]} lead
+ * @property {number[]} wait_assign_s
+ * @property {number[]} drive_empty_s
+ * @property {number[]} load_s
+ * @property {number[]} drive_loaded_s
+ * @property {number[]} unload_s
+ * @property {number[]} blocked_s
+ */
+
+/* ---- end of the payload ---- */
+
 (function () {
   'use strict';
+  /** @type {ReplayPayload} */
   var D = JSON.parse(document.getElementById('replay-data').textContent);
   var K = FleetKinematics;
   var M = D.meta, S = D.strings, NODES = D.nodes, SEGS = D.segs, PROF = D.profiles;
@@ -1066,4 +1276,3 @@
     document.body.appendChild(check);
   }
 })();
-{% endraw %}
