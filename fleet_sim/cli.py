@@ -304,9 +304,41 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("fleet-sim: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # output piped into `head` and the like
-        sys.stderr.close()
-        return 0
+    except BrokenPipeError as exc:
+        if stdout_closed():  # output piped into `head` and the like: nothing more to say
+            sys.stderr.close()
+            return 0
+        print(f"fleet-sim: error: {fault_text(exc)}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # a full disk, a read-only folder, a worker pool that cannot start
+        print(f"fleet-sim: error: {fault_text(exc)}", file=sys.stderr)
+        return 1
+
+
+def stdout_closed() -> bool:
+    """Has the reader of standard output gone away (a pipe into `head`)? Asked of the pipe
+    itself (poll reports an error on a pipe with no reader), so a broken pipe to a worker
+    process is never mistaken for it."""
+    import select
+
+    try:
+        fd = sys.stdout.fileno()
+    except (OSError, ValueError):
+        return True
+    poller = select.poll()
+    poller.register(fd, select.POLLOUT)
+    return any(events & (select.POLLERR | select.POLLHUP) for _, events in poller.poll(0))
+
+
+def fault_text(exc: OSError) -> str:
+    """One line for an error of the machine (not of the input): the path or resource, the
+    cause and its errno name, and that finished work is kept."""
+    import errno
+
+    where = exc.filename if exc.filename is not None else "fleet-sim"
+    cause = exc.strerror or str(exc) or type(exc).__name__
+    code = f" ({errno.errorcode.get(exc.errno, exc.errno)})" if exc.errno else ""
+    return f"{where}: {cause}{code}; what had finished is kept"
 
 
 def _run(args: argparse.Namespace) -> int:
