@@ -515,12 +515,19 @@ def _fresh_dir(base: Path) -> Path:
     return Path(f"{base}-{n}")
 
 
+def _dask_timeout(text: str) -> float:
+    return _number(text, "seconds", 0, 86_400)
+
+
 def _runner_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=_workers, default=0,
                         help="worker processes (default: one per core)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="run on the Dask cluster at ADDRESS (tcp://host:8786), or 'local' "
                              "for a local Dask cluster of --workers processes")
+    parser.add_argument("--dask-timeout", type=_dask_timeout, default=120.0, metavar="SECONDS",
+                        help="with --scheduler: give up when the cluster has had no worker "
+                             "for this long (default 120; finished runs are kept)")
     parser.add_argument("--out", type=Path,
                         help="results folder (default: results/<experiment name>)")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
@@ -548,7 +555,8 @@ def _sweep(args: argparse.Namespace) -> int:
         f"{args.workers or 'one per core'} worker processes"
     print(f"sweep {experiment.name}: {len(experiment.points)} design points x "
           f"{experiment.spec.replications} replications = {len(runs)} runs on {where}")
-    outcome = sweep(experiment, out, args.workers, args.scheduler, args.quiet)
+    outcome = sweep(experiment, out, args.workers, args.scheduler, args.quiet,
+                    dask_timeout_s=args.dask_timeout)
     import pandas as pd
 
     summary = pd.read_parquet(out / "summary.parquet")
@@ -584,7 +592,8 @@ def _size(args: argparse.Namespace) -> int:
     out = args.out or default_out(experiment)
     print(f"size {experiment.name}: targets "
           + ", ".join(t.describe() for t in experiment.spec.targets))
-    results = size_fleet(experiment, out, args.workers, args.scheduler, args.quiet)
+    results = size_fleet(experiment, out, args.workers, args.scheduler, args.quiet,
+                         dask_timeout_s=args.dask_timeout)
     for result in results:
         est = result.estimate
         print(f"  analytic estimate: {est.agvs:.2f} AGVs at the mean demand, "

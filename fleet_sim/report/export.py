@@ -30,7 +30,7 @@ import pandas as pd
 
 from fleet_sim.analysis.kpis import CATALOGUE, RUN_FIELDS
 from fleet_sim.config.writing import atomic_path
-from fleet_sim.errors import InputError
+from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.study.results import read_summary
 
 EXCEL_MAX_ROWS = 1_048_575
@@ -85,6 +85,13 @@ def _tables(source: Path) -> tuple[str, dict[str, str | pd.DataFrame]]:
         experiment = yaml.safe_load((source / "experiment.resolved.yaml").read_text(
             encoding="utf-8")) or {}
         summary, _ = read_summary(source, list(experiment.get("factors") or {}))
+        damaged = summary[summary["status"].astype(str) == "damaged"] if len(summary) \
+            else summary
+        if len(damaged):
+            first = damaged.iloc[0]
+            raise FleetSimError(
+                f"{source / 'runs' / str(first['run_id'])}: {first['error']} (of "
+                f"{len(damaged)} damaged run(s)); nothing was exported")
         tables = {"summary": summary}
         if (source / "stats.parquet").is_file():
             tables["stats"] = f"SELECT * FROM read_parquet('{_sql(source / 'stats.parquet')}')"

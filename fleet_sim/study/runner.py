@@ -160,6 +160,47 @@ def folder_lock(out_dir: Path, stream: IO[str] | None = None) -> Iterator[None]:
         os.close(fd)  # releases the flock
 
 
+def study_running(out_dir: Path) -> bool:
+    """Is a study (sweep, size, compare) writing into `out_dir` now? Asked of the lock itself:
+    a shared lock cannot be had while a study holds the exclusive one."""
+    path = out_dir / LOCK_FILE
+    if not path.exists():
+        return False
+    if fcntl is None:
+        owner = study_owner(out_dir)
+        return owner is not None and pid_alive(int(json.loads(owner).get("pid", 0)))
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)  # releases the shared lock if it was had
+    return False
+
+
+PLAN_FILE = "plan.json"
+"""What the study in a results folder set out to do: its kind and the runs it planned."""
+
+
+def write_plan(out_dir: Path, study: str, run_ids: Sequence[str] | None) -> None:
+    """Record the runs a study plans (None: a search that decides as it goes), so a report
+    on an unfinished study can say how many of how many have finished."""
+    write_json_atomic(out_dir / PLAN_FILE, {"study": study, "runs": None if run_ids is None
+                                            else list(run_ids)})
+
+
+def read_plan(out_dir: Path) -> dict[str, Any] | None:
+    try:
+        plan = json.loads((out_dir / PLAN_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return plan if isinstance(plan, dict) else None
+
+
 def _lock_owner(fd: int) -> dict[str, Any] | None:
     try:
         owner = json.loads(os.pread(fd, 4096, 0).decode() or "null")

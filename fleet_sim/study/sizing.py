@@ -103,6 +103,7 @@ from fleet_sim.study.runner import (
     folder_lock,
     make_pool,
     prepare,
+    write_plan,
 )
 from fleet_sim.study.warmup import largest_fleet, settle_warmup
 
@@ -517,6 +518,7 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
             experiment = settle_warmup(experiment, out_dir, groups(experiment),
                                        largest_fleet(experiment) or hi_limit, pool, progress)
             prepare(experiment, out_dir)
+            write_plan(out_dir, "size", None)
             results = run_searches(
                 [_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool, progress,
                              budget) for fixed in groups(experiment)], out_dir, pool)

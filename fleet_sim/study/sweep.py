@@ -27,6 +27,7 @@ from fleet_sim.study.runner import (
     folder_lock,
     make_pool,
     prepare,
+    write_plan,
 )
 from fleet_sim.study.warmup import largest_fleet, pilot_groups, settle_warmup
 
@@ -43,6 +44,7 @@ def sweep(experiment: Experiment, out_dir: Path, workers: int = 0, scheduler: st
                 experiment = settle_warmup(experiment, out_dir, pilot_groups(experiment),
                                            largest_fleet(experiment), pilot_pool, progress)
         prepare(experiment, out_dir)
+        write_plan(out_dir, "sweep", [spec.run_id for spec in experiment.runs()])
         outcome = execute(experiment.runs(), out_dir, workers, scheduler, quiet, run_fn, stream,
                           dask_timeout_s=dask_timeout_s)
     return outcome
