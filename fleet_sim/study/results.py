@@ -165,7 +165,10 @@ def write_duckdb(out_dir: Path) -> Path:
     tmp = temp_path(db_path)
     tmp.unlink(missing_ok=True)
     runs = (out_dir / "runs").resolve()
-    con = duckdb.connect(str(tmp))
+    try:
+        con = duckdb.connect(str(tmp))
+    except duckdb.Error as exc:
+        raise _as_os_error(exc, db_path) from None
     try:
         for table in ("summary", "stats"):
             source = (out_dir / f"{table}.parquet").resolve()
@@ -181,10 +184,13 @@ def write_duckdb(out_dir: Path) -> Path:
         # everything into the database file itself: the write-ahead log is deleted on close,
         # and a disk too full for the checkpoint must fail here, not leave an empty database
         con.execute("CHECKPOINT")
-    except BaseException:
-        con.close()
+    except BaseException as exc:
+        with contextlib.suppress(Exception):
+            con.close()
         tmp.unlink(missing_ok=True)
         tmp.with_name(tmp.name + ".wal").unlink(missing_ok=True)
+        if isinstance(exc, duckdb.Error):
+            raise _as_os_error(exc, db_path) from None
         raise
     con.close()
     wal = tmp.with_name(tmp.name + ".wal")
@@ -197,6 +203,17 @@ def write_duckdb(out_dir: Path) -> Path:
     fsync_path(tmp)
     os.replace(tmp, db_path)
     return db_path
+
+
+def _as_os_error(exc: Exception, path: Path) -> OSError:
+    """DuckDB's error for a file it cannot write, as the OSError it stands for (DuckDB raises
+    its own exception types, with the system's message in the text)."""
+    text = str(exc)
+    for code in (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EDQUOT):
+        if os.strerror(code) in text:
+            return OSError(code, os.strerror(code), str(path))
+    return OSError(errno.EIO, f"DuckDB could not write the database ({text.splitlines()[0]})",
+                   str(path))
 
 
 def _sql(path: Path) -> str:

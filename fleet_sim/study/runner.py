@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import errno
 import hashlib
 import importlib
 import json
@@ -266,9 +267,21 @@ def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
         message = str(exc) if isinstance(exc, FleetSimError | InputError) \
             else f"{type(exc).__name__}: {exc}"
         shutil.rmtree(partial, ignore_errors=True)
+        if machine_fault(exc):
+            raise  # not this run's fault: every run would fail so; the study stops
         with contextlib.suppress(OSError):  # a full disk may not take the record either
             record_failure(run_dir, FAILED, message, traceback.format_exc(), wall)
         return RunResult(spec.run_id, FAILED, wall, message)
+
+
+MACHINE_FAULTS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES,
+                            errno.EPERM})
+"""Errors of the machine, not of a run: a full disk, a read-only or forbidden folder. A run
+that meets one stops the study with one line (every other run would meet it too)."""
+
+
+def machine_fault(exc: BaseException) -> bool:
+    return isinstance(exc, OSError) and exc.errno in MACHINE_FAULTS
 
 
 # ---- is a finished run what it says it is? -------------------------------------------------
@@ -519,6 +532,8 @@ class LocalPool:
                             continue
                         result = _crashed(spec, runs_dir)
                     except Exception as exc:  # the run function itself failed to report
+                        if machine_fault(exc):
+                            raise
                         result = _failed_outside(spec, runs_dir, FAILED,
                                                  f"{type(exc).__name__}: {exc}",
                                                  traceback.format_exc())
@@ -640,6 +655,8 @@ class DaskPool:
             try:
                 result = future.result()
             except Exception as exc:
+                if machine_fault(exc):
+                    raise
                 if type(exc).__name__ == "KilledWorker":
                     result = _crashed(spec, runs_dir)
                 else:
