@@ -304,9 +304,41 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("fleet-sim: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # output piped into `head` and the like
-        sys.stderr.close()
-        return 0
+    except BrokenPipeError as exc:
+        if stdout_closed():  # output piped into `head` and the like: nothing more to say
+            sys.stderr.close()
+            return 0
+        print(f"fleet-sim: error: {fault_text(exc)}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # a full disk, a read-only folder, a worker pool that cannot start
+        print(f"fleet-sim: error: {fault_text(exc)}", file=sys.stderr)
+        return 1
+
+
+def stdout_closed() -> bool:
+    """Has the reader of standard output gone away (a pipe into `head`)? Asked of the pipe
+    itself (poll reports an error on a pipe with no reader), so a broken pipe to a worker
+    process is never mistaken for it."""
+    import select
+
+    try:
+        fd = sys.stdout.fileno()
+    except (OSError, ValueError):
+        return True
+    poller = select.poll()
+    poller.register(fd, select.POLLOUT)
+    return any(events & (select.POLLERR | select.POLLHUP) for _, events in poller.poll(0))
+
+
+def fault_text(exc: OSError) -> str:
+    """One line for an error of the machine (not of the input): the path or resource, the
+    cause and its errno name, and that finished work is kept."""
+    import errno
+
+    where = exc.filename if exc.filename is not None else "fleet-sim"
+    cause = exc.strerror or str(exc) or type(exc).__name__
+    code = f" ({errno.errorcode.get(exc.errno, exc.errno)})" if exc.errno else ""
+    return f"{where}: {cause}{code}; what had finished is kept"
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -483,12 +515,19 @@ def _fresh_dir(base: Path) -> Path:
     return Path(f"{base}-{n}")
 
 
+def _dask_timeout(text: str) -> float:
+    return _number(text, "seconds", 0, 86_400)
+
+
 def _runner_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=_workers, default=0,
                         help="worker processes (default: one per core)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="run on the Dask cluster at ADDRESS (tcp://host:8786), or 'local' "
                              "for a local Dask cluster of --workers processes")
+    parser.add_argument("--dask-timeout", type=_dask_timeout, default=120.0, metavar="SECONDS",
+                        help="with --scheduler: give up when the cluster has had no worker "
+                             "for this long (default 120; finished runs are kept)")
     parser.add_argument("--out", type=Path,
                         help="results folder (default: results/<experiment name>)")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
@@ -516,7 +555,8 @@ def _sweep(args: argparse.Namespace) -> int:
         f"{args.workers or 'one per core'} worker processes"
     print(f"sweep {experiment.name}: {len(experiment.points)} design points x "
           f"{experiment.spec.replications} replications = {len(runs)} runs on {where}")
-    outcome = sweep(experiment, out, args.workers, args.scheduler, args.quiet)
+    outcome = sweep(experiment, out, args.workers, args.scheduler, args.quiet,
+                    dask_timeout_s=args.dask_timeout)
     import pandas as pd
 
     summary = pd.read_parquet(out / "summary.parquet")
@@ -553,7 +593,8 @@ def _size(args: argparse.Namespace) -> int:
     out = args.out or default_out(experiment)
     print(f"size {experiment.name}: targets "
           + ", ".join(t.describe() for t in experiment.spec.targets))
-    results = size_fleet(experiment, out, args.workers, args.scheduler, args.quiet)
+    results = size_fleet(experiment, out, args.workers, args.scheduler, args.quiet,
+                         dask_timeout_s=args.dask_timeout)
     for result in results:
         est = result.estimate
         print(f"  analytic estimate: {est.agvs:.2f} AGVs at the mean demand, "

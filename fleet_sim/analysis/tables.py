@@ -30,14 +30,17 @@ Decisions:
   the run had a multi-stop order; the merge decides it at the end, when that is known.
 * A run that fails or is interrupted leaves no half-written table under its final name: the
   files are written as ``.<name>.partial`` (and the scratch files as ``.<name>.runs.partial``)
-  and renamed when the run has finished; on an exception the partial files are removed. A
-  process killed outright (SIGKILL, the OOM killer) can leave ``.*.partial`` files: they are
-  never read, and the next run into the folder replaces them. kpis.json and run_info.json are
-  written after the tables.
+  and renamed when the run has finished, all of them only once every one is complete (a disk
+  that fills while the last is merged leaves none under its final name); on an exception the
+  partial files are removed. A process killed outright (SIGKILL, the OOM killer) can leave
+  ``.*.partial`` files: they are never read, and the next run into the folder replaces them.
+  The resolved config, run_info.json and, last, kpis.json are written after the tables, each
+  atomically (fleet_sim.config.writing).
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import itertools
 import json
@@ -58,6 +61,7 @@ from fleet_sim.analysis.kpis import KpiSums, run_kpis
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario, resolved
 from fleet_sim.config.trace import TraceOrder
+from fleet_sim.config.writing import fsync_path, write_text_atomic
 from fleet_sim.model.records import (
     BATCH_ROWS,
     EVENT_COLUMNS,
@@ -270,11 +274,11 @@ class SortedTable:
                     emit(loaded)
             emit(None)
         self.scratch.unlink()
-        os.replace(self.partial, self.path)
 
     def abort(self) -> None:
         if self._writer is not None:
-            self._writer.close()
+            with contextlib.suppress(OSError):
+                self._writer.close()
             self._writer = None
         self.scratch.unlink(missing_ok=True)
         self.partial.unlink(missing_ok=True)
@@ -339,20 +343,28 @@ class ParquetTables:
     def close(self) -> None:
         """The run finished: close the files (merging the sorted ones) and give them their
         names."""
-        writers, self._writers = self._writers, {}
-        for name, writer in writers.items():
+        done: list[tuple[Path, Path]] = []
+        for name, writer in self._writers.items():
             writer.close()
-            os.replace(self._partial(name), self.out_dir / f"{name}.parquet")
-        tables, self._sorted = self._sorted, {}
-        for name, table in tables.items():
+            done.append((self._partial(name), self.out_dir / f"{name}.parquet"))
+        for name, table in self._sorted.items():
             table.close(table_schema(name, self._stops) if name == "orders"
                         else table_schema(name))
+            done.append((table.partial, table.path))
+        # every table complete before any gets its name: a full disk while the last one is
+        # merged leaves none of them under a final name
+        for partial, _ in done:
+            fsync_path(partial)
+        for partial, final in done:
+            os.replace(partial, final)
+        self._writers, self._sorted = {}, {}
 
     def abort(self) -> None:
         """The run did not finish: close and remove the partial files."""
         writers, self._writers = self._writers, {}
         for name, writer in writers.items():
-            writer.close()
+            with contextlib.suppress(OSError):  # a full disk may fail the close as well
+                writer.close()
             self._partial(name).unlink(missing_ok=True)
         tables, self._sorted = self._sorted, {}
         for table in tables.values():
@@ -414,10 +426,10 @@ def write_run(run: RunOutput, out_dir: Path, figures: dict[str, Any],
 def _write_run_files(run: RunOutput, out_dir: Path, figures: dict[str, Any]) -> None:
     """Beside the tables: resolved config, kpis.json (`figures`) and run_info.json (wall time,
     events simulated)."""
-    (out_dir / "config.resolved.yaml").write_text(
-        yaml.safe_dump(resolved(run.scenario), sort_keys=False, allow_unicode=True),
-        encoding="utf-8")
-    (out_dir / "kpis.json").write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+    write_text_atomic(out_dir / "config.resolved.yaml",
+                      yaml.safe_dump(resolved(run.scenario), sort_keys=False,
+                                     allow_unicode=True))
     info = {"wall_s": round(run.wall_s, 3), "sim_events": run.sim_events,
             "sim_hours_per_wall_s": round(run.scenario.duration_h / max(run.wall_s, 1e-9), 3)}
-    (out_dir / "run_info.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+    write_text_atomic(out_dir / "run_info.json", json.dumps(info, indent=2) + "\n")
+    write_text_atomic(out_dir / "kpis.json", json.dumps(figures, indent=2) + "\n")

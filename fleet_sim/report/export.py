@@ -29,7 +29,8 @@ from typing import Any
 import pandas as pd
 
 from fleet_sim.analysis.kpis import CATALOGUE, NOTE_FIELDS, RUN_FIELDS
-from fleet_sim.errors import InputError
+from fleet_sim.config.writing import atomic_path
+from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.study.results import read_summary
 
 EXCEL_MAX_ROWS = 1_048_575
@@ -86,6 +87,13 @@ def _tables(source: Path) -> tuple[str, dict[str, str | pd.DataFrame]]:
         experiment = yaml.safe_load((source / "experiment.resolved.yaml").read_text(
             encoding="utf-8")) or {}
         summary, _ = read_summary(source, list(experiment.get("factors") or {}))
+        damaged = summary[summary["status"].astype(str) == "damaged"] if len(summary) \
+            else summary
+        if len(damaged):
+            first = damaged.iloc[0]
+            raise FleetSimError(
+                f"{source / 'runs' / str(first['run_id'])}: {first['error']} (of "
+                f"{len(damaged)} damaged run(s)); nothing was exported")
         tables = {"summary": summary}
         if (source / "stats.parquet").is_file():
             tables["stats"] = f"SELECT * FROM read_parquet('{_sql(source / 'stats.parquet')}')"
@@ -126,15 +134,15 @@ def export(source: Path, fmt: str, out: Path | None = None,
                 else:
                     query = table
                 rows = con.execute(f"SELECT count(*) FROM ({query})").fetchone()
-                con.execute(f"COPY ({query}) TO '{_sql(path)}' (HEADER, DELIMITER ',')")
+                with atomic_path(path) as tmp:
+                    con.execute(f"COPY ({query}) TO '{_sql(tmp)}' (HEADER, DELIMITER ',')")
                 if isinstance(table, pd.DataFrame):
                     con.unregister("frame")
                 written.append(Exported(name, path, int(rows[0]) if rows else 0))
             return written
         path = out or source / "export.xlsx"
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.tmp")
-        with pd.ExcelWriter(tmp, engine="openpyxl") as writer:
+        with atomic_path(path) as tmp, pd.ExcelWriter(tmp, engine="openpyxl") as writer:
             for name, table in tables.items():
                 say(f"reading {name}")
                 frame = table if isinstance(table, pd.DataFrame) else con.execute(table).df()
@@ -144,7 +152,6 @@ def export(source: Path, fmt: str, out: Path | None = None,
                     frame.iloc[first:first + EXCEL_MAX_ROWS].to_excel(
                         writer, sheet_name=sheet, index=False)
                 written.append(Exported(name, path, len(frame)))
-        tmp.replace(path)
         return written
     finally:
         con.close()

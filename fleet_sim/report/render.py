@@ -26,6 +26,7 @@ from pathlib import Path
 from jinja2 import Environment, PackageLoader, StrictUndefined
 from markupsafe import Markup
 
+from fleet_sim.config.writing import atomic_path, write_text_atomic
 from fleet_sim.report import figures as figs
 from fleet_sim.report.report import Report, build_report
 
@@ -80,11 +81,12 @@ def write_report(out_dir: Path, pdf: bool = True) -> tuple[Path, Path | None]:
     report = build_report(out_dir)
     try:
         html_path = out_dir / "report.html"
-        html_path.write_text(render_html(report), encoding="utf-8")
+        write_text_atomic(html_path, render_html(report))
         pdf_path: Path | None = None
         if pdf:
             pdf_path = out_dir / "report.pdf"
-            write_pdf(report, pdf_path)
+            with atomic_path(pdf_path) as tmp:
+                write_pdf(report, tmp)
     finally:
         report.close()
     return html_path, pdf_path

@@ -56,6 +56,7 @@ from fleet_sim.analysis.replay import (
     state_spells,
 )
 from fleet_sim.config.scenario import load_scenario
+from fleet_sim.config.writing import write_text_atomic
 from fleet_sim.errors import InputError
 from fleet_sim.model.states import VehicleState
 from fleet_sim.report.figures import LEAD_COLOURS, STATE_COLOURS
@@ -321,7 +322,5 @@ def write_replay(run_dir: Path, from_h: float | None = None, to_h: float | None 
     if writing is not None:
         writing()
     path = run_dir / REPLAY_FILE
-    tmp = run_dir / f".{REPLAY_FILE}.tmp"
-    tmp.write_text(render_replay(run, from_s, to_s), encoding="utf-8")
-    tmp.replace(path)
+    write_text_atomic(path, render_replay(run, from_s, to_s))
     return path

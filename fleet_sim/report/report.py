@@ -66,6 +66,7 @@ from fleet_sim.model.not_dispatched import NotDispatched
 from fleet_sim.model.states import VehicleState
 from fleet_sim.report import figures as figs
 from fleet_sim.study.results import read_summary
+from fleet_sim.study.runner import read_plan, study_running
 
 INCIDENT_EVENTS = ("deadlock_detected", "deadlock_unresolved", "reroute", "circulate", "backoff")
 MAIN_KPIS = ("throughput_per_hour", "lead_time_p95_s")
@@ -854,6 +855,32 @@ def open_orders_line(summary: pd.DataFrame) -> str:
 # ---- the report ----------------------------------------------------------------------------
 
 
+def progress_text(out_dir: Path, summary: pd.DataFrame) -> str:
+    """For a study not (yet) finished, the sentence that says so first: "12 of 28 runs
+    finished, sweep still running." (or stopped); runs found damaged are named. Empty for a
+    finished study."""
+    plan = read_plan(out_dir) or {}
+    study = str(plan.get("study") or "study")
+    planned = plan.get("runs")
+    statuses = summary["status"].astype(str) if len(summary) else pd.Series(dtype=str)
+    n_ok = int((statuses == "ok").sum())
+    running = study_running(out_dir)
+    damaged = [str(r) for r in summary.loc[statuses == "damaged", "run_id"]] \
+        if len(summary) else []
+    text = ""
+    if running or (isinstance(planned, list) and n_ok < len(planned)):
+        total = f" of {len(planned)}" if isinstance(planned, list) else ""
+        state = "still running" if running else "stopped before it finished (run it again to go on)"
+        text = f"{n_ok}{total} runs finished, {study} {state}. "
+    if damaged:
+        shown = ", ".join(damaged[:3]) + (f" and {len(damaged) - 3} more" if len(damaged) > 3
+                                          else "")
+        text += (f"{len(damaged)} finished run(s) found damaged ({shown}): left out; run the "
+                 f"{study} again to make them again. ")
+    return text
+
+
+
 def build_report(out_dir: Path) -> Report:
     """Read a results folder and prepare every section (figures drawn, numbers formatted).
 
@@ -877,7 +904,7 @@ def build_report(out_dir: Path) -> Report:
     n_ok = int((data.summary["status"] == "ok").sum())
     scenario_name = data.scenario.name if data.scenario else "?"
     layout_name = data.layout.name if data.layout else "?"
-    lead = (f"Scenario {scenario_name} on layout {layout_name}; {n_ok} of "
-            f"{len(data.summary)} runs finished; generated "
+    lead = (f"{progress_text(out_dir, data.summary)}Scenario {scenario_name} on layout "
+            f"{layout_name}; {n_ok} of {len(data.summary)} runs finished; generated "
             f"{time.strftime('%Y-%m-%d %H:%M')} by fleet-sim.")
     return Report(f"Fleet sizing report: {name}", lead, statements, estimates, sections)

@@ -23,6 +23,7 @@ Decisions, where the issues are silent:
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 from collections.abc import Iterator, Sequence
@@ -33,7 +34,8 @@ from typing import Any
 import pandas as pd
 
 from fleet_sim.config.experiment import Experiment
-from fleet_sim.study.runner import FAILED, OK
+from fleet_sim.config.writing import atomic_path, fsync_path, temp_path
+from fleet_sim.study.runner import DAMAGED, FAILED, MANIFEST, OK, run_problem
 
 
 @contextmanager
@@ -68,7 +70,12 @@ def collect_summary(out_dir: Path, factor_names: Sequence[str]) -> pd.DataFrame:
         for name in factor_names:
             row[name] = spec["factors"].get(name)
         kpi_file, error_file = run_dir / "kpis.json", run_dir / "error.json"
-        if kpi_file.exists():
+        problem = run_problem(run_dir) if kpi_file.exists() or (run_dir / MANIFEST).exists() \
+            else None
+        if problem is not None:
+            row["status"] = DAMAGED
+            row["error"] = f"{problem}; run the study again to make this run again"
+        elif kpi_file.exists():
             row["status"] = OK
             figures = json.loads(kpi_file.read_text(encoding="utf-8"))
             for key, value in figures.items():
@@ -110,8 +117,8 @@ def run_statuses(out_dir: Path) -> dict[str, str]:
         if not (run_dir / "spec.json").exists():
             continue
         status = "incomplete"
-        if (run_dir / "kpis.json").exists():
-            status = OK
+        if (run_dir / "kpis.json").exists() or (run_dir / MANIFEST).exists():
+            status = OK if run_problem(run_dir) is None else DAMAGED
         elif (run_dir / "error.json").exists():
             try:
                 error = json.loads((run_dir / "error.json").read_text(encoding="utf-8"))
@@ -141,9 +148,11 @@ def write_tables(experiment: Experiment, out_dir: Path) -> pd.DataFrame:
     from fleet_sim.analysis.stats import point_stats
 
     summary = collect_summary(out_dir, experiment.factor_names)
-    summary.to_parquet(out_dir / "summary.parquet", index=False)
+    with atomic_path(out_dir / "summary.parquet") as tmp:
+        summary.to_parquet(tmp, index=False)
     stats = point_stats(summary, experiment.factor_names)
-    stats.to_parquet(out_dir / "stats.parquet", index=False)
+    with atomic_path(out_dir / "stats.parquet") as tmp:
+        stats.to_parquet(tmp, index=False)
     write_duckdb(out_dir)
     return summary
 
@@ -153,10 +162,13 @@ def write_duckdb(out_dir: Path) -> Path:
     import duckdb
 
     db_path = out_dir / "sweep.duckdb"
-    tmp = out_dir / ".sweep.duckdb.tmp"
+    tmp = temp_path(db_path)
     tmp.unlink(missing_ok=True)
     runs = (out_dir / "runs").resolve()
-    con = duckdb.connect(str(tmp))
+    try:
+        con = duckdb.connect(str(tmp))
+    except duckdb.Error as exc:
+        raise _as_os_error(exc, db_path) from None
     try:
         for table in ("summary", "stats"):
             source = (out_dir / f"{table}.parquet").resolve()
@@ -169,11 +181,39 @@ def write_duckdb(out_dir: Path) -> Path:
                     f"CREATE VIEW {view} AS SELECT regexp_extract(filename, "
                     f"'([^/]+)/{view}.parquet$', 1) AS run_id, * EXCLUDE (filename) "
                     f"FROM read_parquet('{pattern}', filename = true, union_by_name = true)")
-    finally:
-        con.close()
+        # everything into the database file itself: the write-ahead log is deleted on close,
+        # and a disk too full for the checkpoint must fail here, not leave an empty database
+        con.execute("CHECKPOINT")
+    except BaseException as exc:
+        with contextlib.suppress(Exception):
+            con.close()
+        tmp.unlink(missing_ok=True)
+        tmp.with_name(tmp.name + ".wal").unlink(missing_ok=True)
+        if isinstance(exc, duckdb.Error):
+            raise _as_os_error(exc, db_path) from None
+        raise
+    con.close()
+    wal = tmp.with_name(tmp.name + ".wal")
+    if wal.exists() and wal.stat().st_size:
+        tmp.unlink(missing_ok=True)
+        wal.unlink(missing_ok=True)
+        raise OSError(errno.EIO, "DuckDB could not write its tables into the database file",
+                      str(db_path))
+    wal.unlink(missing_ok=True)
+    fsync_path(tmp)
     os.replace(tmp, db_path)
-    (out_dir / ".sweep.duckdb.tmp.wal").unlink(missing_ok=True)
     return db_path
+
+
+def _as_os_error(exc: Exception, path: Path) -> OSError:
+    """DuckDB's error for a file it cannot write, as the OSError it stands for (DuckDB raises
+    its own exception types, with the system's message in the text)."""
+    text = str(exc)
+    for code in (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EDQUOT):
+        if os.strerror(code) in text:
+            return OSError(code, os.strerror(code), str(path))
+    return OSError(errno.EIO, f"DuckDB could not write the database ({text.splitlines()[0]})",
+                   str(path))
 
 
 def _sql(path: Path) -> str:

@@ -9,15 +9,25 @@ A run's folder (``<results>/runs/<run id>/``)::
     events.parquet, orders.parquet, run_info.json    as `fleet-sim run` writes them
     node_waits.parquet     per node: AGV passes and seconds AGVs stood there waiting
                            (fleet_sim.analysis.congestion)
-    kpis.json              written last and atomically: its presence means "finished"
-    error.json             instead of kpis.json when the run failed (type, message, trace)
+    kpis.json              the run's KPIs
+    manifest.json          written last: each file's size and SHA-256 (a finished run)
+    error.json             instead of the manifest when the run failed (type, message, trace)
 
 Decisions, where the issues are silent:
 
-* A run is finished when its kpis.json exists. The engine's files are written to
-  ``runs/<id>/.partial`` and moved in, kpis.json last (``os.replace``), so a study killed at any
-  moment leaves either a finished run or one that is run again; re-running skips finished
-  runs and retries failed ones. A run folder whose spec.json differs from what the experiment
+* A run is finished when its manifest exists and checks out (`run_problem`): every file it
+  lists is there with its size and SHA-256, and kpis.json holds KPIs. The engine's files are
+  written to ``runs/<id>/.partial`` (each atomically: fleet_sim.config.writing) and moved in,
+  the manifest last (``os.replace``), so a study killed at any moment leaves either a
+  finished run or one that is run again; re-running skips finished runs, retries failed ones
+  and makes again, with one line naming it and what was wrong, a run whose files were
+  damaged, truncated or removed since (a run of an older fleet_sim, without a manifest, is
+  trusted if its kpis.json holds KPIs and its Parquet files open). Checking costs a read of
+  the run's files (SHA-256 runs at several hundred MB/s; a warehouse shift's run is 1-3 MB).
+* The temporaries a killed study left (``.*.tmp``, ``.partial``) are removed by the next study
+  that takes the folder. A run that finishes after its study stopped (a Dask worker that
+  outlived a lost scheduler) sees that the folder's lock no longer names its study and
+  writes nothing. A run folder whose spec.json differs from what the experiment
   now asks for (another master seed, other overrides) stops the study with an error rather
   than mixing two experiments in one folder.
 * Failures: an exception inside a run is caught in the worker and written to error.json (status
@@ -49,6 +59,9 @@ Decisions, where the issues are silent:
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
+import errno
+import hashlib
 import importlib
 import json
 import multiprocessing
@@ -72,13 +85,20 @@ import yaml
 from fleet_sim.analysis.congestion import WORK_SPELL_COLUMNS, node_waits
 from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, layout_for, load_trace_for
 from fleet_sim.config.scenario import VEHICLE_TYPES
+from fleet_sim.config.writing import (
+    atomic_path,
+    clean_temporaries,
+    copy_atomic,
+    write_json_atomic,
+    write_text_atomic,
+)
 from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.study.progress import Progress
 
 RunFn = Callable[[RunSpec, str], "RunResult"]
 """A function that executes one run into `runs_dir` (module level, so workers can import it)."""
 
-OK, FAILED, CRASHED = "ok", "failed", "crashed"
+OK, FAILED, CRASHED, DAMAGED = "ok", "failed", "crashed", "damaged"
 
 
 @dataclass(frozen=True)
@@ -132,12 +152,54 @@ def folder_lock(out_dir: Path, stream: IO[str] | None = None) -> Iterator[None]:
         mine = {"pid": os.getpid(), "host": socket.gethostname(),
                 "started": time.strftime("%Y-%m-%dT%H:%M:%S")}
         os.pwrite(fd, (json.dumps(mine) + "\n").encode(), 0)
+        clean_temporaries(out_dir)  # what a killed study left half-written
         try:
             yield
         finally:
             os.ftruncate(fd, 0)  # released: an empty lock file names no owner
     finally:
         os.close(fd)  # releases the flock
+
+
+def study_running(out_dir: Path) -> bool:
+    """Is a study (sweep, size, compare) writing into `out_dir` now? Asked of the lock itself:
+    a shared lock cannot be had while a study holds the exclusive one."""
+    path = out_dir / LOCK_FILE
+    if not path.exists():
+        return False
+    if fcntl is None:
+        owner = study_owner(out_dir)
+        return owner is not None and pid_alive(int(json.loads(owner).get("pid", 0)))
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)  # releases the shared lock if it was had
+    return False
+
+
+PLAN_FILE = "plan.json"
+"""What the study in a results folder set out to do: its kind and the runs it planned."""
+
+
+def write_plan(out_dir: Path, study: str, run_ids: Sequence[str] | None) -> None:
+    """Record the runs a study plans (None: a search that decides as it goes), so a report
+    on an unfinished study can say how many of how many have finished."""
+    write_json_atomic(out_dir / PLAN_FILE, {"study": study, "runs": None if run_ids is None
+                                            else list(run_ids)})
+
+
+def read_plan(out_dir: Path) -> dict[str, Any] | None:
+    try:
+        plan = json.loads((out_dir / PLAN_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return plan if isinstance(plan, dict) else None
 
 
 def _lock_owner(fd: int) -> dict[str, Any] | None:
@@ -165,14 +227,15 @@ def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
 
     start = time.perf_counter()
     run_dir = Path(runs_dir) / spec.run_id
+    owner = study_owner(Path(runs_dir).parent)
     run_dir.mkdir(parents=True, exist_ok=True)
-    if (run_dir / "kpis.json").exists():
+    if (run_dir / MANIFEST).exists() and run_problem(run_dir) is None:
         return RunResult(spec.run_id, OK, 0.0)
-    for stale in ("error.json",):
+    for stale in (MANIFEST, "kpis.json", "error.json"):  # a damaged run is made again
         (run_dir / stale).unlink(missing_ok=True)
     info = {**spec.as_json(), "pid": os.getpid(), "host": socket.gethostname(),
             "started": time.strftime("%Y-%m-%dT%H:%M:%S")}
-    _write_json_atomic(run_dir / "spec.json", info)
+    write_json_atomic(run_dir / "spec.json", info)
     partial = run_dir / ".partial"
     try:
         shutil.rmtree(partial, ignore_errors=True)
@@ -183,33 +246,140 @@ def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
         events = pd.read_parquet(partial / "events.parquet", columns=list(WORK_SPELL_COLUMNS))
         waits = node_waits(run.recorder.occupancy, events, scenario.warmup_s,
                            scenario.duration_s)
-        waits.to_parquet(partial / "node_waits.parquet", index=False)
+        with atomic_path(partial / "node_waits.parquet") as tmp:
+            waits.to_parquet(tmp, index=False)
         wall = time.perf_counter() - start
         figures["wall_s"] = round(wall, 3)
-        _write_json_atomic(partial / "kpis.json", figures)
-        for item in sorted(partial.iterdir(), key=lambda p: p.name == "kpis.json"):
-            os.replace(item, run_dir / item.name)  # kpis.json last: the run is finished
+        write_json_atomic(partial / "kpis.json", figures)
+        write_manifest(partial)
+        if owner is not None and study_owner(Path(runs_dir).parent) != owner:
+            # the study that asked for this run has stopped (a Dask worker outliving its
+            # sweep): its folder is no longer this run's to write
+            shutil.rmtree(partial, ignore_errors=True)
+            return RunResult(spec.run_id, FAILED, wall, "the study stopped before this run "
+                             "finished; not written")
+        for item in sorted(partial.iterdir(), key=lambda p: p.name == MANIFEST):
+            os.replace(item, run_dir / item.name)  # the manifest last: the run is finished
         partial.rmdir()
         return RunResult(spec.run_id, OK, wall)
     except Exception as exc:  # a failing run is recorded, never raised
         wall = time.perf_counter() - start
         message = str(exc) if isinstance(exc, FleetSimError | InputError) \
             else f"{type(exc).__name__}: {exc}"
-        record_failure(run_dir, FAILED, message, traceback.format_exc(), wall)
         shutil.rmtree(partial, ignore_errors=True)
+        if machine_fault(exc):
+            raise  # not this run's fault: every run would fail so; the study stops
+        with contextlib.suppress(OSError):  # a full disk may not take the record either
+            record_failure(run_dir, FAILED, message, traceback.format_exc(), wall)
         return RunResult(spec.run_id, FAILED, wall, message)
+
+
+MACHINE_FAULTS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES,
+                            errno.EPERM})
+"""Errors of the machine, not of a run: a full disk, a read-only or forbidden folder. A run
+that meets one stops the study with one line (every other run would meet it too)."""
+
+
+def machine_fault(exc: BaseException) -> bool:
+    return isinstance(exc, OSError) and exc.errno in MACHINE_FAULTS
+
+
+# ---- is a finished run what it says it is? -------------------------------------------------
+
+MANIFEST = "manifest.json"
+"""Written last into a finished run's folder: each file's size and SHA-256."""
+CHECKED_ASIDE = ("spec.json", "error.json", MANIFEST)
+"""Files of a run folder the manifest does not cover (written before, or instead of, it)."""
+HASH_CHUNK = 1 << 20
+
+
+def file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as f:
+        while chunk := f.read(HASH_CHUNK):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def write_manifest(run_dir: Path) -> None:
+    """The manifest of the run's files in `run_dir` (everything but spec.json and error.json)."""
+    files = {p.name: {"size_bytes": p.stat().st_size, "sha256": file_sha256(p)}
+             for p in sorted(run_dir.iterdir())
+             if p.is_file() and not p.name.startswith(".") and p.name not in CHECKED_ASIDE}
+    write_json_atomic(run_dir / MANIFEST, {"files": files})
+
+
+def run_problem(run_dir: Path) -> str | None:
+    """What is wrong with a run folder that looks finished (it has a manifest or a
+    kpis.json), in a few words; None when every file it should hold is there, whole and
+    readable. A run of an older fleet_sim (kpis.json, no manifest) is checked by reading:
+    its kpis.json must hold KPIs and every Parquet file must open."""
+    manifest_file = run_dir / MANIFEST
+    if manifest_file.exists():
+        try:
+            manifest = json.loads(manifest_file.read_text(encoding="utf-8"))
+            files = manifest["files"]
+            assert isinstance(files, dict)
+        except (OSError, ValueError, KeyError, AssertionError, TypeError):
+            return f"{MANIFEST} is damaged"
+        for name, entry in sorted(files.items()):
+            path = run_dir / name
+            if not path.is_file():
+                return f"{name} is missing"
+            try:
+                size = path.stat().st_size
+                if size != entry.get("size_bytes"):
+                    return (f"{name} has {size} bytes where {entry.get('size_bytes')} were "
+                            "written")
+                if file_sha256(path) != entry.get("sha256"):
+                    return f"{name} is damaged (its content changed since it was written)"
+            except OSError as exc:
+                return f"{name} cannot be read ({exc.strerror or exc})"
+        if "kpis.json" not in files:
+            return "kpis.json is missing"
+    return _kpis_problem(run_dir) or (None if manifest_file.exists()
+                                      else _tables_problem(run_dir))
+
+
+def _kpis_problem(run_dir: Path) -> str | None:
+    try:
+        figures = json.loads((run_dir / "kpis.json").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return "kpis.json is missing"
+    except (OSError, ValueError):
+        return "kpis.json is damaged (not JSON)"
+    if not isinstance(figures, dict) or "throughput_per_hour" not in figures:
+        return "kpis.json holds no KPIs"
+    return None
+
+
+def _tables_problem(run_dir: Path) -> str | None:
+    import pyarrow.parquet as pq
+
+    for path in sorted(run_dir.glob("*.parquet")):
+        try:
+            pq.read_metadata(path)
+        except Exception as exc:  # pyarrow raises its own errors for a damaged file
+            return f"{path.name} is damaged ({type(exc).__name__})"
+    return None
+
+
+def study_owner(out_dir: Path) -> str | None:
+    """Who holds the results folder now (the lock file's content), or None when nobody
+    does (a run made outside a study)."""
+    try:
+        text = (out_dir / LOCK_FILE).read_text(encoding="utf-8").strip()
+    except OSError:
+        return None
+    return text or None
 
 
 def record_failure(run_dir: Path, status: str, message: str, trace: str, wall_s: float) -> None:
     run_dir.mkdir(parents=True, exist_ok=True)
-    _write_json_atomic(run_dir / "error.json", {"status": status, "error": message,
+    write_json_atomic(run_dir / "error.json", {"status": status, "error": message,
                                                 "traceback": trace, "wall_s": round(wall_s, 3)})
 
 
-def _write_json_atomic(path: Path, data: Any) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=str) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
 
 
 
@@ -236,6 +406,11 @@ class RunTally:
 
 # ---- runners -------------------------------------------------------------------------------
 
+
+DEFAULT_NO_WORKERS_TIMEOUT_S = 120.0
+"""How long a study on a Dask cluster waits with no worker at all before it gives up."""
+WORKER_POLL_S = 1.0
+"""How often a study on a Dask cluster looks for workers while no run finishes."""
 
 PARENT_POLL_S = 0.5
 """How often a worker checks that the sweep process is still alive."""
@@ -357,6 +532,8 @@ class LocalPool:
                             continue
                         result = _crashed(spec, runs_dir)
                     except Exception as exc:  # the run function itself failed to report
+                        if machine_fault(exc):
+                            raise
                         result = _failed_outside(spec, runs_dir, FAILED,
                                                  f"{type(exc).__name__}: {exc}",
                                                  traceback.format_exc())
@@ -371,6 +548,15 @@ class LocalPool:
             self._kill()  # interrupted: do not wait for runs in flight
             raise
         return results
+
+
+def make_pool(scheduler: str | None, workers: int, run_fn: RunFn = execute_run,
+              dask_timeout_s: float = DEFAULT_NO_WORKERS_TIMEOUT_S) -> LocalPool | DaskPool:
+    """Workers kept for a whole study: on the Dask cluster `scheduler`, else processes here
+    (workers=0: one per core)."""
+    n_workers = workers or os.cpu_count() or 1
+    return DaskPool(scheduler, n_workers, run_fn, dask_timeout_s) if scheduler \
+        else LocalPool(n_workers, run_fn)
 
 
 def run_local(specs: Sequence[RunSpec], runs_dir: Path, workers: int,
@@ -395,7 +581,7 @@ def _failed_outside(spec: RunSpec, runs_dir: Path, status: str, message: str,
     run_dir = runs_dir / spec.run_id
     run_dir.mkdir(parents=True, exist_ok=True)
     if not (run_dir / "spec.json").exists():
-        _write_json_atomic(run_dir / "spec.json", spec.as_json())
+        write_json_atomic(run_dir / "spec.json", spec.as_json())
     record_failure(run_dir, status, message, trace, 0.0)
     return RunResult(spec.run_id, status, 0.0, message)
 
@@ -416,10 +602,12 @@ class DaskPool:
     `workers` single-threaded worker processes on this machine. The results folder must be
     reachable by the workers at the same path (a shared file system on a real cluster)."""
 
-    def __init__(self, scheduler: str, workers: int, run_fn: RunFn = execute_run) -> None:
+    def __init__(self, scheduler: str, workers: int, run_fn: RunFn = execute_run,
+                 no_workers_timeout_s: float = DEFAULT_NO_WORKERS_TIMEOUT_S) -> None:
         self.scheduler = scheduler
         self.workers = max(1, workers)
         self.run_fn = run_fn
+        self.no_workers_timeout_s = no_workers_timeout_s
         self.client: Any = None
         self.cluster: Any = None
 
@@ -456,17 +644,19 @@ class DaskPool:
     def run(self, specs: Sequence[RunSpec], runs_dir: Path,
             on_result: Callable[[RunResult], None]) -> list[RunResult]:
         client = self._connect()
-        as_completed = importlib.import_module("dask.distributed").as_completed
+        distributed: Any = importlib.import_module("dask.distributed")
         results: list[RunResult] = []
         stamp = time.time_ns()
         futures = {client.submit(self.run_fn, spec, str(runs_dir.resolve()), pure=False,
                                  key=f"fleet-sim-run-{spec.run_id}-{stamp}"): spec
                    for spec in specs}
-        for future in as_completed(futures):
+        for future in self._as_completed(client, distributed, list(futures)):
             spec = futures[future]
             try:
                 result = future.result()
             except Exception as exc:
+                if machine_fault(exc):
+                    raise
                 if type(exc).__name__ == "KilledWorker":
                     result = _crashed(spec, runs_dir)
                 else:
@@ -477,9 +667,44 @@ class DaskPool:
             on_result(result)
         return results
 
+    def _as_completed(self, client: Any, distributed: Any, futures: list[Any]
+                      ) -> Iterator[Any]:
+        """The futures as they finish; SweepError when the cluster has had no worker for
+        `no_workers_timeout_s` (a cluster that lost every worker would leave the runs waiting
+        for ever) or the scheduler is gone."""
+        pending = set(futures)
+        alone_since: float | None = None
+        while pending:
+            try:
+                done, pending = distributed.wait(list(pending), timeout=WORKER_POLL_S,
+                                                 return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                done = set()
+            except OSError as exc:  # the scheduler is gone
+                raise SweepError(f"Dask scheduler {self.scheduler}: lost ({exc}); the runs "
+                                 "finished so far are kept, run the study again to go "
+                                 "on") from None
+            yield from (f for f in futures if f in done)
+            if done:
+                alone_since = None
+                continue
+            try:
+                workers = len(client.scheduler_info().get("workers", {}))
+            except OSError:
+                workers = 0
+            if workers:
+                alone_since = None
+            elif alone_since is None:
+                alone_since = time.monotonic()
+            elif time.monotonic() - alone_since >= self.no_workers_timeout_s:
+                raise SweepError(
+                    f"Dask cluster {self.scheduler}: no worker for "
+                    f"{self.no_workers_timeout_s:g} s (--dask-timeout) with {len(pending)} "
+                    "runs waiting; the runs finished so far are kept, run the study again "
+                    "to go on")
 
 
-# ---- a batch of runs -------------------------------------------------------------------------
+# ---- a batch of runs ------------------------------------------------------------------
 
 
 @dataclass
@@ -501,14 +726,15 @@ def default_out(experiment: Experiment) -> Path:
 def prepare(experiment: Experiment, out_dir: Path) -> None:
     """Create the results folder and record the experiment in it."""
     (out_dir / "runs").mkdir(parents=True, exist_ok=True)
-    shutil.copyfile(experiment.file, out_dir / "experiment.yaml")
-    (out_dir / "experiment.resolved.yaml").write_text(
-        yaml.safe_dump(experiment.resolved(), sort_keys=False, allow_unicode=True),
-        encoding="utf-8")
+    copy_atomic(experiment.file, out_dir / "experiment.yaml")
+    write_text_atomic(out_dir / "experiment.resolved.yaml",
+                      yaml.safe_dump(experiment.resolved(), sort_keys=False,
+                                     allow_unicode=True))
 
 
 def finished(spec: RunSpec, runs_dir: Path) -> bool:
-    """True if the run's kpis.json exists; an error if the folder holds a different run."""
+    """True if the run finished and checks out (`run_problem`); an error if the folder holds
+    a different run."""
     run_dir = runs_dir / spec.run_id
     spec_file = run_dir / "spec.json"
     if spec_file.exists():
@@ -524,23 +750,40 @@ def finished(spec: RunSpec, runs_dir: Path) -> bool:
                         f"{run_dir}: this run was made with another {key} "
                         f"({recorded.get(key)!r}, now {wanted[key]!r}): the results folder "
                         "holds another experiment; use --out for a new folder or delete it")
-    return (run_dir / "kpis.json").exists()
+    looks_finished = (run_dir / MANIFEST).exists() or (run_dir / "kpis.json").exists()
+    return looks_finished and run_problem(run_dir) is None
+
+
+def damaged_runs(specs: Iterable[RunSpec], runs_dir: Path) -> dict[str, str]:
+    """Runs of `specs` that look finished but do not check out: run id -> what is wrong."""
+    found: dict[str, str] = {}
+    for spec in specs:
+        run_dir = runs_dir / spec.run_id
+        if (run_dir / MANIFEST).exists() or (run_dir / "kpis.json").exists():
+            problem = run_problem(run_dir)
+            if problem is not None:
+                found[spec.run_id] = problem
+    return found
 
 
 def execute(specs: Iterable[RunSpec], out_dir: Path, workers: int = 0,
             scheduler: str | None = None, quiet: bool = False,
             run_fn: RunFn = execute_run, stream: IO[str] | None = None,
-            pool: LocalPool | DaskPool | None = None) -> SweepOutcome:
+            pool: LocalPool | DaskPool | None = None,
+            dask_timeout_s: float = DEFAULT_NO_WORKERS_TIMEOUT_S) -> SweepOutcome:
     """Run every spec not yet finished in `out_dir/runs`; workers=0 means one per core.
     `pool`: worker processes to reuse (else a pool is started for these runs)."""
     runs_dir = out_dir / "runs"
     runs_dir.mkdir(parents=True, exist_ok=True)
     specs = list(specs)
+    damaged = damaged_runs(specs, runs_dir)
     todo = [s for s in specs if not finished(s, runs_dir)]
     todo.sort(key=lambda s: -_cost(s))
     workers = workers or os.cpu_count() or 1
     already = len(specs) - len(todo)
     with Progress(len(specs), already, stream=stream, quiet=quiet) as progress:
+        for run_id, problem in damaged.items():
+            progress.note(f"run {run_id}: {problem}; it is run again")
         if already:
             progress.note(f"{already} of {len(specs)} runs already finished: skipped")
         tally = RunTally(progress, len(specs), already)
@@ -549,7 +792,7 @@ def execute(specs: Iterable[RunSpec], out_dir: Path, workers: int = 0,
         elif pool is not None:
             results = pool.run(todo, runs_dir, tally)
         elif scheduler:
-            with DaskPool(scheduler, workers, run_fn) as dask_pool:
+            with DaskPool(scheduler, workers, run_fn, dask_timeout_s) as dask_pool:
                 results = dask_pool.run(todo, runs_dir, tally)
         else:
             results = run_local(todo, runs_dir, min(workers, len(todo)), tally, run_fn)

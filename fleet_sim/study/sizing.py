@@ -67,7 +67,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from collections.abc import Generator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -96,7 +95,16 @@ from fleet_sim.config.experiment import (
 from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
-from fleet_sim.study.runner import DaskPool, LocalPool, execute, folder_lock, prepare
+from fleet_sim.study.runner import (
+    DEFAULT_NO_WORKERS_TIMEOUT_S,
+    DaskPool,
+    LocalPool,
+    execute,
+    folder_lock,
+    make_pool,
+    prepare,
+    write_plan,
+)
 from fleet_sim.study.warmup import largest_fleet, settle_warmup
 
 DEFAULT_MAX_AGVS = 50
@@ -484,7 +492,8 @@ def groups(experiment: Experiment) -> list[dict[str, Any]]:
 
 def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
                scheduler: str | None = None, quiet: bool = False,
-               stream: IO[str] | None = None, max_runs: int = MAX_RUNS) -> list[GroupResult]:
+               stream: IO[str] | None = None, max_runs: int = MAX_RUNS,
+               dask_timeout_s: float = DEFAULT_NO_WORKERS_TIMEOUT_S) -> list[GroupResult]:
     """Search every group; write sizing.json and refresh the summary tables (holding the
     results folder: see fleet_sim.study.runner.folder_lock). Raises SizingLimit, after writing
     them, if the search would need more than `max_runs` runs."""
@@ -502,15 +511,14 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
                          f"at least the smallest fleet searched ({lo_limit})")
     with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
         results: list[GroupResult] = []
-        n_workers = workers or os.cpu_count() or 1
-        pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers) if scheduler \
-            else LocalPool(n_workers)
+        pool = make_pool(scheduler, workers, dask_timeout_s=dask_timeout_s)
         budget = RunBudget(max_runs)
         stopped: str | None = None
         with pool, Progress(stream=stream, quiet=quiet) as progress:
             experiment = settle_warmup(experiment, out_dir, groups(experiment),
                                        largest_fleet(experiment) or hi_limit, pool, progress)
             prepare(experiment, out_dir)
+            write_plan(out_dir, "size", None)
             results = run_searches(
                 [_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool, progress,
                              budget) for fixed in groups(experiment)], out_dir, pool)

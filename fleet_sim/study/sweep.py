@@ -12,7 +12,6 @@ Results folder (``results/<experiment>`` by default)::
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import IO
 
@@ -20,32 +19,34 @@ from fleet_sim.config.experiment import Experiment
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
 from fleet_sim.study.runner import (
-    DaskPool,
-    LocalPool,
+    DEFAULT_NO_WORKERS_TIMEOUT_S,
     RunFn,
     SweepOutcome,
     execute,
     execute_run,
     folder_lock,
+    make_pool,
     prepare,
+    write_plan,
 )
 from fleet_sim.study.warmup import largest_fleet, pilot_groups, settle_warmup
 
 
 def sweep(experiment: Experiment, out_dir: Path, workers: int = 0, scheduler: str | None = None,
           quiet: bool = False, run_fn: RunFn = execute_run,
-          stream: IO[str] | None = None) -> SweepOutcome:
+          stream: IO[str] | None = None,
+          dask_timeout_s: float = DEFAULT_NO_WORKERS_TIMEOUT_S) -> SweepOutcome:
     """Run the experiment's design into `out_dir` and write its summary, statistics and DB."""
     with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
         if experiment.spec.warmup.method != "fixed":
-            n_workers = workers or os.cpu_count() or 1
-            pilot_pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers, run_fn) \
-                if scheduler else LocalPool(n_workers, run_fn)
-            with pilot_pool, Progress(stream=stream, quiet=quiet) as progress:
+            with make_pool(scheduler, workers, run_fn, dask_timeout_s) as pilot_pool, \
+                    Progress(stream=stream, quiet=quiet) as progress:
                 experiment = settle_warmup(experiment, out_dir, pilot_groups(experiment),
                                            largest_fleet(experiment), pilot_pool, progress)
         prepare(experiment, out_dir)
-        outcome = execute(experiment.runs(), out_dir, workers, scheduler, quiet, run_fn, stream)
+        write_plan(out_dir, "sweep", [spec.run_id for spec in experiment.runs()])
+        outcome = execute(experiment.runs(), out_dir, workers, scheduler, quiet, run_fn, stream,
+                          dask_timeout_s=dask_timeout_s)
     return outcome
 
 
