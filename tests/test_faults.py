@@ -348,7 +348,7 @@ def test_a_dask_cluster_that_loses_every_worker_fails_after_the_timeout(
             time.sleep(0.2)
         os.killpg(worker.pid, signal.SIGKILL)  # every worker lost
         started = time.monotonic()
-        stdout, stderr = sweep.communicate(timeout=120)
+        _, stderr = sweep.communicate(timeout=120)
         waited = time.monotonic() - started
     finally:
         for proc in (worker, scheduler):
