@@ -785,7 +785,9 @@ def _check_scenarios(experiment: Experiment, levels: Mapping[str, list[Any]]) ->
     for name, values in levels.items():
         for i, value in enumerate(values):
             try:
-                experiment.scenario({name: value})
+                scenario = experiment.scenario({name: value})
+                if name == "layout":
+                    layout_for(scenario, str(experiment.scenario_file))
             except InputError as exc:
                 raise InputError(file, f"factors.{name}[{i}]", value,
                                  f"a valid scenario field: {exc.element}: got {exc.value!r}; "
