@@ -301,7 +301,9 @@ REFUSED = [
     ({"v": {"layout": "nowhere.yaml"}}, "variants.v.layout", "nowhere.yaml",
      "an existing layout file"),
     ({"v": {"overrides": {"demand.rate_per_hour": -1}}},
-     "variants.v at design point (fleet.size=4)", -1.0, "demand.rate_per_hour"),
+     "variants.v.overrides.demand.rate_per_hour", -1, "a number in [0, 100000]"),
+    ({"v": {"overrides": {"fleet.vehicle.max_speed_mps": 0.5}}},
+     "variants.v at design point (fleet.size=4)", 1.0, "at most the vehicle's maximum speed"),
     ({"baseline": {}}, "variants.baseline", "baseline", "the base scenario"),
     ({"a/b": {}}, "variants.a/b", "a/b", "variant name"),
     ({"v": {"layout_changez": []}}, "variants.v.layout_changez", [], "no such key"),
@@ -359,3 +361,22 @@ def test_the_experiment_schema_knows_variants_and_every_change_kind() -> None:
     assert variant["additionalProperties"] is False
     assert set(variant["properties"]) == {"description", "overrides", "layout",
                                           "layout_changes"}
+
+
+def test_a_whatif_file_validates_against_the_schema_and_a_bad_change_fails_it(
+        tmp_path: Path) -> None:
+    import jsonschema
+    import yaml
+
+    schema = json_schema("experiment")
+    jsonschema.Draft202012Validator.check_schema(schema)
+    path = whatif(tmp_path, {"aisle3": {"layout_changes": [
+        {"one_way": AISLE_3}, {"speed_limit": {"chain": AISLE_3[:3], "speed_mps": 0.5}},
+        {"station_handling": {"id": "DROP03", "handling": {"dist": "fixed", "mean_s": 40}}}]},
+        "busy": {"overrides": {"demand.rate_per_hour": 108}}}, baseline="busy")
+    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    jsonschema.validate(data, schema, cls=jsonschema.Draft202012Validator)
+    load_experiment(path)  # the loader agrees
+    data["variants"]["aisle3"]["layout_changes"].append({"one_wya": ["M007", "A03_04"]})
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate(data, schema, cls=jsonschema.Draft202012Validator)
