@@ -380,3 +380,37 @@ def test_a_whatif_file_validates_against_the_schema_and_a_bad_change_fails_it(
     data["variants"]["aisle3"]["layout_changes"].append({"one_wya": ["M007", "A03_04"]})
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate(data, schema, cls=jsonschema.Draft202012Validator)
+
+
+def test_the_docs_example_loads_and_its_messages_are_todays(tmp_path: Path) -> None:
+    """docs/whatif.md: its experiment file loads (paths made absolute), and each error line
+    it quotes is what fleet-sim says today for the change it describes."""
+    import re
+
+    import yaml
+
+    text = (ROOT / "docs" / "whatif.md").read_text(encoding="utf-8")
+    data = yaml.safe_load(re.search(r"```yaml\n(.*?)```", text, re.S).group(1))  # type: ignore[union-attr]
+    data["scenario"] = SHIFT
+    data["variants"]["wifi_hall"]["layout"] = str(LAYOUTS / "warehouse_wifi.yaml")
+    exp = load_experiment(write_yaml(tmp_path / "whatif.yaml", data))
+    assert exp.variant_names == ["baseline", "aisle3_one_way", "fifth_charger",
+                                 "opportunity_charging", "more_demand", "wifi_hall"]
+    assert exp.variant_layout("fifth_charger").diff.changed_places == ("CHG05",)
+    quoted = re.findall(r"^whatif\.yaml: .*$", text, re.M)
+    cases = [("aisle3", [{"one_way": ["M007", "A03_99"]}]),
+             ("v", [{"close_segment": ["M007", "A03_04"]},
+                    {"close_segment": ["A03_36", "M051"]}]),
+             ("v", [{"speed_limit": {"chain": AISLE_3[:3], "speed_mps": 0.5}},
+                    {"one_way": AISLE_3[1:4]}, {"two_way": ["A03_04", "D11"]}]),
+             ("v", [{"parking_capacity": {"id": "PARK1", "capacity": 2}},
+                    {"parking_capacity": {"id": "PARK2", "capacity": 2}}])]
+    said = []
+    for name, edits in cases:
+        path = write_yaml(tmp_path / "whatif.yaml", {
+            "name": "w", "scenario": SHIFT, "factors": {"fleet.size": [12, 14]},
+            "variants": {name: {"layout_changes": edits}}})
+        with pytest.raises(InputError) as info:
+            load_experiment(path)
+        said.append(str(info.value).replace(f"{tmp_path}/", ""))
+    assert said == quoted
