@@ -3,6 +3,7 @@ refusals, seeds and run ids (fleet_sim.config.experiment, fleet_sim.config.layou
 
 from __future__ import annotations
 
+import itertools
 import json
 import subprocess
 import sys
@@ -19,10 +20,10 @@ from fleet_sim.config.experiment import (
     run_id,
     run_layout,
 )
-from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.config.layout import Layout
 from fleet_sim.config.layout_changes import SEGMENT_FIELDS
-from fleet_sim.config.schemas import json_schema
 from fleet_sim.config.scenario import load_scenario
+from fleet_sim.config.schemas import json_schema
 from fleet_sim.errors import InputError
 
 from .conftest import LAYOUTS, ROOT, write_yaml
@@ -96,7 +97,7 @@ def test_one_way_makes_exactly_the_named_segments_one_way(tmp_path: Path) -> Non
     exp = changes(tmp_path, {"one_way": AISLE_3})
     resolved = exp.variant_layout("v")
     base, new = edges(resolved.baseline), edges(resolved.layout)
-    hops = list(zip(AISLE_3, AISLE_3[1:], strict=False))
+    hops = list(itertools.pairwise(AISLE_3))
     for a, b in hops:
         assert base[(a, b)]["two_way"] and (b, a) in base  # two-way in the bundled layout
         assert (a, b) in new and not new[(a, b)]["two_way"]
@@ -118,7 +119,7 @@ def test_one_way_turns_a_one_way_segment_and_two_way_opens_the_way_back(
     turned = changes(tmp_path, {"one_way": loop},
                      {"two_way": ["M026", "M027"]}).variant_layout("v")
     new = edges(turned.layout)
-    hops = list(zip(loop, loop[1:], strict=False))
+    hops = list(itertools.pairwise(loop))
     for a, b in hops:
         assert (a, b) in new and (b, a) not in new and not new[(a, b)]["two_way"]
     assert new[("M026", "M027")]["two_way"] and new[("M027", "M026")]["two_way"]
@@ -390,7 +391,9 @@ def test_the_docs_example_loads_and_its_messages_are_todays(tmp_path: Path) -> N
     import yaml
 
     text = (ROOT / "docs" / "whatif.md").read_text(encoding="utf-8")
-    data = yaml.safe_load(re.search(r"```yaml\n(.*?)```", text, re.S).group(1))  # type: ignore[union-attr]
+    block = re.search(r"```yaml\n(.*?)```", text, re.S)
+    assert block is not None
+    data = yaml.safe_load(block.group(1))
     data["scenario"] = SHIFT
     data["variants"]["wifi_hall"]["layout"] = str(LAYOUTS / "warehouse_wifi.yaml")
     exp = load_experiment(write_yaml(tmp_path / "whatif.yaml", data))

@@ -657,10 +657,10 @@ def _check_variants(experiment: Experiment) -> None:
             except InputError as exc:
                 if exc.file == file:  # a refused layout change names the variant already
                     raise
-                key = next((k for k in variant.overrides if exc.element == k
+                own = next((k for k in variant.overrides if exc.element == k
                             or exc.element.startswith((f"{k}.", f"{k}["))), None)
-                if key is not None:  # the variant's own override is wrong
-                    raise InputError(file, f"{at}.overrides.{key}", exc.value,
+                if own is not None:  # the variant's own override is wrong
+                    raise InputError(file, f"{at}.overrides.{own}", exc.value,
                                      f"{exc.expected} ({exc.element}{where})") from None
                 raise InputError(file, f"{at}{where}", exc.value,
                                  f"{exc.expected} ({exc.element}, in {exc.file})") from None
