@@ -16,6 +16,7 @@ from fleet_sim.analysis.tables import stream_run
 from fleet_sim.config.experiment import (
     BASE_VARIANT,
     Experiment,
+    experiment_warnings,
     load_experiment,
     run_id,
     run_layout,
@@ -241,6 +242,20 @@ def test_layout_is_a_factor_with_files_relative_to_the_experiment(tmp_path: Path
     assert "an existing layout file" in info.value.expected
 
 
+def test_layout_changes_apply_to_every_level_of_a_layout_factor(tmp_path: Path) -> None:
+    levels = [str(LAYOUTS / "warehouse.yaml"), str(LAYOUTS / "warehouse_wifi.yaml")]
+    exp = load_experiment(whatif(tmp_path, {"aisle3": {"layout_changes": [{"one_way": AISLE_3}]}},
+                                 factors={"layout": levels}))
+    for level in levels:
+        resolved = exp.variant_layout("aisle3", {"layout": level})
+        assert Path(resolved.layout.file) == Path(level)
+        assert ("M007", "A03_04") in resolved.diff.changed_segments
+        assert len(resolved.diff.removed_segments) == len(AISLE_3) - 1
+    own = whatif(tmp_path, {"v": {"layout": levels[1]}}, factors={"layout": levels})
+    with pytest.raises(InputError, match="layout is a factor"):
+        load_experiment(own)
+
+
 def test_a_variant_may_bring_its_own_layout_file(tmp_path: Path) -> None:
     (tmp_path / "wifi.yaml").write_bytes((LAYOUTS / "warehouse_wifi.yaml").read_bytes())
     exp = load_experiment(whatif(tmp_path, {"wifi": {"layout": "wifi.yaml"}}))
@@ -417,3 +432,13 @@ def test_the_docs_example_loads_and_its_messages_are_todays(tmp_path: Path) -> N
             load_experiment(path)
         said.append(str(info.value).replace(f"{tmp_path}/", ""))
     assert said == quoted
+
+
+def test_setup_warnings_are_said_per_variant(tmp_path: Path) -> None:
+    """A variant that removes every charger while charging is on is warned of, the base
+    scenario (four chargers) is not."""
+    exp = load_experiment(whatif(tmp_path, {"no_chargers": {"layout_changes": [
+        {"remove_charger": f"CHG0{i}"} for i in range(1, 5)]}}))
+    assert not any("no charger" in w for w in experiment_warnings(exp))
+    warned = experiment_warnings(exp, "no_chargers")
+    assert any(w.startswith("charging is on but the layout has no charger") for w in warned)

@@ -808,15 +808,16 @@ def _check_scenarios(experiment: Experiment, levels: Mapping[str, list[Any]]) ->
                              f"{exc.expected} (scenario field {exc.element})") from None
 
 
-def experiment_warnings(experiment: Experiment) -> list[str]:
-    """The setup warnings of the experiment's design points, each kind once: the line of the
-    first point that has it, and in how many of the points it holds."""
+def experiment_warnings(experiment: Experiment, variant: str | None = None) -> list[str]:
+    """The setup warnings of the experiment's design points (in `variant`; None: the base
+    scenario), each kind once: the line of the first point that has it, and in how many of
+    the points it holds."""
     first: dict[str, str] = {}
     points: dict[str, int] = {}
     design = experiment.points or ((),)
     for point in design:
-        scenario = experiment.scenario(dict(point))
-        layout = layout_for(scenario, str(experiment.scenario_file))
+        scenario = experiment.scenario(dict(point), variant)
+        layout = experiment.layout(scenario, variant)
         for warning in setup_warnings(scenario, layout):
             first.setdefault(warning.kind, warning.text)
             points[warning.kind] = points.get(warning.kind, 0) + 1
