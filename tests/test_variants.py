@@ -411,13 +411,13 @@ def test_a_whatif_file_validates_against_the_schema_and_a_bad_change_fails_it(
 
 
 def test_the_docs_example_loads_and_its_messages_are_todays(tmp_path: Path) -> None:
-    """docs/whatif.md: its experiment file loads (paths made absolute), and each error line
+    """docs/how-to/whatif.md: its experiment file loads (paths made absolute), and each error line
     it quotes is what fleet-sim says today for the change it describes."""
     import re
 
     import yaml
 
-    text = (ROOT / "docs" / "whatif.md").read_text(encoding="utf-8")
+    text = (ROOT / "docs" / "how-to" / "whatif.md").read_text(encoding="utf-8")
     block = re.search(r"```yaml\n(.*?)```", text, re.S)
     assert block is not None
     data = yaml.safe_load(block.group(1))

@@ -46,7 +46,7 @@ Decisions, where the issue is silent:
   count min_agvs and max_agvs then bound; run ids read ``fleet.vehicles.heavy.count=3__r00``.
   Why one type: "how many heavy tuggers do my eight carriers need beside them" is the
   planner's question; a search over several counts at once has no single smallest answer.
-* Variants (``variants:``, docs/whatif.md): name -> overrides over the experiment's, another
+* Variants (``variants:``, docs/how-to/whatif.md): name -> overrides over the experiment's, another
   layout file, layout changes (fleet_sim.config.layout_changes). The baseline is the base
   scenario (named BASE_VARIANT, ``baseline``) unless ``baseline:`` names a variant; the base
   scenario is among the variants compared only as the baseline. Every variant runs at every
@@ -232,7 +232,7 @@ class VariantSpec(StrictModel):
                               Field(max_length=MAX_LAYOUT_CHANGES)] = ()
     """Edits of the variant's layout, applied in order: one_way, two_way, close_segment,
     close_node, speed_limit, add_node, add_segment, add_/move_/remove_ charger, station,
-    parking, station_handling, parking_capacity (docs/whatif.md)."""
+    parking, station_handling, parking_capacity (docs/how-to/whatif.md)."""
 
     @field_validator("layout_changes", mode="before")
     @classmethod

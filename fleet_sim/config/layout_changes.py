@@ -1,5 +1,5 @@
 """Layout changes: a short list of edits a what-if variant makes to a layout, so that nobody
-copies a 478-line layout file to change ten lines of it (docs/whatif.md shows every kind).
+copies a 478-line layout file to change ten lines of it (docs/how-to/whatif.md shows every kind).
 
 A change is a mapping with one key, its kind::
 

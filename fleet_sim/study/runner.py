@@ -83,7 +83,7 @@ import pandas as pd
 import yaml
 
 from fleet_sim.analysis.congestion import WORK_SPELL_COLUMNS, node_waits
-from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, layout_for, load_trace_for
+from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, load_trace_for, run_layout
 from fleet_sim.config.scenario import VEHICLE_TYPES
 from fleet_sim.config.writing import (
     atomic_path,
@@ -240,7 +240,7 @@ def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
     try:
         shutil.rmtree(partial, ignore_errors=True)
         scenario = load_scenario(spec.scenario_file, spec.override_dict())
-        layout = layout_for(scenario, spec.scenario_file)
+        layout = run_layout(scenario, spec)
         run, figures = stream_run(scenario, layout, partial, load_trace_for(scenario, layout),
                                   record_occupancy=True)
         events = pd.read_parquet(partial / "events.parquet", columns=list(WORK_SPELL_COLUMNS))
@@ -744,11 +744,11 @@ def finished(spec: RunSpec, runs_dir: Path) -> bool:
             recorded = None
         wanted = json.loads(json.dumps(spec.as_json(), default=str))
         if recorded is not None:
-            for key in ("seed", "overrides", "scenario_file"):
-                if recorded.get(key) != wanted[key]:
+            for key in ("seed", "overrides", "scenario_file", "layout_changes"):
+                if recorded.get(key) != wanted.get(key):
                     raise SweepError(
                         f"{run_dir}: this run was made with another {key} "
-                        f"({recorded.get(key)!r}, now {wanted[key]!r}): the results folder "
+                        f"({recorded.get(key)!r}, now {wanted.get(key)!r}): the results folder "
                         "holds another experiment; use --out for a new folder or delete it")
     looks_finished = (run_dir / MANIFEST).exists() or (run_dir / "kpis.json").exists()
     return looks_finished and run_problem(run_dir) is None
