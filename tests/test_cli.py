@@ -124,13 +124,13 @@ def test_agvs_of_a_mixed_fleet_name_the_types(tmp_path: Path) -> None:
     assert [(t["type"], t["count"]) for t in fleet["vehicles"]] == [("carrier", 1), ("heavy", 2)]
     for args, message in [
         (("run", str(scenario), "--agvs", "3"),
-         "fleet-sim: error: --agvs: fleet.vehicles: got 3; expected TYPE=N for a mixed fleet "
+         "fleet-sim: error: --agvs: got 3; expected TYPE=N for a mixed fleet "
          "(fleet.vehicles: carrier, heavy), e.g. --agvs heavy=N"),
         (("run", str(scenario), "--agvs", "hevy=2"),
-         "fleet.vehicles.hevy.count: got 'hevy'; expected a type of fleet.vehicles "
-         "(carrier, heavy)"),
+         "fleet-sim: error: --agvs: got 'hevy=2'; expected TYPE=N with TYPE a type of "
+         "fleet.vehicles (carrier, heavy); did you mean heavy=2?"),
         (("run", "experiments/tiny_loop.yaml", "--agvs", "heavy=2"),
-         "fleet-sim: error: --agvs: fleet.size: got 'heavy=2'; expected a number of AGVs "
+         "fleet-sim: error: --agvs: got 'heavy=2'; expected a number of AGVs "
          "(the scenario's fleet has one vehicle type)"),
         (("run", str(scenario), "--agvs", "heavy=0"), "number of heavy AGVs >= 1"),
     ]:
