@@ -213,8 +213,8 @@ def test_trace_rows_refuse_nan(tmp_path: Path) -> None:
     ({"from": "A", "to": "B", "direction": "both"}, "direction", "both",
      "one of 'one_way', 'two_way'"),
     ({"from": "A", "to": "B", "from_node": "C"}, "from_node", "C",
-     "no such key here (known keys: from, to, length_m, speed_limit_mps, direction, branch, "
-     "rssi_dbm, allowed_types, speed_limit_mps_by_type)"),
+     "no such key here: did you mean 'from'? (known keys: from, to, length_m, speed_limit_mps, "
+     "direction, branch, rssi_dbm, allowed_types, speed_limit_mps_by_type)"),
     (["A", "B"], "top level", ["A", "B"], "a mapping"),
 ])
 def test_formatter_speaks_the_files_language(data: Any, element: str, value: object,
