@@ -47,6 +47,7 @@ from fleet_sim.config.scenario import MAX_DURATION_H, MAX_FLEET_SIZE
 from fleet_sim.errors import FleetSimError, InputError
 
 if typing.TYPE_CHECKING:
+    from fleet_sim.config.experiment import Experiment
     from fleet_sim.config.scenario import Scenario
 
 Handler = Callable[[argparse.Namespace], int]
@@ -671,7 +672,7 @@ def scenario_for(file: Path, settings: Sequence[tuple[str, object]],
 
     sets = dict(settings)
     plain = _flag_overrides(None, hours, seed, None)
-    scenario = _load_with_hours(load_scenario, file, plain, hours)
+    scenario = _load_with_hours(file, plain, hours)
     if sets:
         try:
             scenario = load_scenario(file, {**sets, **plain})
@@ -681,11 +682,11 @@ def scenario_for(file: Path, settings: Sequence[tuple[str, object]],
             raise InputError(SET, exc.element, exc.value, exc.expected) from None
     if agvs is None:
         return scenario
-    return _load_with_hours(load_scenario, file,
+    return _load_with_hours(file,
                             {**sets, **_flag_overrides(agvs, hours, seed, scenario)}, hours)
 
 
-def experiment_for(file: Path, settings: Sequence[tuple[str, object]]) -> typing.Any:
+def experiment_for(file: Path, settings: Sequence[tuple[str, object]]) -> Experiment:
     """The experiment of `file` with the --set settings in every run; its targets checked and
     its setup warnings printed."""
     from fleet_sim.config.experiment import load_experiment
@@ -745,11 +746,13 @@ def _fleet_text(agvs: int | dict[str, int]) -> str:
     return " + ".join(f"{n} {name}" for name, n in agvs.items())
 
 
-def _load_with_hours(load: Callable[..., typing.Any], file: Path,
-                     overrides: dict[str, object], hours: float | None) -> typing.Any:
+def _load_with_hours(file: Path, overrides: dict[str, object],
+                     hours: float | None) -> Scenario:
     """The scenario with the overrides; a warm-up the --hours run cannot hold names --hours."""
+    from fleet_sim.config.scenario import load_scenario
+
     try:
-        return load(file, overrides)
+        return load_scenario(file, overrides)
     except InputError as exc:
         if hours is not None and exc.element == "warmup_h":
             raise InputError("--hours", "duration_h", hours,
@@ -798,7 +801,7 @@ def _warn_setup(scenario: Scenario, layout: typing.Any) -> None:
         print(f"fleet-sim: warning: {warning.text}", file=sys.stderr)
 
 
-def _warn_experiment(experiment: typing.Any) -> None:
+def _warn_experiment(experiment: Experiment) -> None:
     """The setup warnings of an experiment's design points, each kind once."""
     from fleet_sim.config.experiment import experiment_warnings
 

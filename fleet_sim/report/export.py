@@ -80,12 +80,12 @@ def _kpi_rows(figures: dict[str, Any], typed: bool = False) -> pd.DataFrame:
         for name, item in items:
             kpi = known.get(name)
             meaning = kpi.meaning if kpi else ("about the run" if name in RUN_FIELDS else "")
-            value: Any = "" if item is None else str(item)
+            cell: Any = "" if item is None else str(item)
             if typed and isinstance(item, (int, float)) and not isinstance(item, bool):
-                value = item
+                cell = item
             elif typed and item is None:
-                value = None
-            rows.append((name, value, kpi.unit if kpi else "", meaning))
+                cell = None
+            rows.append((name, cell, kpi.unit if kpi else "", meaning))
     frame = pd.DataFrame(rows, columns=["kpi", "value", "unit", "meaning"])
     if typed:
         return frame.astype({"kpi": "string", "unit": "string", "meaning": "string"})
