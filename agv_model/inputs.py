@@ -16,6 +16,9 @@ Decisions, where the issue is silent:
 * A check that involves several fields (``turn_speed_mps`` at most ``max_speed_mps``) is a
   `model_validator` raising `Problem(key, value, expected)`: the key is added to the element
   path of the model that failed, so the message points at the field, not at the section.
+* An unknown key names the known keys of its mapping and, where one is close (difflib's
+  `get_close_matches`, ratio >= 0.6), the key that was probably meant: ``no such key here:
+  did you mean 'size'? (known keys: ...)``.
 * Within a discriminated union (the time distributions, tagged by ``dist``) the tag is not part
   of the element path; an unknown key says which tag it was checked against.
 * Built in code (``LinkSettings(baud=0)``), a model raises pydantic's ValidationError; only
@@ -27,10 +30,11 @@ Decisions, where the issue is silent:
 
 from __future__ import annotations
 
+import difflib
 import json
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Annotated, Any, Final, Literal, TypeVar, get_args, get_origin
 
@@ -63,6 +67,8 @@ class InputError(ValueError):
 
     The message names the file, the element, the bad value and what was expected:
     ``layouts/x.yaml: segments[12].to: got 'ZZ'; expected the id of a node in `nodes```.
+    An argument that is itself the element (``--agvs``) has no element: ``--agvs: got 12;
+    expected ...``.
     """
 
     def __init__(self, file: str, element: str, value: object, expected: str) -> None:
@@ -70,7 +76,8 @@ class InputError(ValueError):
         self.element = element
         self.value = value
         self.expected = expected
-        super().__init__(f"{file}: {element}: got {value!r}; expected {expected}")
+        where = f"{file}: {element}" if element else file
+        super().__init__(f"{where}: got {value!r}; expected {expected}")
 
     def __reduce__(self) -> tuple[Any, ...]:  # picklable across worker processes
         return (type(self), (self.file, self.element, self.value, self.expected))
@@ -321,15 +328,24 @@ def input_error(exc: ValidationError, model: type[BaseModel], file: str,
     elif kind == "missing":
         value, expected = None, f"a value for required key {walk.last_key!r}"
     elif kind == "extra_forbidden":
-        known = ", ".join(k for k in walk.known_keys if not k.startswith("_"))
+        keys = [k for k in walk.known_keys if not k.startswith("_")]
         where = f" for dist {walk.tag!r}" if walk.tag is not None else " here"
-        expected = f"no such key{where} (known keys: {known})"
+        close = closest(walk.last_key, keys)
+        hint = f": did you mean {close!r}?" if close is not None else ""
+        expected = f"no such key{where}{hint} (known keys: {', '.join(keys)})"
     elif kind == "union_tag_invalid":
         path, value = _join(path, "dist"), ctx.get("tag")
         expected = f"one of {ctx.get('expected_tags')}"
     else:
         expected = _expectation(kind, walk, ctx, str(error.get("msg", "")))
     return InputError(file, _join(element, path) or "top level", value, expected)
+
+
+def closest(word: str, choices: Iterable[str]) -> str | None:
+    """The choice `word` was most likely meant to be (a misspelt key or type), if one is close
+    enough (difflib's ratio >= 0.6, its default), else None."""
+    matches = difflib.get_close_matches(word, list(choices), n=1)
+    return matches[0] if matches else None
 
 
 def _join(path: str, key: str) -> str:

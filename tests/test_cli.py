@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pandas as pd
+import pytest
 import yaml
 
 from .conftest import LAYOUTS, ROOT, write_yaml
@@ -124,13 +125,13 @@ def test_agvs_of_a_mixed_fleet_name_the_types(tmp_path: Path) -> None:
     assert [(t["type"], t["count"]) for t in fleet["vehicles"]] == [("carrier", 1), ("heavy", 2)]
     for args, message in [
         (("run", str(scenario), "--agvs", "3"),
-         "fleet-sim: error: --agvs: fleet.vehicles: got 3; expected TYPE=N for a mixed fleet "
+         "fleet-sim: error: --agvs: got 3; expected TYPE=N for a mixed fleet "
          "(fleet.vehicles: carrier, heavy), e.g. --agvs heavy=N"),
         (("run", str(scenario), "--agvs", "hevy=2"),
-         "fleet.vehicles.hevy.count: got 'hevy'; expected a type of fleet.vehicles "
-         "(carrier, heavy)"),
+         "fleet-sim: error: --agvs: got 'hevy=2'; expected TYPE=N with TYPE a type of "
+         "fleet.vehicles (carrier, heavy); did you mean heavy=2?"),
         (("run", "experiments/tiny_loop.yaml", "--agvs", "heavy=2"),
-         "fleet-sim: error: --agvs: fleet.size: got 'heavy=2'; expected a number of AGVs "
+         "fleet-sim: error: --agvs: got 'heavy=2'; expected a number of AGVs "
          "(the scenario's fleet has one vehicle type)"),
         (("run", str(scenario), "--agvs", "heavy=0"), "number of heavy AGVs >= 1"),
     ]:
@@ -138,3 +139,121 @@ def test_agvs_of_a_mixed_fleet_name_the_types(tmp_path: Path) -> None:
         assert result.returncode == 2, args
         assert message in result.stderr and result.stderr.strip().count("\n") == 0, \
             result.stderr
+
+
+def test_help_lists_every_registered_command(capsys: pytest.CaptureFixture[str]) -> None:
+    """`fleet-sim --help` is generated from the registrations: its usage line and its list
+    name every command (replay and export were missing from the hand-kept list), and each
+    group's help names its commands."""
+    from fleet_sim.cli import REGISTRY, Group, main
+
+    with pytest.raises(SystemExit) as done:
+        main(["--help"])
+    assert done.value.code == 0
+    text = capsys.readouterr().out
+    top = [name for name in REGISTRY if " " not in name]
+    assert {"run", "replay", "export", "layout", "sweep", "size", "report"} <= set(top)
+    assert "{" + ",".join(top) + "}" in text.splitlines()[1]
+    listed = [line.split()[0] for line in text.splitlines() if line.startswith("    ")
+              and line.split() and line.split()[0] in top]
+    assert listed == top
+    for name, entry in REGISTRY.items():
+        if isinstance(entry, Group):
+            with pytest.raises(SystemExit):
+                main([name, "--help"])
+            assert "{" + ",".join(entry.commands) + "}" in capsys.readouterr().out
+
+
+def test_layout_file_is_layout_check_file(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """The old form `layout FILE` runs `layout check`; `layout import|export` are commands."""
+    from fleet_sim.cli import main
+
+    outputs = []
+    for argv in (["layout", str(LAYOUTS / "tiny_loop.yaml")],
+                 ["layout", "check", str(LAYOUTS / "tiny_loop.yaml")]):
+        assert main([*argv, "--png", str(tmp_path / "t.png")]) == 0
+        outputs.append(capsys.readouterr().out)
+    assert outputs[0] == outputs[1] and "layout 'tiny_loop' is valid" in outputs[0]
+    with pytest.raises(SystemExit) as done:
+        main(["layout", "export", str(LAYOUTS / "tiny_loop.yaml")])
+    assert done.value.code == 2
+    assert "the following arguments are required: --lif" in capsys.readouterr().err
+
+
+def test_set_overrides_any_scenario_field(tmp_path: Path) -> None:
+    """--set KEY=VALUE (repeated) sets dotted scenario fields, the value read as YAML; the
+    resolved config holds them; --agvs still wins over a --set fleet.size."""
+    from fleet_sim.cli import main
+
+    out = tmp_path / "run"
+    assert main(["run", "experiments/tiny_loop.yaml", "--quiet", "--out", str(out),
+                 "--hours", "0.3", "--set", "demand.rate_per_hour=61.5",
+                 "--set", "charging.enabled=false", "--set", "fleet.size=4",
+                 "--agvs", "3"]) == 0
+    config = yaml.safe_load((out / "config.resolved.yaml").read_text())
+    assert config["demand"]["rate_per_hour"] == 61.5
+    assert config["charging"]["enabled"] is False
+    assert config["fleet"]["size"] == 3 and config["duration_h"] == 0.3
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--set", "fleet.sise=3"],
+     "fleet-sim: error: --set: fleet.sise: got 3; expected no such key here: did you mean "
+     "'size'? (known keys: size, "),
+    (["--set", "flet.size=3"],
+     "fleet-sim: error: --set: flet: got {'size': 3}; expected no such key here: did you mean "
+     "'fleet'?"),
+    (["--set", "fleet.size=-1"],
+     "fleet-sim: error: --set: fleet.size: got -1; expected an integer in [1, 2000]"),
+    (["--set", "demand.rate_per_hour=[1"],
+     "fleet-sim: error: argument --set: got 'demand.rate_per_hour=[1'; expected KEY=VALUE "
+     "with VALUE in YAML"),
+    (["--set", "fleet.size"],
+     "fleet-sim: error: argument --set: got 'fleet.size'; expected KEY=VALUE with KEY a "
+     "dotted scenario field"),
+])
+def test_a_bad_set_names_set_and_the_field(argv: list[str], message: str,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    from fleet_sim.cli import main
+
+    try:
+        code = main(["run", "experiments/tiny_loop.yaml", *argv])
+    except SystemExit as exc:  # argparse refuses the argument itself
+        code = int(str(exc.code))
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith(message) and err.count("\n") == 1, err
+
+
+def test_a_problem_of_the_file_still_names_the_file_with_set(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from fleet_sim.cli import main
+
+    scenario = write_yaml(tmp_path / "s.yaml", {"layout": str(LAYOUTS / "tiny_loop.yaml"),
+                                                "fleet": {"size": 0}})
+    assert main(["run", str(scenario), "--set", "fleet.size=2"]) == 2
+    assert capsys.readouterr().err.startswith(f"fleet-sim: error: {scenario}: fleet.size: got 0")
+
+
+def test_set_on_an_experiment_is_an_override_of_every_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """sweep and size take --set as overrides of every run (recorded in the resolved
+    experiment); a factor, seed or an invalid value is refused naming --set."""
+    from fleet_sim.cli import experiment_for, main
+
+    file = ROOT / "experiments" / "tiny_loop_sizing.yaml"
+    experiment = experiment_for(file, [("demand.rate_per_hour", 30), ("charging.enabled", False)])
+    assert experiment.spec.overrides["demand.rate_per_hour"] == 30
+    assert all(dict(run.overrides)["charging.enabled"] is False for run in experiment.runs())
+    assert experiment.scenario({"fleet.size": 2}).demand.rate_per_hour == 30
+    for setting, message in [
+        ("fleet.size=3", "--set: fleet.size: got 3; expected a field that is not a factor"),
+        ("seed=3", "--set: seed: got 'seed'; expected another scenario field"),
+        ("demand.rate_per_hour=-1", "--set: demand.rate_per_hour: got -1; expected a number"),
+        ("demand.rate_per_houre=1", "--set: demand.rate_per_houre: got 1; expected no such key "
+                                    "here: did you mean 'rate_per_hour'?"),
+    ]:
+        assert main(["sweep", str(file), "--set", setting, "--out", str(tmp_path)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"fleet-sim: error: {message}"), err
+    assert not (tmp_path / "runs").exists()

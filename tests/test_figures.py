@@ -146,3 +146,27 @@ def test_image_page_shows_a_png(tiny_layout: Layout) -> None:
         figs.close(fig)
     assert_size(image, 11, max(3.0, 11 * height / width), DPI)
     assert_drawn(image)
+
+
+def test_labels_write_node_ids_sized_to_the_node_spacing(warehouse_layout: Layout,
+                                                          tmp_path: Path) -> None:
+    """`layout --labels`: the warehouse keeps its size, its ids get a font of 6-9 pt (nodes are
+    4 m apart), and the drawing holds more dark (text) pixels than without labels; where
+    nodes are too close for the smallest font, the figure grows until a label fits its gap."""
+    from fleet_sim.report.layout_plot import CHAR_WIDTH_EM, LABEL_PT, label_size
+
+    plain = pixels(draw_layout(warehouse_layout, tmp_path / "plain.png"))
+    labelled = pixels(draw_layout(warehouse_layout, tmp_path / "labels.png", labels=True))
+    assert plain.shape == labelled.shape
+    width, font = label_size(warehouse_layout, 104 / 6, 104.0)
+    assert width == pytest.approx(104 / 6) and 6.0 <= font <= LABEL_PT[1]
+
+    def dark(image: np.ndarray) -> int:
+        return int((image[:, :, :3].max(axis=2) < 0.25).sum())
+
+    # ~36 dark pixels per 6.8 pt id at 130 dpi; at least 20 per node
+    assert dark(labelled) > dark(plain) + 20 * warehouse_layout.graph.number_of_nodes()
+    wide, smallest = label_size(warehouse_layout, 6.0, 104.0)  # 6 in: 4 m is 16.6 pt
+    assert smallest == pytest.approx(LABEL_PT[0]) and wide > 9.0
+    gap_pt = 4.0 * wide / 104.0 * 72
+    assert (CHAR_WIDTH_EM * len("A01_04") + 0.5) * smallest <= 0.6 * gap_pt + 1e-6

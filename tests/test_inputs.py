@@ -213,8 +213,8 @@ def test_trace_rows_refuse_nan(tmp_path: Path) -> None:
     ({"from": "A", "to": "B", "direction": "both"}, "direction", "both",
      "one of 'one_way', 'two_way'"),
     ({"from": "A", "to": "B", "from_node": "C"}, "from_node", "C",
-     "no such key here (known keys: from, to, length_m, speed_limit_mps, direction, branch, "
-     "rssi_dbm, allowed_types, speed_limit_mps_by_type)"),
+     "no such key here: did you mean 'from'? (known keys: from, to, length_m, speed_limit_mps, "
+     "direction, branch, rssi_dbm, allowed_types, speed_limit_mps_by_type)"),
     (["A", "B"], "top level", ["A", "B"], "a mapping"),
 ])
 def test_formatter_speaks_the_files_language(data: Any, element: str, value: object,
@@ -245,3 +245,36 @@ def test_input_error_survives_pickling() -> None:
     assert (again.file, again.element, again.value, again.expected) == (
         "f.yaml", "fleet.size", 0, "an integer >= 1")
     assert str(again) == str(error)
+
+
+@pytest.mark.parametrize(("kind", "edit", "message"), [
+    ("scenario", lambda d: d["fleet"].update(sise=2),
+     "fleet.sise: got 2; expected no such key here: did you mean 'size'? (known keys: size,"),
+    ("scenario", lambda d: d.update(duration=2),
+     "duration: got 2; expected no such key here: did you mean 'duration_h'?"),
+    ("experiment", lambda d: d.update(replication=2),
+     "replication: got 2; expected no such key here: did you mean 'replications'?"),
+    ("layout", lambda d: d["segments"][0].update(lenght_m=4),
+     "segments[0].lenght_m: got 4; expected no such key here: did you mean 'length_m'?"),
+    ("scenario", lambda d: d["fleet"].update(colour="red"),  # nothing close: no guess
+     "fleet.colour: got 'red'; expected no such key here (known keys: size,"),
+])
+def test_an_unknown_key_gets_did_you_mean(tmp_path: Path, kind: str, edit: Any,
+                                          message: str) -> None:
+    """An unknown key in a scenario, experiment or layout file names the key meant, where one
+    is close (difflib), before the list of known keys."""
+    source = {"scenario": ROOT / "experiments" / "tiny_loop.yaml",
+              "experiment": ROOT / "experiments" / "tiny_loop_sizing.yaml",
+              "layout": LAYOUTS / "tiny_loop.yaml"}[kind]
+    data = _yaml(source)
+    if kind == "scenario":
+        data["layout"] = str(LAYOUTS / "tiny_loop.yaml")
+        data.setdefault("fleet", {})
+    if kind == "experiment":
+        data["scenario"] = str(ROOT / "experiments" / "tiny_loop.yaml")
+    edit(data)
+    path = write_yaml(tmp_path / f"{kind}.yaml", data)
+    load = {"scenario": load_scenario, "experiment": load_experiment, "layout": load_layout}
+    with pytest.raises(InputError) as info:
+        load[kind](path)
+    assert str(info.value).startswith(f"{path}: {message}"), str(info.value)

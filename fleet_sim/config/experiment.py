@@ -574,8 +574,12 @@ def _fmt(value: Any) -> str:
     return str(value)
 
 
-def load_experiment(path: str | Path) -> Experiment:
-    """Read and validate an experiment file; every error names the file and the element."""
+def load_experiment(path: str | Path, settings: Mapping[str, Any] | None = None,
+                    source: str = "--set") -> Experiment:
+    """Read and validate an experiment file; every error names the file and the element.
+
+    `settings` (dotted scenario path -> value, from the command line) are overrides added to
+    the file's, checked like them; a problem they bring names `source` and the field."""
     path = Path(path)
     file = str(path)
     data = read_yaml(path)
@@ -589,6 +593,8 @@ def load_experiment(path: str | Path) -> Experiment:
     for key in spec.overrides:
         _check_path(file, f"overrides.{key}", key)
     _check_layout_names(file, "overrides.layout", spec.overrides.get("layout", ""))
+    if settings:
+        spec = _with_settings(spec, settings, source, scenario_file)
     levels: dict[str, list[Any]] = {}
     ranges: dict[str, Range] = {}
     for key, value in spec.factors.items():
@@ -683,6 +689,28 @@ def _check_variants(experiment: Experiment) -> None:
                                      f"{exc.expected} ({exc.element}{where})") from None
                 raise InputError(file, f"{at}{where}", exc.value,
                                  f"{exc.expected} ({exc.element}, in {exc.file})") from None
+def _with_settings(spec: ExperimentSpec, settings: Mapping[str, Any], source: str,
+                   scenario_file: Path) -> ExperimentSpec:
+    """`spec` with `settings` among its overrides, each checked: a dotted path, not seed or
+    layout, not a factor, and a valid scenario with the file's overrides (whose own problems
+    are left to the checks of the file that follow)."""
+    for key, value in settings.items():
+        _check_path(source, key, key)
+        if key in spec.factors:
+            raise InputError(source, key, value, f"a field that is not a factor of the "
+                             f"experiment (factors.{key} varies it)")
+        if key == "warmup_h" and spec.warmup.method == "mser5":
+            raise InputError(source, key, value, "no warmup_h with warmup.method: mser5 (it "
+                             "estimates the warm-up)")
+    try:
+        load_scenario(scenario_file, dict(spec.overrides))
+    except InputError:
+        return spec  # the file's own problem: named by the file's checks
+    try:
+        load_scenario(scenario_file, {**spec.overrides, **settings})
+    except InputError as exc:
+        raise InputError(source, exc.element, exc.value, exc.expected) from None
+    return spec.model_copy(update={"overrides": {**spec.overrides, **settings}})
 
 
 def _check_vary_type(experiment: Experiment) -> None:

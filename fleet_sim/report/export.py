@@ -1,10 +1,10 @@
 """`fleet-sim export DIR --csv|--xlsx`: a run's or a sweep's tables for the people who live in
 spreadsheets.
 
-A run directory gives `kpis` (one row per KPI: value, unit, meaning), `orders` and `events`; a
-sweep or sizing results folder gives `summary` (one row per run: factors, seed, every KPI),
-`stats` (mean and 95 % interval per design point and KPI), and `orders` and `events` of every
-run with its `run_id`.
+A run directory gives `kpis` (one row per KPI: value, unit, meaning), `orders`, `events` and
+`soc` (each AGV's state of charge over time); a sweep or sizing results folder gives `summary`
+(one row per run: factors, seed, every KPI), `stats` (mean and 95 % interval per design point
+and KPI), and `orders`, `events` and `soc` of every run with its `run_id` and its factor levels.
 
 Decisions, where the issue is silent:
 
@@ -16,6 +16,13 @@ Decisions, where the issue is silent:
   is cut. openpyxl stamps the workbook with the time it was saved, so two exports of one run
   differ in that stamp only.
 * Missing values (a lead time not yet known, an order never delivered) are empty cells.
+* In the workbook a KPI's value is a number (a cell Excel can sum and chart), text only where
+  the KPI is text (the setup warnings); the CSV file keeps the value as kpis.json writes it.
+  Every sheet's header row is frozen and has an autofilter.
+* The run tables of a sweep carry, after `run_id`, one column per factor holding the run's
+  level (from summary.parquet). The run folders are named `factor=level__r00`, which DuckDB
+  would read as a Hive partition (a column `factor` holding `level__r00`): it is read with
+  `hive_partitioning = false`.
 """
 
 from __future__ import annotations
@@ -35,6 +42,10 @@ from fleet_sim.study.results import read_summary
 
 EXCEL_MAX_ROWS = 1_048_575
 """Data rows per sheet (Excel's 1,048,576 rows, less the header)."""
+RUN_TABLES = ("orders", "events", "soc")
+"""The tables of each run exported, in this order (those that exist)."""
+LEVELS = "levels"
+"""The frame (run_id and the factor columns of the summary) joined to a sweep's run tables."""
 
 Note = Callable[[str], None]
 
@@ -52,10 +63,16 @@ def _sql(path: Path) -> str:
     return str(path.resolve()).replace("'", "''")
 
 
-def _kpi_rows(figures: dict[str, Any]) -> pd.DataFrame:
-    """kpis.json as rows (kpi, value, unit, meaning); per-code counts flattened."""
+def _ident(name: str) -> str:
+    """A column name inside double quotes in SQL."""
+    return name.replace('"', '""')
+
+
+def _kpi_rows(figures: dict[str, Any], typed: bool = False) -> pd.DataFrame:
+    """kpis.json as rows (kpi, value, unit, meaning); per-code counts flattened. The value is
+    text as kpis.json writes it, or (`typed`) the number itself where it is one."""
     known = {k.name: k for k in CATALOGUE}
-    rows: list[tuple[str, str, str, str]] = []
+    rows: list[tuple[str, Any, str, str]] = []
     for key, value in figures.items():
         if isinstance(value, dict):
             items = [(f"{key}.{code}", count) for code, count in value.items()]
@@ -66,27 +83,47 @@ def _kpi_rows(figures: dict[str, Any]) -> pd.DataFrame:
             meaning = kpi.meaning if kpi else ("about the run" if name in RUN_FIELDS
                                                else "where the fleet locked solid"
                                                if name in NOTE_FIELDS else "")
-            rows.append((name, "" if item is None else str(item), kpi.unit if kpi else "",
-                         meaning))
-    return pd.DataFrame(rows, columns=["kpi", "value", "unit", "meaning"]).astype("string")
+            cell: Any = "" if item is None else str(item)
+            if typed and isinstance(item, (int, float)) and not isinstance(item, bool):
+                cell = item
+            elif typed and item is None:
+                cell = None
+            rows.append((name, cell, kpi.unit if kpi else "", meaning))
+    frame = pd.DataFrame(rows, columns=["kpi", "value", "unit", "meaning"])
+    if typed:
+        return frame.astype({"kpi": "string", "unit": "string", "meaning": "string"})
+    return frame.astype("string")
 
 
-def _tables(source: Path) -> tuple[str, dict[str, str | pd.DataFrame]]:
-    """("run" or "sweep", table name -> a DuckDB query or a frame), in the order written."""
+@dataclass(frozen=True)
+class _Source:
+    """What one folder exports: table name -> a DuckDB query or a frame, in the order written,
+    and the frames the queries read (registered by name)."""
+
+    tables: dict[str, str | pd.DataFrame]
+    frames: dict[str, pd.DataFrame]
+
+
+def _tables(source: Path, typed: bool = False) -> _Source:
+    """The tables of a run directory or of a sweep or sizing results folder; `typed`: KPI
+    values as numbers (the workbook)."""
     if (source / "config.resolved.yaml").is_file() and (source / "events.parquet").is_file():
         kpis_file = source / "kpis.json"
         tables: dict[str, str | pd.DataFrame] = {}
         if kpis_file.is_file():
-            tables["kpis"] = _kpi_rows(json.loads(kpis_file.read_text(encoding="utf-8")))
-        for name in ("orders", "events"):
+            tables["kpis"] = _kpi_rows(json.loads(kpis_file.read_text(encoding="utf-8")), typed)
+        for name in RUN_TABLES:
+            if name == "soc" and not (source / f"{name}.parquet").is_file():
+                continue
             tables[name] = f"SELECT * FROM read_parquet('{_sql(source / f'{name}.parquet')}')"
-        return "run", tables
+        return _Source(tables, {})
     if (source / "experiment.resolved.yaml").is_file():
         import yaml
 
         experiment = yaml.safe_load((source / "experiment.resolved.yaml").read_text(
             encoding="utf-8")) or {}
-        summary, _ = read_summary(source, list(experiment.get("factors") or {}))
+        factors = list(experiment.get("factors") or {})
+        summary, _ = read_summary(source, factors)
         damaged = summary[summary["status"].astype(str) == "damaged"] if len(summary) \
             else summary
         if len(damaged):
@@ -97,16 +134,20 @@ def _tables(source: Path) -> tuple[str, dict[str, str | pd.DataFrame]]:
         tables = {"summary": summary}
         if (source / "stats.parquet").is_file():
             tables["stats"] = f"SELECT * FROM read_parquet('{_sql(source / 'stats.parquet')}')"
+        levels = summary[["run_id", *(f for f in factors if f in summary.columns)]]
+        level_columns = "".join(f', {LEVELS}."{_ident(f)}"' for f in levels.columns[1:])
         runs = source / "runs"
-        for name in ("orders", "events"):
+        for name in RUN_TABLES:
             if any(runs.glob(f"*/{name}.parquet")):
                 pattern = _sql(runs / "*" / f"{name}.parquet")
                 tables[name] = (
-                    f"SELECT regexp_extract(filename, '([^/]+)/{name}.parquet$', 1) AS run_id, "
-                    f"* EXCLUDE (filename, file_row_number) FROM read_parquet('{pattern}', "
-                    "filename = true, file_row_number = true, union_by_name = true) "
-                    "ORDER BY run_id, file_row_number")
-        return "sweep", tables
+                    f"SELECT t.run_id{level_columns}, t.* EXCLUDE (run_id, file_row_number) "
+                    f"FROM (SELECT regexp_extract(filename, '([^/]+)/{name}.parquet$', 1) "
+                    f"AS run_id, * EXCLUDE (filename) FROM read_parquet('{pattern}', "
+                    "filename = true, file_row_number = true, union_by_name = true, "
+                    f"hive_partitioning = false)) t LEFT JOIN {LEVELS} "
+                    f"ON {LEVELS}.run_id = t.run_id ORDER BY t.run_id, t.file_row_number")
+        return _Source(tables, {LEVELS: levels})
     raise InputError(str(source), "folder", str(source),
                      "a run directory (with config.resolved.yaml and events.parquet) or a "
                      "sweep or sizing results folder (with experiment.resolved.yaml)")
@@ -118,9 +159,12 @@ def export(source: Path, fmt: str, out: Path | None = None,
     import duckdb
 
     say = note or (lambda text: None)
-    _, tables = _tables(source)
+    found = _tables(source, typed=fmt == "xlsx")
+    tables = found.tables
     written: list[Exported] = []
     con = duckdb.connect()
+    for name, frame in found.frames.items():
+        con.register(name, frame)
     try:
         if fmt == "csv":
             folder = out or source / "export"
@@ -151,7 +195,14 @@ def export(source: Path, fmt: str, out: Path | None = None,
                     say(f"writing sheet {sheet} of {path.name}")
                     frame.iloc[first:first + EXCEL_MAX_ROWS].to_excel(
                         writer, sheet_name=sheet, index=False)
+                    _header_row(writer.sheets[sheet])
                 written.append(Exported(name, path, len(frame)))
         return written
     finally:
         con.close()
+
+
+def _header_row(sheet: Any) -> None:
+    """Freeze the header row and put an autofilter on it (openpyxl worksheet)."""
+    sheet.freeze_panes = "A2"
+    sheet.auto_filter.ref = sheet.dimensions

@@ -1,4 +1,14 @@
-"""Draw a layout to PNG (matplotlib, Agg backend): never called inside a simulation."""
+"""Draw a layout to PNG (matplotlib, Agg backend): never called inside a simulation.
+
+Decisions, where the issue is silent:
+
+* `labels=True` (`fleet-sim layout FILE --labels`) writes every node's id beside it, so a
+  planner can find an aisle's nodes for `layout_changes`. The font is sized to the spacing of
+  the nodes (the median distance to the nearest other node, as drawn): a label takes at most
+  about 60 % of that gap, between 4 and 9 pt. Where even 4 pt would not fit, the figure grows
+  (up to LABELLED_WIDEST_IN wide) instead; a white halo keeps each id readable over the track.
+* Without labels the figure keeps its size rule: 1 inch per 6 m, 6 to 24 inches wide.
+"""
 
 from __future__ import annotations
 
@@ -27,6 +37,12 @@ PLACE_COLOUR = {"pickup": "#1a73e8", "dropoff": "#d93025", "charger": "#f9ab00",
 
 ZONE_COLOUR = {"mutex": "#a142f4", "ban": "#d93025", "same_direction": "#12b5cb"}
 """Traffic zones by kind (the replay page draws them in the same colours)."""
+LABEL_PT = (4.0, 9.0)
+"""Smallest and largest font of node labels (points)."""
+LABELLED_WIDEST_IN = 60.0
+"""The widest labelled drawing (7,800 pixels at 130 dpi): beyond it labels may overlap."""
+CHAR_WIDTH_EM = 0.62
+"""Width of an average character of the label font, in ems (DejaVu Sans, digits and capitals)."""
 ZONE_MARGIN_M = 0.8
 """How far a traffic zone's outline stands off its nodes."""
 
@@ -73,13 +89,61 @@ def _draw_traffic_zones(ax: Any, layout: Layout) -> None:
                     textcoords="offset points", fontsize=6, color=colour, zorder=3)
 
 
-def draw_layout(layout: Layout, path: Path, title: str | None = None) -> Path:
+def _node_gap_m(layout: Layout) -> float:
+    """The median distance from a node to the nearest other node (metres)."""
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    points = np.array([layout.position(n) for n in layout.graph.nodes])
+    if len(points) < 2:
+        return 1.0
+    distances, _ = cKDTree(points).query(points, k=2)
+    gaps = distances[:, 1][distances[:, 1] > 0]
+    return float(np.median(gaps)) if len(gaps) else 1.0
+
+
+def label_size(layout: Layout, width_in: float, span_x: float) -> tuple[float, float]:
+    """(figure width in inches, font size in points) for labelled node ids: the font fills
+    about 60 % of the gap between nodes, within LABEL_PT; the figure widens if the smallest
+    font would not fit."""
+    longest = max((len(str(n)) for n in layout.graph.nodes), default=1)
+    em_per_label = CHAR_WIDTH_EM * longest + 0.5
+    gap_m = _node_gap_m(layout)
+
+    def gap_pt(width: float) -> float:
+        return gap_m * width / span_x * 72
+
+    smallest, largest = LABEL_PT
+    needed = smallest * em_per_label / 0.6
+    if gap_pt(width_in) < needed:
+        width_in = min(LABELLED_WIDEST_IN, width_in * needed / gap_pt(width_in))
+    font = min(largest, max(smallest, 0.6 * gap_pt(width_in) / em_per_label))
+    return width_in, font
+
+
+def _draw_node_labels(ax: Any, layout: Layout, font_pt: float) -> None:
+    from matplotlib import patheffects
+
+    halo = [patheffects.withStroke(linewidth=2, foreground="white")]
+    for node in layout.graph.nodes:
+        x, y = layout.position(node)
+        ax.annotate(str(node), (x, y), xytext=(2, -2), textcoords="offset points",
+                    fontsize=font_pt, color="#202124", ha="left", va="top", zorder=4,
+                    path_effects=halo)
+
+
+def draw_layout(layout: Layout, path: Path, title: str | None = None,
+                labels: bool = False) -> Path:
+    """The layout as a PNG at `path`; `labels` writes every node's id."""
     graph = layout.graph
     xs = [d["x"] for _, d in graph.nodes(data=True)]
     ys = [d["y"] for _, d in graph.nodes(data=True)]
     span_x = max(xs) - min(xs) or 1.0
     span_y = max(ys) - min(ys) or 1.0
     width = min(24.0, max(6.0, span_x / 6))
+    font_pt = 0.0
+    if labels:
+        width, font_pt = label_size(layout, width, span_x)
     fig, ax = plt.subplots(figsize=(width, max(3.0, width * span_y / span_x) + 1))
     drawn: set[frozenset[str]] = set()
     for u, v, data in graph.edges(data=True):
@@ -105,6 +169,8 @@ def draw_layout(layout: Layout, path: Path, title: str | None = None) -> Path:
         ax.annotate(label, (x, y), xytext=(3, 3), textcoords="offset points", fontsize=6,
                     color=PLACE_COLOUR[place.kind], zorder=3)
     _draw_traffic_zones(ax, layout)
+    if labels:
+        _draw_node_labels(ax, layout, font_pt)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")

@@ -180,7 +180,8 @@ def write_duckdb(out_dir: Path) -> Path:
                 con.execute(
                     f"CREATE VIEW {view} AS SELECT regexp_extract(filename, "
                     f"'([^/]+)/{view}.parquet$', 1) AS run_id, * EXCLUDE (filename) "
-                    f"FROM read_parquet('{pattern}', filename = true, union_by_name = true)")
+                    f"FROM read_parquet('{pattern}', filename = true, union_by_name = true, "
+                    "hive_partitioning = false)")  # run folders are not partitions
         # everything into the database file itself: the write-ahead log is deleted on close,
         # and a disk too full for the checkpoint must fail here, not leave an empty database
         con.execute("CHECKPOINT")

@@ -1,0 +1,180 @@
+"""What the `fleet-sim` commands print when they finish: each result as lines of text.
+
+The command line (fleet_sim.cli) only parses arguments, calls the layer that does the work and
+prints what this module makes of the result; the wording of every summary lives here, beside
+the other ways results are shown (reports, workbooks, the replay page).
+
+Decisions:
+
+* Each function returns the text (lines joined by newlines, no final newline) rather than
+  printing it, so tests and other front ends can use the same words.
+* Column alignment (`nodes        186`) is part of the wording: the README and the docs quote
+  these lines.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from fleet_sim.config.experiment import Experiment
+    from fleet_sim.config.layout import Layout, LayoutSpec
+    from fleet_sim.config.layout_lif import Imported as ImportedLif
+    from fleet_sim.config.profile_factsheet import ImportedProfile
+    from fleet_sim.report.export import Exported
+    from fleet_sim.study.runner import SweepOutcome
+    from fleet_sim.study.sizing import GroupResult as SizingResult
+
+MAX_WARNINGS = 4
+"""Target intervals too wide to decide that a sweep names at its end (the rest: the report)."""
+
+
+def megabytes(path: Path) -> str:
+    return f"{path.stat().st_size / 1e6:.1f} MB"
+
+
+def run_lines(figures: dict[str, Any], out: Path, wall_s: float, sim_events: int) -> str:
+    """The KPIs of one run and where its directory is."""
+    from fleet_sim.analysis.kpis import summary_text
+
+    return (f"{summary_text(figures)}\n"
+            f"  run directory               {out}  ({wall_s:.1f} s wall, {sim_events:,} events)")
+
+
+def replay_line(page: Path) -> str:
+    """The replay page written at the end of `run --replay`."""
+    return f"  replay                      {page}  ({megabytes(page)})"
+
+
+def sweep_header(experiment: Experiment, runs: int, workers: int, scheduler: str | None) -> str:
+    where = f"Dask cluster {scheduler}" if scheduler else \
+        f"{workers or 'one per core'} worker processes"
+    return (f"sweep {experiment.name}: {len(experiment.points)} design points x "
+            f"{experiment.spec.replications} replications = {runs} runs on {where}")
+
+
+def sweep_lines(experiment: Experiment, outcome: SweepOutcome, out: Path) -> str:
+    """What a sweep made, what failed, targets it could not decide, and its tables."""
+    import pandas as pd
+
+    from fleet_sim.analysis.stats import check_targets
+
+    summary = pd.read_parquet(out / "summary.parquet")
+    done = int((summary["status"] == "ok").sum()) if len(summary) else 0
+    lines = [f"  {len(outcome.results)} runs made, {outcome.skipped} already finished; "
+             f"{done} finished in all, {len(outcome.failed)} failed in this sweep"]
+    lines += [f"  failed: {failure.run_id} ({failure.status}): {failure.error}"
+              for failure in outcome.failed]
+    lines += gridlock_lines(summary)
+    warnings = [w for w in (c.warning() for c in check_targets(
+        summary, experiment.factor_names, experiment.spec.targets)) if w]
+    lines += [f"  warning: {warning}" for warning in warnings[:MAX_WARNINGS]]
+    if len(warnings) > MAX_WARNINGS:
+        lines.append(f"  ... and {len(warnings) - MAX_WARNINGS} more intervals too wide to "
+                     "decide (all in the report); `fleet-sim size` adds replications where it "
+                     "matters")
+    lines += [f"  summary      {out / 'summary.parquet'}  (one row per run)",
+              f"  statistics   {out / 'stats.parquet'}  (mean and 95 % CI per design point)",
+              f"  SQL          {out / 'sweep.duckdb'}  (tables summary, stats; views orders, "
+              "events, node_waits)"]
+    return "\n".join(lines)
+
+
+def size_header(experiment: Experiment) -> str:
+    return (f"size {experiment.name}: targets "
+            + ", ".join(t.describe() for t in experiment.spec.targets))
+
+
+def size_lines(results: Sequence[SizingResult], out: Path) -> str:
+    """Per search: the analytic estimate and the simulation's answer; where sizing.json is."""
+    lines: list[str] = []
+    for result in results:
+        est = result.estimate
+        lines.append(
+            f"  analytic estimate: {est.agvs:.2f} AGVs at the mean demand, "
+            f"{est.agvs_at_peak:.2f} at the peak ({est.cycle_s:.1f} s per order: "
+            f"{est.empty_travel_s:.1f} s empty + {est.loaded_travel_s:.1f} s loaded travel + "
+            f"{est.handling_s:.1f} s handling; {est.demand_per_hour:.1f} orders/h)")
+        lines.append(f"  simulation: {result.statement()}")
+    if (out / "summary.parquet").is_file():
+        import pandas as pd
+
+        lines += gridlock_lines(pd.read_parquet(out / "summary.parquet"))
+    lines.append(f"  sizing       {out / 'sizing.json'}")
+    return "\n".join(lines)
+
+
+def gridlock_lines(summary: Any) -> list[str]:
+    """The warning line of a sweep or sizing search whose runs locked solid, if any did."""
+    from fleet_sim.report.report import gridlock_statement
+
+    statement = gridlock_statement(summary) if len(summary) else None
+    return [f"  {statement}"] if statement is not None else []
+
+
+def report_lines(html: Path, pdf: Path | None) -> str:
+    lines = [f"report: {html.resolve()}"]
+    if pdf is not None:
+        lines.append(f"        {pdf.resolve()}")
+    return "\n".join(lines)
+
+
+def export_lines(written: Sequence[Exported]) -> str:
+    return "\n".join(f"{item.table:8s} {item.rows:>10,} rows  {item.path}" for item in written)
+
+
+def layout_lines(file: Path, layout: Layout) -> str:
+    """What `fleet-sim layout` found in a valid layout."""
+    kinds: dict[str, int] = {}
+    for _, data in layout.graph.nodes(data=True):
+        kinds[data["kind"]] = kinds.get(data["kind"], 0) + 1
+    return "\n".join([
+        f"{file}: layout {layout.name!r} is valid",
+        f"  nodes        {layout.graph.number_of_nodes()} "
+        f"({', '.join(f'{n} {k}' for k, n in sorted(kinds.items()))})",
+        f"  segments     {layout.graph.number_of_edges()} directed, "
+        f"{layout.total_length_m:.0f} m of track, {len(layout.corridors)} two-way corridors",
+        f"  stations     {len(layout.pickups)} pickup, {len(layout.dropoffs)} drop-off",
+        f"  chargers     {len(layout.chargers)}",
+        f"  parking      {len(layout.parking)} areas, "
+        f"{sum(p.capacity for p in layout.parking)} AGVs"])
+
+
+def lif_import_lines(file: Path, out: Path, imported: ImportedLif) -> str:
+    spec: LayoutSpec = imported.spec
+    lines = [
+        f"{file}: LIF {imported.lif_version} layout {imported.layout_id!r}, vehicle type "
+        f"{imported.vehicle_type!r} -> {out}",
+        f"  nodes        {len(spec.nodes)}",
+        f"  segments     {len(spec.segments)} "
+        f"({sum(s.direction == 'two_way' for s in spec.segments)} two-way)",
+        f"  places       {len(spec.stations)} stations, {len(spec.chargers)} chargers, "
+        f"{len(spec.parking)} parking"]
+    lines += [f"  {'read as ' if note.kept else 'not kept'}     {note.line()}"
+              for note in imported.notes]
+    return "\n".join(lines)
+
+
+def lif_export_lines(file: Path, lif: Path, layout_name: str, data: dict[str, Any],
+                     timestamp_given: bool) -> str:
+    lif_layout = data["layouts"][0]
+    return "\n".join([
+        f"{file}: layout {layout_name!r} -> {lif} (LIF "
+        f"{data['metaInformation']['lifVersion']})",
+        f"  nodes        {len(lif_layout['nodes'])}",
+        f"  edges        {len(lif_layout['edges'])} (a two-way segment is two edges)",
+        f"  stations     {len(lif_layout['stations'])} (pickup, drop-off, chargers, parking)",
+        f"  exported at  {data['metaInformation']['exportTimestamp']}"
+        + ("" if timestamp_given else " (--timestamp now for the current time)"),
+        "  fleetSim     handling times, charger power, parking capacity, markers, Wi-Fi, "
+        "zones and explicit lengths are in the extension key fleetSim"])
+
+
+def profile_import_lines(file: Path, out: Path, imported: ImportedProfile) -> str:
+    lines = [f"{file}: {imported.title} -> {out} (profile {out.stem!r})",
+             "  from the factsheet   top speed, acceleration, deceleration, length",
+             f"  from {imported.base:<15} turn speed, battery, link (assumed for this vehicle)"]
+    lines += [f"  not used             {line}" for line in imported.not_used]
+    return "\n".join(lines)
