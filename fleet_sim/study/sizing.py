@@ -95,7 +95,15 @@ from fleet_sim.config.experiment import (
 )
 from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.study.progress import Progress
-from fleet_sim.study.sweep import DaskPool, LocalPool, execute, folder_lock, prepare, tables_written
+from fleet_sim.study.sweep import (
+    DaskPool,
+    LocalPool,
+    check_extras,
+    execute,
+    folder_lock,
+    prepare,
+    tables_written,
+)
 from fleet_sim.study.warmup import largest_fleet, settle_warmup
 
 DEFAULT_MAX_AGVS = 50
@@ -492,6 +500,7 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
         raise InputError(str(experiment.file), "targets", [],
                          "at least one target for `fleet-sim size` to meet")
     _check_fleet_varies(experiment)
+    check_extras(experiment, scheduler)
     levels = [v for v in (spec.factors.get(experiment.fleet_factor) or [])
               if isinstance(v, int)]
     lo_limit = spec.sizing.min_agvs or (min(levels) if levels else 1)

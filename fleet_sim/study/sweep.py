@@ -67,7 +67,6 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
-import importlib
 import json
 import math
 import multiprocessing
@@ -91,8 +90,9 @@ import yaml
 
 from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, layout_for, load_trace_for
 from fleet_sim.config.scenario import VEHICLE_TYPES
-from fleet_sim.errors import FleetSimError, InputError
+from fleet_sim.errors import FleetSimError, InputError, optional_import, require_extra
 from fleet_sim.model.records import OccupancySpell
+from fleet_sim.sim.motion import require_backend
 from fleet_sim.study.progress import Progress
 
 RunFn = Callable[[RunSpec, str], "RunResult"]
@@ -511,6 +511,7 @@ class DaskPool:
     reachable by the workers at the same path (a shared file system on a real cluster)."""
 
     def __init__(self, scheduler: str, workers: int, run_fn: RunFn = execute_run) -> None:
+        require_extra("dask.distributed", "cluster", "--scheduler")
         self.scheduler = scheduler
         self.workers = max(1, workers)
         self.run_fn = run_fn
@@ -532,7 +533,7 @@ class DaskPool:
             self.cluster = None
 
     def _connect(self) -> Any:
-        distributed: Any = importlib.import_module("dask.distributed")  # untyped
+        distributed: Any = optional_import("dask.distributed", "cluster", "--scheduler")
         Client, LocalCluster = distributed.Client, distributed.LocalCluster
         if self.client is None:
             address: Any = self.scheduler
@@ -550,7 +551,7 @@ class DaskPool:
     def run(self, specs: Sequence[RunSpec], runs_dir: Path,
             on_result: Callable[[RunResult], None]) -> list[RunResult]:
         client = self._connect()
-        as_completed = importlib.import_module("dask.distributed").as_completed
+        as_completed = optional_import("dask.distributed", "cluster", "--scheduler").as_completed
         results: list[RunResult] = []
         stamp = time.time_ns()
         futures = {client.submit(self.run_fn, spec, str(runs_dir.resolve()), pure=False,
@@ -589,6 +590,17 @@ class SweepOutcome:
 
 def default_out(experiment: Experiment) -> Path:
     return Path("results") / experiment.name
+
+
+def check_extras(experiment: Experiment, scheduler: str | None = None) -> None:
+    """Before any run: the extras the experiment's runs need are installed (a SUMO backend in
+    the scenario, its overrides or a `motion` factor; Dask for a scheduler), else one line."""
+    first = dict(experiment.points[0]) if experiment.points else {}
+    motions = {experiment.scenario(first).motion, *experiment.spec.factors.get("motion", ())}
+    for motion in sorted(m for m in motions if isinstance(m, str)):
+        require_backend(motion, f"{experiment.file}: motion: {motion}")
+    if scheduler:
+        require_extra("dask.distributed", "cluster", "--scheduler")
 
 
 def prepare(experiment: Experiment, out_dir: Path) -> None:
@@ -664,6 +676,7 @@ def sweep(experiment: Experiment, out_dir: Path, workers: int = 0, scheduler: st
           quiet: bool = False, run_fn: RunFn = execute_run,
           stream: IO[str] | None = None) -> SweepOutcome:
     """Run the experiment's design into `out_dir` and write its summary, statistics and DB."""
+    check_extras(experiment, scheduler)
     with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
         if experiment.spec.warmup.method != "fixed":
             from fleet_sim.study.warmup import largest_fleet, pilot_groups, settle_warmup
