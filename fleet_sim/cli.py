@@ -613,6 +613,8 @@ def _layout_import(args: argparse.Namespace) -> int:
 
     _check_out_file(args.out, "--out")
     imported = import_lif(args.lif, args.layout_id, args.vehicle_type, args.all_types)
+    for line in imported.warnings():
+        print(f"fleet-sim: warning: {line}", file=sys.stderr)
     _write(args.out, layout_yaml(imported.spec, imported.comments()), "--out")
     spec = imported.spec
     print(f"{args.lif}: LIF {imported.lif_version} layout {imported.layout_id!r}, vehicle type "
