@@ -329,9 +329,9 @@ def _run(args: argparse.Namespace) -> int:
                          "closed_form with --replay: a replay draws the closed-form speed "
                          "profile; with SUMO moving the AGVs their positions between nodes are "
                          "not recorded")
+    layout = load_layout_for(scenario, str(args.scenario))  # bad input: no results folder
     out = args.out or _fresh_dir(Path("results") / folder_name(scenario.name))
     _check_out_dir(out, "--out" if args.out else "results folder")
-    layout = load_layout_for(scenario, str(args.scenario))
     _warn_setup(scenario, layout)
     trace = []
     if scenario.demand.kind == "trace":

@@ -552,7 +552,8 @@ def test_a_layout_with_allowed_types_exports_per_type_properties_and_comes_back(
     assert "allowed_types" not in json.dumps(layout["edges"])  # LIF's own fields carry it
     path = write_json(tmp_path / "t.lif.json", lif)
     assert import_lif(path, all_types=True).spec == spec
-    with pytest.raises(InputError, match="one vehicle type; choose one with --vehicle-type fleet-sim or"):
+    with pytest.raises(InputError, match="one vehicle type; choose one with --vehicle-type "
+                                         "fleet-sim or"):
         import_lif(path)
     plain = layout_to_lif(load_layout(LAYOUTS / "tiny_loop.yaml").spec)
     assert {p["vehicleTypeId"] for e in plain["layouts"][0]["edges"]

@@ -599,12 +599,17 @@ def _choose_layout(lif: LifFile, file: str, layout_id: str | None) -> int:
                              f"the layoutId of one of its layouts: {', '.join(ids) or 'none'}")
         return ids.index(layout_id)
     if len(ids) != 1:
-        choices = " or ".join(f"--layout-id {shlex.quote(layout.layoutId)} ("
-                              + (f"level {layout.layoutLevelId}, " if layout.layoutLevelId
-                                 else "") + f"{len(layout.nodes)} node{'' if len(layout.nodes) == 1 else 's'})"
+        choices = " or ".join(f"--layout-id {shlex.quote(layout.layoutId)} ({_size(layout)})"
                               for layout in lif.layouts)
         raise InputError(file, "layouts", ids, f"one layout; choose one with {choices}")
     return 0
+
+
+def _size(layout: Layout) -> str:
+    """``level 1, 12 nodes``: what tells one layout of a file from another."""
+    nodes = len(layout.nodes)
+    level = f"level {layout.layoutLevelId}, " if layout.layoutLevelId else ""
+    return f"{level}{nodes} node{'' if nodes == 1 else 's'}"
 
 
 def _choose_vehicle_type(layout: Layout, file: str, at: str, vehicle_type: str | None) -> str:

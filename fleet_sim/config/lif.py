@@ -449,12 +449,11 @@ def _put(data: Any, loc: tuple[int | str, ...], number: TextNumber) -> bool:
     """Set the number at `loc`, if `loc` is a path in the data (not a union's branch)."""
     *parents, last = loc
     for key in parents:
-        if isinstance(data, dict) and isinstance(key, str) and key in data:
-            data = data[key]
-        elif isinstance(data, list) and isinstance(key, int) and 0 <= key < len(data):
-            data = data[key]
-        else:
+        in_dict = isinstance(data, dict) and isinstance(key, str) and key in data
+        in_list = isinstance(data, list) and isinstance(key, int) and 0 <= key < len(data)
+        if not (in_dict or in_list):
             return False
+        data = data[key]
     value = int(number.value) if number.text.lstrip("-").isdigit() else number.value
     if isinstance(data, dict) and isinstance(last, str) and data.get(last) == number.text:
         data[last] = value
