@@ -1,5 +1,6 @@
 # The two commands a planner needs: `make run` and `make test`.
-# Both create .venv and install fleet_sim into it on first use.
+# Both create .venv and install fleet_sim into it on first use: '.[dev]' is the test tools,
+# pyserial and every extra (sumo, cluster, export; see pyproject.toml), so both have all they need.
 PYTHON ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed

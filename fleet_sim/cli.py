@@ -389,9 +389,9 @@ def _run(args: argparse.Namespace) -> int:
                          "closed_form with --replay: a replay draws the closed-form speed "
                          "profile; with SUMO moving the AGVs their positions between nodes are "
                          "not recorded")
+    layout = load_layout_for(scenario, str(args.scenario))  # bad input: no results folder
     out = args.out or _fresh_dir(Path("results") / folder_name(scenario.name))
     _check_out_dir(out, "--out" if args.out else "results folder")
-    layout = load_layout_for(scenario, str(args.scenario))
     _warn_setup(scenario, layout)
     trace = []
     if scenario.demand.kind == "trace":
@@ -534,6 +534,8 @@ def _layout_import(args: argparse.Namespace) -> int:
 
     _check_out_file(args.out, "--out")
     imported = import_lif(args.lif, args.layout_id, args.vehicle_type, args.all_types)
+    for line in imported.warnings():
+        print(f"fleet-sim: warning: {line}", file=sys.stderr)
     _write(args.out, layout_yaml(imported.spec, imported.comments()), "--out")
     print(lif_import_lines(args.lif, args.out, imported))
     try:

@@ -180,6 +180,11 @@ LIF_CASES: list[tuple[str, Callable[[dict[str, Any]], dict[str, Any]]]] = [
     ("station-without-nodes", lambda d: _set(d, "layouts.0.stations.0.interactionNodeIds", [])),
     ("station-at-nowhere", lambda d: _set(d, "layouts.0.stations.0.interactionNodeIds", ["ZZ"])),
     ("station-height", lambda d: _set(d, "layouts.0.stations.0.stationHeight", -1)),
+    ("station-height-text-negative", lambda d: _set(d, "layouts.0.stations.0.stationHeight",
+                                                    "-1")),  # read as -1, then refused
+    ("station-height-comma", lambda d: _set(d, "layouts.0.stations.0.stationHeight", "0,5")),
+    ("max-speed-text-zero", lambda d: _set(d, f"{EDGE_TYPE}.maxSpeed", "0")),
+    ("position-text-nan", lambda d: _set(d, f"{NODE}.nodePosition.x", "NaN")),
     ("lif-2", lambda d: _set(d, "metaInformation.lifVersion", "2.0.0")),
     ("lif-version-text", lambda d: _set(d, "metaInformation.lifVersion", "one")),
     ("timestamp", lambda d: _set(d, "metaInformation.exportTimestamp", "yesterday")),
@@ -291,6 +296,11 @@ def _cases() -> Iterator[Case]:
                          ("fleet.vehicles", [{"type": "a", "count": 2, "speed": 1}]),
                          ("fleet.vehicles", [{"type": "a", "count": 2.5}]),
                          ("fleet.vehicles", "many"),
+                         ("fleet.vehicle.length_m", 1e6), ("fleet.vehicle.length_m", 44),
+                         ("fleet.vehicle.min_gap_m", 44),
+                         ("fleet.vehicles", [{"type": "a", "count": 1},
+                                             {"type": "b", "count": 1,
+                                              "vehicle": {"length_m": 1e6}}]),
                          ("demand.flows", [{"stops": ["PICK", "DROP", "PICK"]}]),
                          ("demand.flows", [{"stops": ["PICK", "DROP"] * 11}]),
                          ("demand.flows", [{"stops": ["PICK", "PICK", "DROP", "DROP"]}]),
@@ -499,6 +509,8 @@ def _cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
     binary.write_bytes(RAW["binary"])
     bomb = tmp / "bomb.yaml"
     bomb.write_bytes(RAW["alias_bomb"])
+    long_agv = tmp / "long.yaml"
+    long_agv.write_bytes(_yaml(_set(_scenario(), "fleet.vehicle.length_m", 1e6)))
     bad_lif = tmp / "bad.lif.json"
     bad_lif.write_bytes(_json(_set(_lif(), f"{NODE}.nodePosition.x", "abc")))
     bad_factsheet = tmp / "bad.factsheet.json"
@@ -515,6 +527,8 @@ def _cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
         (["run", scenario, "--agvs", "0"], "argument --agvs: got '0'"),
         (["run", scenario, "--out", str(a_file)], "--out: out: got"),
         (["run", str(dup)], "already on line 3"),
+        (["run", str(long_agv)], f"{long_agv}: fleet.vehicle.length_m: got 1000000.0; expected a "
+                                 "vehicle that fits the track of layout tiny_loop: at most 43.5 m"),
         (["layout", str(LAYOUT), "--max-speed", "nan"], "argument --max-speed: got 'nan'"),
         (["layout", str(LAYOUT), "--png", str(tmp)], "--png: png: got"),
         (["layout", str(binary)], "not UTF-8 text"),

@@ -6,6 +6,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -261,11 +262,14 @@ def test_lif_yaml_lif_keeps_what_the_layout_can_hold(tmp_path: Path) -> None:
 
 
 def test_one_layout_and_one_vehicle_type_are_chosen() -> None:
-    with pytest.raises(InputError, match=r"layouts: got \['L0', 'L1'\]; expected one layout, "
-                                         "or one chosen with --layout-id"):
+    with pytest.raises(InputError, match=r"layouts: got \['L0', 'L1'\]; expected one layout; "
+                                         r"choose one with --layout-id L0 \(level ground, 7 "
+                                         r"nodes\) or --layout-id L1 \(level mezzanine, 1 "
+                                         r"node\)$"):
         import_lif(HALL3)
     with pytest.raises(InputError, match=r"layouts\[0\].nodes: got \['T1', 'T2'\]; expected one "
-                                         "vehicle type, or one chosen with --vehicle-type"):
+                                         "vehicle type; choose one with --vehicle-type T1 or "
+                                         r"--vehicle-type T2 \(or every one with --all-types\)$"):
         import_lif(HALL3, layout_id="L0")
     with pytest.raises(InputError, match=r"got 'T9'; expected a vehicleTypeId the layout uses: "
                                          "T1, T2"):
@@ -283,6 +287,92 @@ def test_opposite_edges_that_differ_stay_one_way(tmp_path: Path) -> None:
     spec = import_lif(write_json(tmp_path / "h.lif.json", data), "L0", "T1").spec
     first = [(s.from_node, s.to_node, s.direction, s.speed_limit_mps) for s in spec.segments]
     assert first[:2] == [("N1", "N2", "one_way", 1.2), ("N2", "N1", "one_way", 1.1)]
+
+
+def test_the_two_layout_refusal_is_one_line_naming_each_choice(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "x.yaml"
+    assert main(["layout", "import", str(HALL3), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"fleet-sim: error: {HALL3}: layouts: got ['L0', 'L1']; expected one layout; "
+                   "choose one with --layout-id L0 (level ground, 7 nodes) or --layout-id L1 "
+                   "(level mezzanine, 1 node)\n")
+    assert not out.exists()
+
+
+# Numbers written as texts (as six of the LIF document's own examples do with stationHeight)
+
+def _hall3_with_text_numbers(tmp_path: Path) -> Path:
+    data = copy.deepcopy(RAW_HALL3)
+    ground = data["layouts"][0]
+    ground["stations"][0]["stationHeight"] = "0.75"
+    ground["nodes"][1]["nodePosition"]["x"] = str(ground["nodes"][1]["nodePosition"]["x"])
+    for edge in ground["edges"][:2]:
+        prop = edge["vehicleTypeEdgeProperties"][0]
+        prop["maxSpeed"] = repr(prop["maxSpeed"])
+    return write_json(tmp_path / "texts.lif.json", data)
+
+
+def test_a_number_written_as_a_text_is_read_as_the_number_with_a_note(tmp_path: Path) -> None:
+    path = _hall3_with_text_numbers(tmp_path)
+    imported = import_lif(path, "L0", "T1")
+    assert imported.spec == import_lif(HALL3, "L0", "T1").spec  # the numbers, used
+    assert [(n.element, n.text, n.value) for n in imported.text_numbers] == [
+        ("layouts[0].nodes[1].nodePosition.x", "10.0", 10.0),
+        ("layouts[0].edges[0].vehicleTypeEdgeProperties[0].maxSpeed", "1.2", 1.2),
+        ("layouts[0].edges[1].vehicleTypeEdgeProperties[0].maxSpeed", "1.2", 1.2),
+        ("layouts[0].stations[0].stationHeight", "0.75", 0.75)]
+    assert imported.warnings() == [
+        f"{path}: layouts[0].nodes[1].nodePosition.x: got '10.0', a number written as a text; "
+        "read as 10.0",
+        f"{path}: layouts[0].edges[0].vehicleTypeEdgeProperties[0].maxSpeed: got '1.2', a "
+        "number written as a text; read as 1.2 (and 1 more: "
+        "layouts[*].edges[*].vehicleTypeEdgeProperties[*].maxSpeed)",
+        f"{path}: layouts[0].stations[0].stationHeight: got '0.75', a number written as a text; "
+        "read as 0.75"]
+    assert "  - layouts[*].edges[*].vehicleTypeEdgeProperties[*].maxSpeed (2x, e.g. layouts[0]" \
+           ".edges[0].vehicleTypeEdgeProperties[0].maxSpeed): numbers written as texts, read " \
+           "as the numbers" in imported.comments()
+    assert import_lif(HALL3, "L0", "T1").text_numbers == ()
+
+
+def test_the_command_warns_of_each_text_number_on_stderr(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _hall3_with_text_numbers(tmp_path)
+    out = tmp_path / "h.yaml"
+    main(["layout", "import", str(path), "--out", str(out), "--layout-id", "L0",
+          "--vehicle-type", "T1"])
+    warnings = [line for line in capsys.readouterr().err.splitlines()
+                if "written as a text" in line]
+    assert warnings[-1] == (f"fleet-sim: warning: {path}: layouts[0].stations[0].stationHeight: "
+                            "got '0.75', a number written as a text; read as 0.75")
+    assert len(warnings) == 3
+    assert "numbers written as texts, read as the numbers" in out.read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("text", ["0,75", " 0.75", "0.75 m", "NaN", "Infinity", "1e999", "",
+                                  "0x10", "+1"])
+def test_a_text_that_is_not_a_json_number_stays_refused(tmp_path: Path, text: str) -> None:
+    data = copy.deepcopy(RAW_HALL3)
+    data["layouts"][0]["stations"][0]["stationHeight"] = text
+    with pytest.raises(InputError, match=r"layouts\[0\]\.stations\[0\]\.stationHeight: got "
+                                         f"{re.escape(repr(text))}; expected a number$"):
+        import_lif(write_json(tmp_path / "bad.lif.json", data), "L0", "T1")
+
+
+def test_a_number_read_from_a_text_still_meets_the_range(tmp_path: Path) -> None:
+    data = copy.deepcopy(RAW_HALL3)
+    data["layouts"][0]["stations"][0]["stationHeight"] = "-0.5"
+    with pytest.raises(InputError, match=r"layouts\[0\]\.stations\[0\]\.stationHeight: got "
+                                         r"-0\.5; expected a number >= 0"):
+        import_lif(write_json(tmp_path / "bad.lif.json", data), "L0", "T1")
+
+
+def test_a_text_in_a_text_field_is_no_number_to_read(tmp_path: Path) -> None:
+    data = copy.deepcopy(RAW_HALL3)
+    data["layouts"][0]["layoutVersion"] = "2"  # a text field: stays the text, no note
+    imported = import_lif(write_json(tmp_path / "v.lif.json", data), "L0", "T1")
+    assert imported.text_numbers == () and imported.spec.lif.layout_version == "2"
 
 
 def test_lif_2_is_refused_by_name(tmp_path: Path) -> None:
@@ -462,7 +552,8 @@ def test_a_layout_with_allowed_types_exports_per_type_properties_and_comes_back(
     assert "allowed_types" not in json.dumps(layout["edges"])  # LIF's own fields carry it
     path = write_json(tmp_path / "t.lif.json", lif)
     assert import_lif(path, all_types=True).spec == spec
-    with pytest.raises(InputError, match="one vehicle type, or one chosen with --vehicle-type"):
+    with pytest.raises(InputError, match="one vehicle type; choose one with --vehicle-type "
+                                         "fleet-sim or"):
         import_lif(path)
     plain = layout_to_lif(load_layout(LAYOUTS / "tiny_loop.yaml").spec)
     assert {p["vehicleTypeId"] for e in plain["layouts"][0]["edges"]

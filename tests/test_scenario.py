@@ -285,3 +285,71 @@ def test_bundled_scenarios_stay_meaningful_on_long_runs(name: str, hours: float)
     assert figures["idle_with_orders_waiting_pct"] < 0.5
     assert sum(figures["idle_with_orders_waiting_pct_by_reason"].values()) == pytest.approx(
         figures["idle_with_orders_waiting_pct"], abs=1e-4)
+
+
+# A vehicle must fit the track it drives (check_against_layout)
+
+def _one_long_agv(tmp_path: Path, length_m: float, **fleet: object) -> Path:
+    return write_yaml(tmp_path / "long.yaml", {
+        "name": "long", "layout": str(LAYOUTS / "tiny_loop.yaml"), "duration_h": 0.5,
+        "warmup_h": 0.0, "seed": 1, "demand": {"rate_per_hour": 40},
+        "fleet": {"size": 1, "vehicle": {"battery": "off", "length_m": length_m}, **fleet}})
+
+
+def test_a_vehicle_fits_the_loop_up_to_the_limit_the_simulation_shows(tmp_path: Path) -> None:
+    """The tiny loop is 48 m, tags every 4 m: coming back to the pickup P, an AGV has driven
+    44 m since it left it; with min_gap_m 0.5 m a 43.5 m vehicle clears P, a 44 m one does
+    not (it would wait for its own tail for ever: no order delivered, no deadlock seen)."""
+    from fleet_sim.sim.engine import simulate
+
+    fits = _one_long_agv(tmp_path, 43.5)
+    scenario = load_scenario(fits)
+    run = simulate(scenario, load_layout_for(scenario, str(fits)))
+    assert sum(o.delivered_s is not None for o in run.recorder.orders) >= 10
+    too_long = _one_long_agv(tmp_path, 44.0)
+    with pytest.raises(InputError) as info:
+        load_layout_for(load_scenario(too_long), str(too_long))
+    assert str(info.value) == (
+        f"{too_long}: fleet.vehicle.length_m: got 44.0; expected a vehicle that fits the track "
+        "of layout tiny_loop: at most 43.5 m (an AGV coming back to pickup PICK, node P, has "
+        "driven at most 44 m since it left it, and its length plus min_gap_m 0.5 m must be "
+        "clear of it)")
+
+
+def test_the_vehicle_too_long_of_a_mixed_fleet_is_named(tmp_path: Path) -> None:
+    path = write_yaml(tmp_path / "mixed.yaml", {
+        "name": "mixed", "layout": str(LAYOUTS / "tiny_loop.yaml"), "duration_h": 0.5,
+        "warmup_h": 0.0, "seed": 1, "demand": {"rate_per_hour": 40},
+        "fleet": {"vehicles": [{"type": "short", "count": 1},
+                               {"type": "tugger", "count": 1,
+                                "vehicle": {"length_m": 1e6, "min_gap_m": 1.0}}]}})
+    with pytest.raises(InputError, match=r"mixed.yaml: fleet.vehicles\[1\].vehicle.length_m: "
+                                         r"got 1000000.0; expected a vehicle that fits the track "
+                                         r"of layout tiny_loop: at most 43 m \("):
+        load_layout_for(load_scenario(path), str(path))
+
+
+def test_a_dead_end_spur_must_hold_the_vehicle(tmp_path: Path) -> None:
+    """A drop-off at the end of a two-way spur: the AGV turns back on it, so the spur must be
+    longer than the vehicle plus its gap (the way back in is from the spur's other end)."""
+    layout = yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text(encoding="utf-8"))
+    assert layout["nodes"][8]["id"] == "D"
+    del layout["nodes"][8]["kind"]  # D becomes a tag; the drop-off moves to X, 3 m north
+    layout["nodes"].append({"id": "X", "x": 8, "y": 11, "kind": "station"})
+    layout["segments"].append({"from": "D", "to": "X", "direction": "two_way"})
+    layout["stations"][1]["nodes"] = ["X"]
+    layout_file = write_yaml(tmp_path / "spur.yaml", layout)
+
+    def scenario(length_m: float) -> Path:
+        return write_yaml(tmp_path / f"s{length_m}.yaml", {
+            "name": "spur", "layout": str(layout_file), "duration_h": 0.5, "warmup_h": 0.0,
+            "seed": 1, "demand": {"rate_per_hour": 40},
+            "fleet": {"size": 1, "vehicle": {"battery": "off", "length_m": length_m}}})
+
+    fits = scenario(2.5)  # 2.5 + 0.5 = the spur's 3 m
+    load_layout_for(load_scenario(fits), str(fits))
+    too_long = scenario(2.6)
+    with pytest.raises(InputError, match=r"got 2.6; expected a vehicle that fits the track of "
+                                         r"layout tiny_loop: at most 2.5 m \(an AGV coming back "
+                                         r"to dropoff DROP, node X, has driven at most 3 m"):
+        load_layout_for(load_scenario(too_long), str(too_long))

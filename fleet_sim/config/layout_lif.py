@@ -23,7 +23,9 @@ docs/reference/standards.md; the decisions it rests on are these.
   (NURBS) for the vehicle type, else none (the straight distance).
 * fleet_sim layouts describe one vehicle type. Import takes the one the file uses, or the one
   named (`--vehicle-type`); nodes and edges not open to it are left out and reported, as are the
-  properties for other types. Of a multi-layout file one layout is taken (`--layout-id`).
+  properties for other types. Of a multi-layout file (levels of a building, say) one layout is
+  taken (`--layout-id`); without it the refusal names each layout with the option that
+  chooses it (its level and size beside it), since a fleet_sim layout is one plane.
 * Mixed fleets: `--all-types` (``all_types=True``) imports every vehicle type of the layout.
   A node or edge open to any type is kept; a segment open to some types only gets those as its
   `allowed_types`, and so does a pickup or drop-off station whose interaction nodes are not
@@ -51,6 +53,7 @@ from __future__ import annotations
 
 import json
 import math
+import shlex
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -69,9 +72,11 @@ from fleet_sim.config.lif import (
     LifFile,
     LifModel,
     Node,
+    TextNumber,
     VehicleTypeEdgeProperty,
     VehicleTypeNodeProperty,
-    read_lif,
+    read_lif_noting,
+    text_number_warnings,
     trajectory_length_m,
 )
 from fleet_sim.errors import InputError
@@ -267,6 +272,12 @@ class Imported:
     layout_id: str
     vehicle_type: str
     notes: tuple[Note, ...]
+    text_numbers: tuple[TextNumber, ...] = ()
+    """Numbers the file writes as texts, read as numbers (`warnings` tells them)."""
+
+    def warnings(self) -> list[str]:
+        """The lines the command prints on stderr: each kind of text number, once."""
+        return text_number_warnings(self.file, self.text_numbers)
 
     def comments(self) -> list[str]:
         """The first lines of the layout file written from it."""
@@ -290,12 +301,17 @@ def import_lif(path: Path, layout_id: str | None = None,
     """Read a LIF file and turn one of its layouts into a layout spec (not yet checked as a
     graph: `layout_from_spec` does that). `all_types`: every vehicle type, as allowed_types
     (see the module docstring); `vehicle_type` is then the main one."""
-    return lif_to_layout(read_lif(path), str(path), layout_id, vehicle_type, all_types)
+    lif, text_numbers = read_lif_noting(path)
+    return lif_to_layout(lif, str(path), layout_id, vehicle_type, all_types, text_numbers)
 
 
 def lif_to_layout(lif: LifFile, file: str, layout_id: str | None = None,
-                  vehicle_type: str | None = None, all_types: bool = False) -> Imported:
+                  vehicle_type: str | None = None, all_types: bool = False,
+                  text_numbers: tuple[TextNumber, ...] = ()) -> Imported:
     notes = _Notes()
+    for number in text_numbers:
+        notes.add(number.pattern, number.element, "numbers written as texts, read as the "
+                  "numbers", kept=True)
     index = _choose_layout(lif, file, layout_id)
     layout = lif.layouts[index]
     at = f"layouts[{index}]"
@@ -356,7 +372,8 @@ def lif_to_layout(lif: LifFile, file: str, layout_id: str | None = None,
     data |= {"nodes": spec_nodes, "segments": segments, **places,
              "lif": {k: v for k, v in lif_info.items() if v is not None}}
     spec = validate(LayoutSpec, data, file, at)
-    return Imported(spec, file, meta.lifVersion, layout.layoutId, type_id, notes.notes())
+    return Imported(spec, file, meta.lifVersion, layout.layoutId, type_id, notes.notes(),
+                    text_numbers)
 
 
 _OpenNodes = dict[str, tuple[str, Node, VehicleTypeNodeProperty]]
@@ -582,8 +599,17 @@ def _choose_layout(lif: LifFile, file: str, layout_id: str | None) -> int:
                              f"the layoutId of one of its layouts: {', '.join(ids) or 'none'}")
         return ids.index(layout_id)
     if len(ids) != 1:
-        raise InputError(file, "layouts", ids, "one layout, or one chosen with --layout-id")
+        choices = " or ".join(f"--layout-id {shlex.quote(layout.layoutId)} ({_size(layout)})"
+                              for layout in lif.layouts)
+        raise InputError(file, "layouts", ids, f"one layout; choose one with {choices}")
     return 0
+
+
+def _size(layout: Layout) -> str:
+    """``level 1, 12 nodes``: what tells one layout of a file from another."""
+    nodes = len(layout.nodes)
+    level = f"level {layout.layoutLevelId}, " if layout.layoutLevelId else ""
+    return f"{level}{nodes} node{'' if nodes == 1 else 's'}"
 
 
 def _choose_vehicle_type(layout: Layout, file: str, at: str, vehicle_type: str | None) -> str:
@@ -594,8 +620,10 @@ def _choose_vehicle_type(layout: Layout, file: str, at: str, vehicle_type: str |
                              f"a vehicleTypeId the layout uses: {', '.join(types) or 'none'}")
         return vehicle_type
     if len(types) != 1:
+        choices = " or ".join(f"--vehicle-type {shlex.quote(t)}" for t in types)
         raise InputError(file, f"{at}.nodes", list(types),
-                         "one vehicle type, or one chosen with --vehicle-type")
+                         f"one vehicle type; choose one with {choices} (or every one with "
+                         "--all-types)" if types else "a vehicle type (no node names one)")
     return next(iter(types))
 
 

@@ -18,8 +18,12 @@ Decisions, where the format is silent or disagrees with itself:
   name are kept, not refused; the importer reports each as not used. fleet-sim's own extension
   is the key ``fleetSim`` on layouts, nodes, edges and stations (`layout_lif` says what it holds);
   it is checked strictly, like every file fleet-sim writes.
-* Strict types as everywhere: a number written as a text (``"x": "1.5"``) is refused, though
-  some of the document's own examples do it (``"stationHeight": "0.0"``).
+* Strict types as everywhere, but for one thing: a number written as a text (``"x": "1.5"``),
+  as six of the document's own examples do (``"stationHeight": "0.55"``), is read as the number
+  with a note (`TextNumber`: the command prints a warning line naming the file, the element and
+  the text; the imported layout's header says it too). Only a text that is a JSON number
+  (``"0.55"``, ``"-2"``, ``"1e3"``) counts: ``"0,55"``, ``" 1"``, ``"NaN"`` stay refused, and the
+  number then meets the field's range like any other. Every other type stays strict.
 * `lifVersion` must be 1.x.y (or 0.x.y, the drafts the document's examples are stamped with).
   LIF 2 is in development (metaInformation.lifId, origins[], mobileRobotType... properties); a
   2.x file is refused by name until its specification is published.
@@ -32,13 +36,15 @@ Decisions, where the format is silent or disagrees with itself:
 
 from __future__ import annotations
 
+import copy
 import math
 import re
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Final, Literal, TypeVar
+from typing import Annotated, Any, Final, Literal, TypeVar
 
-from pydantic import ConfigDict, Field, Strict, field_validator, model_validator
+from pydantic import ConfigDict, Field, Strict, ValidationError, field_validator, model_validator
 
 from agv_model.inputs import (
     NonNegative,
@@ -367,9 +373,96 @@ def _one_entry_per_type(entries: Sequence[VehicleTypeNodeProperty | VehicleTypeE
         seen[entry.vehicleTypeId] = k
 
 
+@dataclass(frozen=True)
+class TextNumber:
+    """A number the file writes as a text, read as the number."""
+
+    element: str
+    """Its JSON path: ``layouts[0].stations[0].stationHeight``."""
+    text: str
+    value: float
+
+    @property
+    def pattern(self) -> str:
+        """The path with [*] for every list index: ``layouts[*].stations[*].stationHeight``."""
+        return re.sub(r"\[\d+\]", "[*]", self.element)
+
+
+def text_number_warnings(file: str, numbers: Sequence[TextNumber]) -> list[str]:
+    """One line per kind of element (its first one named, the others counted)."""
+    first: dict[str, tuple[TextNumber, int]] = {}
+    for number in numbers:
+        seen, count = first.get(number.pattern, (number, 0))
+        first[number.pattern] = (seen, count + 1)
+    return [f"{file}: {n.element}: got {n.text!r}, a number written as a text; read as "
+            f"{n.value!r}" + (f" (and {count - 1} more: {pattern})" if count > 1 else "")
+            for pattern, (n, count) in first.items()]
+
+
+_JSON_NUMBER: Final = re.compile(r"-?(?:0|[1-9]\d*)(?:\.\d+)?(?:[eE][+-]?\d+)?")
+_MAX_PASSES: Final = 20
+"""Validation passes reading text numbers (a pass finds every such number that pydantic reaches;
+one inside a model whose other fields were wrong shows on the next)."""
+
+
 def read_lif(path: Path) -> LifFile:
-    """Read and check one LIF file; every problem is one InputError naming the JSON path."""
-    return validate(LifFile, read_json(path), str(path))
+    """Read and check one LIF file; every problem is one InputError naming the JSON path.
+    Numbers written as texts are read silently: `read_lif_noting` tells them."""
+    return read_lif_noting(path)[0]
+
+
+def read_lif_noting(path: Path) -> tuple[LifFile, tuple[TextNumber, ...]]:
+    """`read_lif`, and the numbers the file writes as texts (read as numbers)."""
+    return lif_from_data(read_json(path), str(path))
+
+
+def lif_from_data(data: Any, file: str) -> tuple[LifFile, tuple[TextNumber, ...]]:
+    """Check parsed JSON as a LIF file: validate; where pydantic finds a text in a number's
+    place and the text is a JSON number, put the number there, note it, and validate again."""
+    data = copy.deepcopy(data)
+    numbers: list[TextNumber] = []
+    for _ in range(_MAX_PASSES):
+        try:
+            return LifFile.model_validate(data), tuple(numbers)
+        except ValidationError as exc:
+            found = [n for n in map(_text_number, exc.errors()) if n is not None]
+            if not found or not all(_put(data, loc, number) for loc, number in found):
+                break
+            numbers += [number for _, number in found]
+    return validate(LifFile, data, file), tuple(numbers)
+
+
+def _text_number(error: Any) -> tuple[tuple[int | str, ...], TextNumber] | None:
+    text = error.get("input")
+    if error["type"] not in ("float_type", "int_type") or not isinstance(text, str) \
+            or _JSON_NUMBER.fullmatch(text) is None:
+        return None
+    value = float(text)
+    if not math.isfinite(value) or (error["type"] == "int_type" and not value.is_integer()):
+        return None
+    loc = tuple(error["loc"])
+    element = "".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in loc).lstrip(".")
+    return loc, TextNumber(element, text, value)
+
+
+def _put(data: Any, loc: tuple[int | str, ...], number: TextNumber) -> bool:
+    """Set the number at `loc`, if `loc` is a path in the data (not a union's branch)."""
+    *parents, last = loc
+    for key in parents:
+        in_dict = isinstance(data, dict) and isinstance(key, str) and key in data
+        in_list = isinstance(data, list) and isinstance(key, int) and 0 <= key < len(data)
+        if not (in_dict or in_list):
+            return False
+        data = data[key]
+    value = int(number.value) if number.text.lstrip("-").isdigit() else number.value
+    if isinstance(data, dict) and isinstance(last, str) and data.get(last) == number.text:
+        data[last] = value
+        return True
+    if isinstance(data, list) and isinstance(last, int) and 0 <= last < len(data) \
+            and data[last] == number.text:
+        data[last] = value
+        return True
+    return False
 
 
 def trajectory_length_m(trajectory: Trajectory, chords_per_span: int = 128) -> float:

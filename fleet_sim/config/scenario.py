@@ -70,7 +70,7 @@ from agv_model.inputs import (
 from agv_model.profile import load_profile, profile_names, read_profile
 from fleet_sim.config.chains import MAX_STOPS, MIN_STOPS, check_chain
 from fleet_sim.config.distributions import ExponentialTime, TimeDistribution, TriangularTime
-from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.config.layout import Layout, Place, load_layout
 from fleet_sim.config.vehicle import VehicleProfile, vehicle_from_profile
 from fleet_sim.errors import InputError
 
@@ -661,6 +661,53 @@ def check_against_layout(scenario: Scenario, layout: Layout, file: str) -> None:
                              f"at most the parking capacity of layout {layout.name} ({room}), "
                              "or fleet.start_nodes for the rest")
     _check_types(scenario, layout, file)
+    _check_vehicles_fit(scenario, layout, file)
+
+
+def _check_vehicles_fit(scenario: Scenario, layout: Layout, file: str) -> None:
+    """Every vehicle type fits the track it drives: an AGV coming back to a place it serves
+    (station, charger, parking) must have left it behind, that is have driven at least its
+    `length_m` + `min_gap_m` since (the stretch it holds behind itself,
+    fleet_sim.sim.agents.driving). Else it waits for itself there for ever: a vehicle longer
+    than the whole loop ran with no order delivered and no deadlock reported.
+
+    Refused only where it is certain on the layout's shortest ways: for a place's node x, the
+    way back in is from one of x's predecessors u, reached from x after at least d(x, u) m
+    (shortest path, the type's own track); a type is refused when every such u is nearer than
+    its length plus gap. So the limit on the tiny loop (48 m, tags every 4 m) is 44 m of
+    length plus gap, which the simulation bears out (43.5 m runs, 44.5 m stands still). The
+    search goes no further from x than that length plus gap, so it costs next to nothing for
+    real vehicles."""
+    fleet = scenario.fleet
+    for i, (name, profile) in enumerate(fleet.type_profiles.items()):
+        clear_m = profile.length_m + profile.min_gap_m
+        graph = layout.type_graph(name) if layout.restricts_types else layout.graph
+        places = [p for p in layout.places.values()
+                  if p.kind == "parking" or (p.kind == "charger" and scenario.charging.enabled)
+                  or (p.kind in ("pickup", "dropoff") and p.serves(name))]
+        tightest: tuple[float, Place, str] | None = None
+        for place in places:
+            for node in place.nodes:
+                ways_in = [u for u in graph.predecessors(node) if u != node]
+                if not ways_in:
+                    continue
+                near = nx.single_source_dijkstra_path_length(graph, node, cutoff=clear_m,
+                                                             weight="length_m")
+                if not all(u in near and near[u] < clear_m - 1e-9 for u in ways_in):
+                    continue
+                room_m = max(near[u] for u in ways_in)
+                if tightest is None or room_m < tightest[0]:
+                    tightest = (room_m, place, node)
+        if tightest is not None:
+            room_m, place, node = tightest
+            where = f"fleet.vehicles[{i}].vehicle.length_m" if fleet.vehicles \
+                else "fleet.vehicle.length_m"
+            raise InputError(file, where, profile.length_m,
+                             f"a vehicle that fits the track of layout {layout.name}: at most "
+                             f"{max(room_m - profile.min_gap_m, 0.0):g} m (an AGV coming back "
+                             f"to {place.kind} {place.id}, node {node}, has driven at most "
+                             f"{room_m:g} m since it left it, and its length plus min_gap_m "
+                             f"{profile.min_gap_m:g} m must be clear of it)")
 
 
 def _check_types(scenario: Scenario, layout: Layout, file: str) -> None:

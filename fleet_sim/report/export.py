@@ -10,7 +10,8 @@ Decisions, where the issue is silent:
 
 * CSV through DuckDB (`COPY ... TO`), one file per table in DIR/export/ (or --out), comma
   separated with a header, rows in the order of the run's own tables (runs in run-id order);
-  the same run gives the same bytes. XLSX through pandas and openpyxl, one workbook
+  the same run gives the same bytes. XLSX through pandas and openpyxl (the ``export`` extra:
+  ``pip install 'fleet-sim[export]'``; CSV needs nothing more), one workbook
   (DIR/export.xlsx, or --out) with one sheet per table. A sheet holds at most 1,048,576 rows:
   a longer table (a big sweep's events) goes on in sheets "events (2)", "events (3)"...; nothing
   is cut. openpyxl stamps the workbook with the time it was saved, so two exports of one run
@@ -37,7 +38,7 @@ import pandas as pd
 
 from fleet_sim.analysis.kpis import CATALOGUE, NOTE_FIELDS, RUN_FIELDS
 from fleet_sim.config.writing import atomic_path
-from fleet_sim.errors import FleetSimError, InputError
+from fleet_sim.errors import FleetSimError, InputError, require_extra
 from fleet_sim.study.results import read_summary
 
 EXCEL_MAX_ROWS = 1_048_575
@@ -158,6 +159,8 @@ def export(source: Path, fmt: str, out: Path | None = None,
     """Write the tables of `source` as CSV files (`fmt` "csv") or one workbook ("xlsx")."""
     import duckdb
 
+    if fmt == "xlsx":  # before anything is read or written
+        require_extra("openpyxl", "export", "export --xlsx")
     say = note or (lambda text: None)
     found = _tables(source, typed=fmt == "xlsx")
     tables = found.tables

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from fleet_sim.errors import FleetSimError
+from fleet_sim.sim.motion import require_backend
 
 MOTIONS = ("closed_form", "sumo")
 COLUMNS = (("throughput_per_hour", "throughput /h", "{:.1f}"),
@@ -70,6 +71,8 @@ def run_isolated(scenario_file: str | Path, overrides: dict[str, Any]) -> dict[s
 def crosscheck(scenario_file: str | Path, overrides: dict[str, Any],
                motions: tuple[str, ...] = MOTIONS) -> dict[str, dict[str, Any]]:
     """KPIs of the scenario under each motion backend, each run in its own process."""
+    for motion in motions:  # before any run: one line if an extra is missing
+        require_backend(motion, f"crosscheck: motion: {motion}")
     out: dict[str, dict[str, Any]] = {}
     for motion in motions:
         start = time.perf_counter()

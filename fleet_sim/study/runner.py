@@ -62,7 +62,6 @@ import concurrent.futures as cf
 import contextlib
 import errno
 import hashlib
-import importlib
 import json
 import multiprocessing
 import os
@@ -92,7 +91,8 @@ from fleet_sim.config.writing import (
     write_json_atomic,
     write_text_atomic,
 )
-from fleet_sim.errors import FleetSimError, InputError
+from fleet_sim.errors import FleetSimError, InputError, optional_import, require_extra
+from fleet_sim.sim.motion import require_backend
 from fleet_sim.study.progress import Progress
 
 RunFn = Callable[[RunSpec, str], "RunResult"]
@@ -604,6 +604,7 @@ class DaskPool:
 
     def __init__(self, scheduler: str, workers: int, run_fn: RunFn = execute_run,
                  no_workers_timeout_s: float = DEFAULT_NO_WORKERS_TIMEOUT_S) -> None:
+        require_extra("dask.distributed", "cluster", "--scheduler")
         self.scheduler = scheduler
         self.workers = max(1, workers)
         self.run_fn = run_fn
@@ -626,7 +627,7 @@ class DaskPool:
             self.cluster = None
 
     def _connect(self) -> Any:
-        distributed: Any = importlib.import_module("dask.distributed")  # untyped
+        distributed: Any = optional_import("dask.distributed", "cluster", "--scheduler")
         Client, LocalCluster = distributed.Client, distributed.LocalCluster
         if self.client is None:
             address: Any = self.scheduler
@@ -644,7 +645,7 @@ class DaskPool:
     def run(self, specs: Sequence[RunSpec], runs_dir: Path,
             on_result: Callable[[RunResult], None]) -> list[RunResult]:
         client = self._connect()
-        distributed: Any = importlib.import_module("dask.distributed")
+        distributed: Any = optional_import("dask.distributed", "cluster", "--scheduler")
         results: list[RunResult] = []
         stamp = time.time_ns()
         futures = {client.submit(self.run_fn, spec, str(runs_dir.resolve()), pure=False,
@@ -721,6 +722,17 @@ class SweepOutcome:
 
 def default_out(experiment: Experiment) -> Path:
     return Path("results") / experiment.name
+
+
+def check_extras(experiment: Experiment, scheduler: str | None = None) -> None:
+    """Before any run: the extras the experiment's runs need are installed (a SUMO backend in
+    the scenario, its overrides or a `motion` factor; Dask for a scheduler), else one line."""
+    first = dict(experiment.points[0]) if experiment.points else {}
+    motions = {experiment.scenario(first).motion, *experiment.spec.factors.get("motion", ())}
+    for motion in sorted(m for m in motions if isinstance(m, str)):
+        require_backend(motion, f"{experiment.file}: motion: {motion}")
+    if scheduler:
+        require_extra("dask.distributed", "cluster", "--scheduler")
 
 
 def prepare(experiment: Experiment, out_dir: Path) -> None:

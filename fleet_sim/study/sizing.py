@@ -99,6 +99,7 @@ from fleet_sim.study.runner import (
     DEFAULT_NO_WORKERS_TIMEOUT_S,
     DaskPool,
     LocalPool,
+    check_extras,
     execute,
     folder_lock,
     make_pool,
@@ -502,6 +503,7 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
         raise InputError(str(experiment.file), "targets", [],
                          "at least one target for `fleet-sim size` to meet")
     _check_fleet_varies(experiment)
+    check_extras(experiment, scheduler)
     levels = [v for v in (spec.factors.get(experiment.fleet_factor) or [])
               if isinstance(v, int)]
     lo_limit = spec.sizing.min_agvs or (min(levels) if levels else 1)

@@ -22,6 +22,7 @@ from fleet_sim.study.runner import (
     DEFAULT_NO_WORKERS_TIMEOUT_S,
     RunFn,
     SweepOutcome,
+    check_extras,
     execute,
     execute_run,
     folder_lock,
@@ -37,6 +38,7 @@ def sweep(experiment: Experiment, out_dir: Path, workers: int = 0, scheduler: st
           stream: IO[str] | None = None,
           dask_timeout_s: float = DEFAULT_NO_WORKERS_TIMEOUT_S) -> SweepOutcome:
     """Run the experiment's design into `out_dir` and write its summary, statistics and DB."""
+    check_extras(experiment, scheduler)
     with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
         if experiment.spec.warmup.method != "fixed":
             with make_pool(scheduler, workers, run_fn, dask_timeout_s) as pilot_pool, \

@@ -41,7 +41,8 @@ import simpy
 
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario
-from fleet_sim.errors import FleetSimError, SimulationError
+from fleet_sim.errors import SimulationError, optional_import
+from fleet_sim.sim.motion import NEEDED_BY, require_backend
 from fleet_sim.sim.motion.sumo_network import VehicleClass, edge_id, export, vehicle_classes
 
 STOP_S = 1e9
@@ -56,14 +57,8 @@ _active: SumoMotion | None = None
 
 def load_libsumo() -> ModuleType:
     """Import libsumo (quietly: it prints a pyarrow version note on import)."""
-    try:
-        with contextlib.redirect_stdout(io.StringIO()):
-            import libsumo
-    except ImportError as exc:  # pragma: no cover - the project pins it
-        raise FleetSimError(f"motion: sumo needs libsumo ({exc}); reinstall the project") \
-            from None
-    module: ModuleType = libsumo
-    return module
+    with contextlib.redirect_stdout(io.StringIO()):
+        return optional_import("libsumo", "sumo", NEEDED_BY)
 
 
 @dataclass
@@ -99,6 +94,7 @@ class SumoMotion:
         if _active is not None:
             raise SimulationError("a SUMO simulation is already running in this process "
                                   "(libsumo allows one per process)")
+        require_backend("sumo")  # before the network is built: one line if SUMO is missing
         self.env = env
         self.layout = layout
         self.step_s = scenario.sumo.step_length_s

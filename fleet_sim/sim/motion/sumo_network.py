@@ -47,7 +47,7 @@ from typing import Final
 
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.vehicle import VehicleProfile
-from fleet_sim.errors import FleetSimError, InputError
+from fleet_sim.errors import FleetSimError, InputError, MissingExtra, optional_import
 
 VTYPE_ID = "agv"
 VCLASSES: Final = ("custom1", "custom2", "delivery", "truck", "trailer", "bus", "coach", "taxi",
@@ -123,20 +123,23 @@ def class_limits(layout: Layout, classes: Sequence[VehicleClass]
     return out
 
 
-def sumo_binary(name: str) -> str:
+def sumo_binary(name: str, needed_by: str = "layout --sumo") -> str:
     """Path of a SUMO tool (`netconvert`, `sumo`) from the eclipse-sumo package, else PATH."""
     try:
-        import sumo  # the eclipse-sumo wheel
-
-        candidate = Path(sumo.SUMO_HOME) / "bin" / name
-        if candidate.exists():
-            return str(candidate)
-    except ImportError:
-        pass
+        sumo = optional_import("sumo", "sumo", needed_by)  # the eclipse-sumo wheel
+    except MissingExtra as missing:  # a SUMO installed otherwise will do
+        found = shutil.which(name)
+        if found is None:
+            raise MissingExtra(needed_by, "sumo", "eclipse-sumo",
+                               f"is not installed and {name} is not on PATH") from missing
+        return found
+    candidate = Path(sumo.SUMO_HOME) / "bin" / name
+    if candidate.exists():
+        return str(candidate)
     found = shutil.which(name)
     if found is None:
-        raise FleetSimError(f"SUMO's {name} not found: install the project (it pins "
-                            "eclipse-sumo) or put SUMO's bin folder on PATH")
+        raise FleetSimError(f"{needed_by}: SUMO's {name} is neither in the eclipse-sumo "
+                            f"package ({candidate}) nor on PATH: reinstall 'fleet-sim[sumo]'")
     return found
 
 
@@ -249,11 +252,12 @@ def export(layout: Layout, out_dir: Path, profile: VehicleProfile | None = None,
     """Write the plain files, the vehicle type and the converted `<name>.net.xml` to out_dir,
     and check the network against the layout. `classes` (`vehicle_classes`): a vType per
     vehicle type and their per-type speed limits instead of the one `profile`."""
+    netconvert = sumo_binary("netconvert")  # before any file is written
     out_dir = Path(out_dir)
     nodes_file, edges_file, connections_file = write_plain(layout, out_dir, classes)
     types_file = write_edge_types(layout, out_dir, classes)
     net_file = out_dir / f"{layout.name}.net.xml"
-    cmd = [sumo_binary("netconvert"), "--node-files", str(nodes_file),
+    cmd = [netconvert, "--node-files", str(nodes_file),
            "--edge-files", str(edges_file), "--connection-files", str(connections_file),
            *(["--type-files", str(types_file)] if types_file is not None else []),
            "--output-file", str(net_file), "--no-internal-links", "true",
