@@ -17,7 +17,8 @@ Decisions, where the issue is silent:
   `model_validator` raising `Problem(key, value, expected)`: the key is added to the element
   path of the model that failed, so the message points at the field, not at the section.
 * An unknown key names the known keys of its mapping and, where one is close (difflib's
-  `get_close_matches`, ratio >= 0.6), the key that was probably meant: ``no such key here:
+  `get_close_matches`, ratio >= 0.65, or the one key the word begins or that begins it), the
+  key that was probably meant: ``no such key here:
   did you mean 'size'? (known keys: ...)``.
 * Within a discriminated union (the time distributions, tagged by ``dist``) the tag is not part
   of the element path; an unknown key says which tag it was checked against.
@@ -343,9 +344,20 @@ def input_error(exc: ValidationError, model: type[BaseModel], file: str,
 
 def closest(word: str, choices: Iterable[str]) -> str | None:
     """The choice `word` was most likely meant to be (a misspelt key or type), if one is close
-    enough (difflib's ratio >= 0.6, its default), else None."""
-    matches = difflib.get_close_matches(word, list(choices), n=1)
+    enough, else None: the one choice that begins the word or that the word begins
+    (`from_node` for `from`, `rate` for `rate_per_hour`), else difflib's best match with a
+    ratio of at least 0.65 (its default 0.6 offered `mode_s` for `sd_s`)."""
+    choices = list(choices)
+    if len(word) >= 3:
+        prefixed = [c for c in choices if len(c) >= 3 and (c.startswith(word)
+                                                           or word.startswith(c))]
+        if len(prefixed) == 1:
+            return prefixed[0]
+    matches = difflib.get_close_matches(word, choices, n=1, cutoff=CLOSE_RATIO)
     return matches[0] if matches else None
+
+
+CLOSE_RATIO = 0.65
 
 
 def _join(path: str, key: str) -> str:

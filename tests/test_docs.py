@@ -95,8 +95,10 @@ def test_the_readme_commands_and_their_options_exist(capsys: pytest.CaptureFixtu
     commands = _readme_commands()
     assert len({c[0] for c in commands}) >= 10  # the README shows the handful of commands
     for args in commands:
-        two_words = args[:2] in (["layout", "import"], ["layout", "export"],
-                                 ["profile", "import"])
+        if args[0] == "layout" and args[1:2] not in (["check"], ["import"], ["export"]):
+            args = ["layout", "check", *args[1:]]  # `layout FILE` is `layout check FILE`
+        two_words = args[:2] in (["layout", "check"], ["layout", "import"],
+                                 ["layout", "export"], ["profile", "import"])
         name = args[:2] if two_words else args[:1]
         with pytest.raises(SystemExit) as stop:
             main([*name, "--help"])

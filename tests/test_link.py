@@ -214,7 +214,8 @@ def test_no_jitter_draws_nothing() -> None:
     ({"baud": 9600, "jitter": {"distribution": "normal", "sd_s": -1}}, "jitter.sd_s", -1,
      "a number >= 0"),
     ({"baud": 9600, "jitter": {"spread_s": 1}}, "jitter.spread_s", 1,
-     "no such key here (known keys: distribution, low_s, high_s, mean_s, sd_s)"),
+     "no such key here: did you mean 'sd_s'? (known keys: distribution, low_s, high_s, mean_s, "
+     "sd_s)"),
 ])
 def test_bad_settings_are_rejected(settings: dict[str, Any], element: str, value: object,
                                    expected: str) -> None:

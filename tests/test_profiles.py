@@ -155,7 +155,7 @@ def deleter(section: str, key: str) -> Any:
 @pytest.mark.parametrize(("change", "key", "expected"), [
     (setter("", "colour", "red"), "colour", "no such key here (known keys: title, document"),
     (setter("link.jitter", "spread_s", 0.1), "link.jitter.spread_s",
-     "no such key here (known keys: distribution"),
+     "no such key here: did you mean 'sd_s'? (known keys: distribution"),
     (setter("link", "baud", 0), "link.baud", "an integer > 0"),
     (setter("link", "baud", 1e400), "link.baud", "an integer"),
     (setter("link", "parity", "E"), "link.parity", "one of 'none', 'even'"),

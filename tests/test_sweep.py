@@ -328,7 +328,7 @@ def test_an_interrupted_sweep_still_writes_its_summary(tmp_path: Path,
     exp = tiny_experiment(tmp_path, factors={"fleet.size": [1, 2]}, replications=1)
     out = tmp_path / "out"
 
-    def one_run_then_ctrl_c(specs: Any, out_dir: Path, *args: Any) -> Any:
+    def one_run_then_ctrl_c(specs: Any, out_dir: Path, *args: Any, **kwargs: Any) -> Any:
         execute_run(next(iter(specs)), str(out_dir / "runs"))
         raise KeyboardInterrupt
 

@@ -329,6 +329,7 @@ def test_the_merge_puts_rows_in_order_holding_few_runs(tmp_path: Path) -> None:
                                        preserve_index=False))
         start += size
     table.close(schema)
+    table.commit()
     written = pd.read_parquet(path)
     expected = frame.sort_values(["group", "key"], kind="stable").reset_index(drop=True)
     pd.testing.assert_frame_equal(written, expected, check_exact=True)

@@ -91,6 +91,7 @@ def write_moves(recorder: Recorder, run_dir: Path) -> Path:
                 moves_frame(recorder.moves[start:start + recorder.batch_rows]),
                 schema=table_schema(MOVES), preserve_index=False))
         table.close(table_schema(MOVES))
+        table.commit()
     except BaseException:
         table.abort()
         raise

@@ -232,7 +232,8 @@ class SortedTable:
 
     def close(self, schema: pa.Schema) -> None:
         """Merge the runs into the table, written with `schema` (its columns and pandas
-        metadata; scratch columns it lacks are dropped), and give it its name."""
+        metadata; scratch columns it lacks are dropped) under its partial name; `commit`
+        gives it its name."""
         assert self._writer is not None
         self._writer.close()
         self._writer = None
@@ -274,6 +275,11 @@ class SortedTable:
                     emit(loaded)
             emit(None)
         self.scratch.unlink()
+
+    def commit(self) -> None:
+        """Give the merged table (closed) its name, flushed to disk first."""
+        fsync_path(self.partial)
+        os.replace(self.partial, self.path)
 
     def abort(self) -> None:
         if self._writer is not None:
