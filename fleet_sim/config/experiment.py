@@ -56,17 +56,26 @@ from __future__ import annotations
 import itertools
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 from typing import Annotated, Any, Final, Literal
 
 import numpy as np
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, Strict, field_validator, model_validator
 
 from agv_model.inputs import Items, Problem, StrictModel, Text, read_yaml, validate
 from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.config.layout_changes import (
+    Change,
+    ChangeSite,
+    LayoutChange,
+    LayoutDiff,
+    changed_layout,
+    layout_diff,
+    parse_changes,
+)
 from fleet_sim.config.scenario import (
     FOLDER_NAME,
     MAX_FLEET_SIZE,
@@ -185,6 +194,38 @@ class WarmupConfig(StrictModel):
     """Pilot runs per combination of the other factors' levels (mser5)."""
 
 
+BASE_VARIANT: Final = "baseline"
+"""The name of the base scenario as a variant: the baseline unless the file names another."""
+VARIANT_PREFIX: Final = "v="
+"""Run ids of a named variant start with ``v=<name>__``; the base scenario's have no prefix."""
+MAX_VARIANTS: Final = 100
+"""Most variants of one experiment (a comparison of more is a design, not a what-if)."""
+MAX_LAYOUT_CHANGES: Final = 200
+"""Most layout changes of one variant: more is another layout file."""
+
+
+class VariantSpec(StrictModel):
+    """One what-if variant: changes over the base scenario (with the experiment's overrides)."""
+
+    description: Text = ""
+    overrides: dict[str, Any] = Field(default_factory=dict)
+    """Scenario fields (dotted paths) set in this variant's runs, over the experiment's
+    overrides; not a factor, not `seed`, not `layout` (use the variant's `layout`)."""
+    layout: Text | None = None
+    """Another layout file for this variant, relative to the experiment file; not when
+    `layout` is a factor."""
+    layout_changes: Annotated[tuple[LayoutChange, ...], Strict(False),
+                              Field(max_length=MAX_LAYOUT_CHANGES)] = ()
+    """Edits of the variant's layout, applied in order: one_way, two_way, close_segment,
+    close_node, speed_limit, add_node, add_segment, add_/move_/remove_ charger, station,
+    parking, station_handling, parking_capacity (docs/whatif.md)."""
+
+    @field_validator("layout_changes", mode="before")
+    @classmethod
+    def _each_change(cls, value: Any) -> Any:
+        return parse_changes(value)
+
+
 class ExperimentSpec(StrictModel):
     """The experiment file as written (before the design is expanded)."""
 
@@ -205,6 +246,12 @@ class ExperimentSpec(StrictModel):
     targets: Items[Target] = ()
     sizing: SizingConfig = SizingConfig()
     warmup: WarmupConfig = WarmupConfig()
+    variants: Annotated[dict[Text, VariantSpec], Field(max_length=MAX_VARIANTS)] = \
+        Field(default_factory=dict)
+    """What-if variants by name: each runs at every design point, with the baseline's seeds
+    (common random numbers)."""
+    baseline: Text | None = None
+    """The variant the others are compared with; default: the base scenario (`baseline`)."""
 
     @field_validator("name")
     @classmethod
@@ -216,9 +263,32 @@ class ExperimentSpec(StrictModel):
     @model_validator(mode="after")
     def _warmup_not_set_twice(self) -> ExperimentSpec:
         if self.warmup.method == "mser5" and ("warmup_h" in self.overrides
-                                              or "warmup_h" in self.factors):
+                                              or "warmup_h" in self.factors
+                                              or any("warmup_h" in v.overrides
+                                                     for v in self.variants.values())):
             raise Problem("warmup.method", self.warmup.method,
                           "fixed when warmup_h is an override or a factor (mser5 sets it)")
+        return self
+
+    @field_validator("variants")
+    @classmethod
+    def _variant_names(cls, variants: dict[str, VariantSpec]) -> dict[str, VariantSpec]:
+        for name in variants:
+            if not is_folder_name(name) or len(name) > 40:
+                raise Problem(name, name, "a variant name of at most 40 letters, digits, "
+                                          "'_', '.', '-' (it names run folders)")
+            if name == BASE_VARIANT:
+                raise Problem(name, name, f"another name ({BASE_VARIANT} is the base "
+                                          "scenario)")
+        return variants
+
+    @model_validator(mode="after")
+    def _baseline_is_a_variant(self) -> ExperimentSpec:
+        if self.baseline is not None and self.baseline != BASE_VARIANT \
+                and self.baseline not in self.variants:
+            names = ", ".join([BASE_VARIANT, *self.variants])
+            raise Problem("baseline", self.baseline, f"the name of a variant ({names}; "
+                          f"{BASE_VARIANT}: the base scenario)")
         return self
 
     @model_validator(mode="after")
@@ -244,7 +314,15 @@ class RunSpec:
     seed: int
     scenario_file: str
     overrides: tuple[tuple[str, Any], ...]
-    """Every override of the base scenario: the experiment's, the factors', the seed."""
+    """Every override of the base scenario: the experiment's, the variant's (its layout file
+    as `layout`), the factors', the seed."""
+    variant: str = ""
+    """The named variant the run belongs to; empty for the base scenario (the baseline unless
+    the experiment names another)."""
+    layout_changes: tuple[Change, ...] = ()
+    """The variant's layout changes: the worker gets the run's layout from `run_layout`."""
+    experiment_file: str = ""
+    """The experiment file, named by a refused layout change (set for a variant's runs)."""
 
     def factor_dict(self) -> dict[str, Any]:
         return dict(self.factors)
@@ -253,9 +331,31 @@ class RunSpec:
         return dict(self.overrides)
 
     def as_json(self) -> dict[str, Any]:
-        return {"run_id": self.run_id, "point": self.point, "factors": self.factor_dict(),
-                "replication": self.replication, "seed": self.seed,
-                "scenario_file": self.scenario_file, "overrides": self.override_dict()}
+        """The run as spec.json records it; a variant's runs add `variant`, `layout_changes`
+        and `experiment_file` (the base scenario's keep the keys they always had)."""
+        plain = {"run_id": self.run_id, "point": self.point, "factors": self.factor_dict(),
+                 "replication": self.replication, "seed": self.seed,
+                 "scenario_file": self.scenario_file, "overrides": self.override_dict()}
+        if self.variant:
+            plain |= {"variant": self.variant,
+                      "layout_changes": [c.model_dump(mode="json", by_alias=True)
+                                         for c in self.layout_changes],
+                      "experiment_file": self.experiment_file}
+        return plain
+
+
+@dataclass(frozen=True)
+class VariantLayout:
+    """A variant's layout at one design point, its changes applied, against the baseline's
+    (for drawing the variant with its changes highlighted)."""
+
+    variant: str
+    layout: Layout
+    baseline: Layout
+    """The baseline's layout at the same design point."""
+    diff: LayoutDiff
+    """What the variant's layout changes against the baseline's: node ids, (from, to) hops,
+    place ids."""
 
 
 @dataclass(frozen=True)
@@ -287,21 +387,112 @@ class Experiment:
         vary = self.spec.sizing.vary_type
         return FLEET if vary is None else type_count_path(vary)
 
-    def run(self, factors: Mapping[str, Any], replication: int, point: int = -1) -> RunSpec:
-        """The run of design point `factors` (any factor values) at `replication`."""
+    # ---- variants
+
+    @property
+    def baseline_name(self) -> str:
+        """The variant the others are compared with: BASE_VARIANT (the base scenario) unless
+        the file's `baseline` names one of its variants."""
+        return self.spec.baseline or BASE_VARIANT
+
+    @property
+    def variant_names(self) -> list[str]:
+        """Every variant a comparison runs, the baseline first, the others in file order.
+        The base scenario (BASE_VARIANT) is among them only when it is the baseline."""
+        return [self.baseline_name, *(v for v in self.spec.variants if v != self.baseline_name)]
+
+    def variant_spec(self, variant: str | None) -> VariantSpec | None:
+        """The named variant as written; None for the base scenario (None or BASE_VARIANT)."""
+        if variant is None or variant == BASE_VARIANT:
+            return None
+        if variant not in self.spec.variants:
+            raise KeyError(f"no variant {variant!r} in {self.file} "
+                           f"(variants: {', '.join(self.variant_names)})")
+        return self.spec.variants[variant]
+
+    def change_site(self, variant: str) -> ChangeSite:
+        """Names the experiment file and `variant` in a refused layout change."""
+        return ChangeSite(str(self.file), variant)
+
+    def file_path(self, name: str) -> str:
+        """A file named in the experiment (a layout), as an absolute path: relative to the
+        experiment file's folder."""
+        p = Path(name)
+        return str(p if p.is_absolute() else (self.file.parent / p).resolve())
+
+    def scenario_overrides(self, factors: Mapping[str, Any] | None = None,
+                           variant: str | None = None) -> dict[str, Any]:
+        """Every override of the base scenario at design point `factors` in `variant`: the
+        experiment's, the variant's (its layout as `layout`), the factors'. A `layout` value
+        names a file relative to the experiment file; here it is absolute."""
+        merged = dict(self.spec.overrides)
+        named = self.variant_spec(variant)
+        if named is not None:
+            merged |= named.overrides
+            if named.layout is not None:
+                merged["layout"] = named.layout
+        merged |= factors or {}
+        if isinstance(merged.get("layout"), str):
+            merged["layout"] = self.file_path(merged["layout"])
+        return merged
+
+    def run(self, factors: Mapping[str, Any], replication: int, point: int = -1,
+            variant: str | None = None) -> RunSpec:
+        """The run of design point `factors` (any factor values) at `replication`, in
+        `variant` (None or BASE_VARIANT: the base scenario). Every variant's replication r has
+        the seed of the base scenario's (common random numbers); a named variant's run id is
+        the base scenario's prefixed with ``v=<variant>__``."""
         seed = replication_seed(self.spec.master_seed, replication)
-        overrides = {**self.spec.overrides, **factors, "seed": seed}
-        return RunSpec(run_id(factors, replication), point, tuple(factors.items()), replication,
-                       seed, str(self.scenario_file), tuple(overrides.items()))
+        overrides = {**self.scenario_overrides(factors, variant), "seed": seed}
+        named = self.variant_spec(variant)
+        if named is None:
+            return RunSpec(run_id(factors, replication), point, tuple(factors.items()),
+                           replication, seed, str(self.scenario_file), tuple(overrides.items()))
+        assert variant is not None
+        return RunSpec(variant_run_id(variant, factors, replication), point,
+                       tuple(factors.items()), replication, seed, str(self.scenario_file),
+                       tuple(overrides.items()), variant, tuple(named.layout_changes),
+                       str(self.file))
 
     def runs(self) -> list[RunSpec]:
-        """Every run of the design: each point times each replication."""
+        """Every run of the design: each point times each replication (the base scenario)."""
         return [self.run(dict(point), r, i) for i, point in enumerate(self.points)
                 for r in range(self.spec.replications)]
 
-    def scenario(self, factors: Mapping[str, Any] | None = None) -> Scenario:
-        """The base scenario with the experiment's overrides (and `factors`) applied."""
-        return load_scenario(self.scenario_file, {**self.spec.overrides, **(factors or {})})
+    def variant_runs(self, variant: str, replications: Iterable[int] | None = None
+                     ) -> list[RunSpec]:
+        """The runs of `variant` at every design point, for `replications` (default: the
+        file's 0 .. replications-1), point by point. The base scenario's are `runs()`."""
+        reps = list(range(self.spec.replications) if replications is None else replications)
+        design = self.points or ((),)
+        return [self.run(dict(point), r, i, variant) for i, point in enumerate(design)
+                for r in reps]
+
+    def scenario(self, factors: Mapping[str, Any] | None = None,
+                 variant: str | None = None) -> Scenario:
+        """The base scenario with the experiment's overrides (the variant's, and `factors`)
+        applied."""
+        return load_scenario(self.scenario_file, self.scenario_overrides(factors, variant))
+
+    def layout(self, scenario: Scenario, variant: str | None = None) -> Layout:
+        """`scenario`'s layout (cached) with `variant`'s layout changes, checked against it."""
+        named = self.variant_spec(variant)
+        if named is None or not named.layout_changes:
+            return layout_for(scenario, str(self.scenario_file))
+        assert variant is not None
+        return changed_layout_for(scenario, str(self.scenario_file), named.layout_changes,
+                                  self.change_site(variant))
+
+    def variant_layout(self, variant: str, factors: Mapping[str, Any] | None = None
+                       ) -> VariantLayout:
+        """`variant`'s layout at design point `factors` (default: the first) with what it
+        changes against the baseline's layout there."""
+        if factors is None:
+            factors = dict(self.points[0]) if self.points else {}
+        layout = self.layout(self.scenario(factors, variant), variant)
+        base_name = self.baseline_name
+        baseline = self.layout(self.scenario(factors, base_name), base_name)
+        return VariantLayout(variant, layout, baseline, layout_diff(baseline, layout))
 
     def with_overrides(self, extra: Mapping[str, Any]) -> Experiment:
         """The same experiment with `extra` set in every run (an estimated warm-up)."""
@@ -309,10 +500,17 @@ class Experiment:
         return Experiment(spec, self.file, self.points)
 
     def resolved(self) -> dict[str, Any]:
-        """The experiment with every default written out and paths made absolute."""
+        """The experiment with every default written out and paths made absolute (the
+        scenario, layouts in overrides and variants; a layout factor's levels stay as
+        written, as the run ids and the summary show them)."""
         plain = self.spec.model_dump(mode="json", by_alias=True)
         plain["scenario"] = str(self.scenario_file)
         plain["experiment_file"] = str(self.file.resolve())
+        if isinstance(plain["overrides"].get("layout"), str):
+            plain["overrides"]["layout"] = self.file_path(plain["overrides"]["layout"])
+        for variant in plain["variants"].values():
+            if variant.get("layout") is not None:
+                variant["layout"] = self.file_path(variant["layout"])
         return plain
 
 
@@ -320,6 +518,11 @@ def replication_seed(master_seed: int, replication: int) -> int:
     """The scenario seed of replication `replication`: the same at every factor level."""
     child = np.random.SeedSequence(master_seed, spawn_key=(replication,))
     return int(child.generate_state(1, np.uint32)[0])
+
+
+def variant_run_id(variant: str, factors: Mapping[str, Any], replication: int) -> str:
+    """A named variant's run id: the base scenario's, prefixed ``v=<variant>__``."""
+    return f"{VARIANT_PREFIX}{variant}__{run_id(factors, replication)}"
 
 
 def run_id(factors: Mapping[str, Any], replication: int) -> str:
@@ -371,6 +574,7 @@ def load_experiment(path: str | Path) -> Experiment:
                          f"an existing scenario file (looked for {scenario_file})")
     for key in spec.overrides:
         _check_path(file, f"overrides.{key}", key)
+    _check_layout_names(file, "overrides.layout", spec.overrides.get("layout", ""))
     levels: dict[str, list[Any]] = {}
     ranges: dict[str, Range] = {}
     for key, value in spec.factors.items():
@@ -383,6 +587,9 @@ def load_experiment(path: str | Path) -> Experiment:
                 raise InputError(file, f"factors.{key}", value, "a list of at least one level")
             if len({repr(v) for v in value}) != len(value):
                 raise InputError(file, f"factors.{key}", value, "distinct levels")
+            if key == "layout":
+                for i, level in enumerate(value):
+                    _check_layout_names(file, f"factors.layout[{i}]", level)
             levels[key] = value
         elif isinstance(value, Mapping):
             if spec.design != "latin_hypercube":
@@ -407,7 +614,51 @@ def load_experiment(path: str | Path) -> Experiment:
     experiment = Experiment(spec, path, tuple(tuple(p.items()) for p in points))
     _check_scenarios(experiment, levels)
     _check_vary_type(experiment)
+    _check_variants(experiment)
     return experiment
+
+
+def _check_layout_names(file: str, element: str, value: Any) -> None:
+    if not isinstance(value, str):
+        raise InputError(file, element, value, "a layout file (a text: its path, relative to "
+                                               "the experiment file)")
+
+
+def _check_variants(experiment: Experiment) -> None:
+    """Every variant's overrides, layout and layout changes, at every design point: a real
+    scenario and its changed layout, like the base scenario's (`_check_scenarios`)."""
+    spec = experiment.spec
+    file = str(experiment.file)
+    for name, variant in spec.variants.items():
+        at = f"variants.{name}"
+        for key, value in variant.overrides.items():
+            _check_path(file, f"{at}.overrides.{key}", key)
+            if key == "layout":
+                raise InputError(file, f"{at}.overrides.layout", value,
+                                 f"the variant's own layout key ({at}.layout), not an override")
+            if key in spec.factors:
+                raise InputError(file, f"{at}.overrides.{key}", value,
+                                 "a field that is not a factor (the factor varies it)")
+        if variant.layout is not None:
+            if "layout" in spec.factors:
+                raise InputError(file, f"{at}.layout", variant.layout,
+                                 "no layout of the variant's own: layout is a factor")
+            path = Path(experiment.file_path(variant.layout))
+            if not path.is_file():
+                raise InputError(file, f"{at}.layout", variant.layout,
+                                 f"an existing layout file, relative to the experiment file "
+                                 f"(looked for {path})")
+        for point in experiment.points or ((),):
+            factors = dict(point)
+            where = f" at design point ({point_text(factors)})" if factors else ""
+            try:
+                scenario = experiment.scenario(factors, name)
+                experiment.layout(scenario, name)
+            except InputError as exc:
+                if exc.file == file:  # a refused layout change names the variant already
+                    raise
+                raise InputError(file, f"{at}{where}", exc.value,
+                                 f"{exc.expected} ({exc.element}, in {exc.file})") from None
 
 
 def _check_vary_type(experiment: Experiment) -> None:
@@ -430,10 +681,9 @@ def _check_vary_type(experiment: Experiment) -> None:
 def _check_path(file: str, element: str, key: str) -> None:
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z0-9_][A-Za-z0-9_-]*)*", key):
         raise InputError(file, element, key, "a dotted scenario path such as fleet.size")
-    if key in ("seed", "layout"):
-        why = ("seeds come from master_seed and the replication" if key == "seed"
-               else "one layout per experiment: set it in the scenario")
-        raise InputError(file, element, key, f"another scenario field ({why})")
+    if key == "seed":
+        raise InputError(file, element, key, "another scenario field (seeds come from "
+                                             "master_seed and the replication)")
 
 
 def full_factorial(levels: Mapping[str, list[Any]]) -> list[dict[str, Any]]:
@@ -481,6 +731,45 @@ def layout_for(scenario: Scenario, scenario_file: str) -> Layout:
     layout = cached_layout(str(layout_path.resolve()), scenario.fleet.max_speed_mps)
     check_against_layout(scenario, layout, scenario_file)
     return layout
+
+
+@lru_cache(maxsize=16)
+def _cached_changed_layout(path: str, max_speed_mps: float, changes: tuple[Change, ...],
+                           site: ChangeSite) -> Layout:
+    """A layout with a variant's changes, made once per process (a comparison builds many
+    scenarios on one changed layout)."""
+    return changed_layout(cached_layout(path, max_speed_mps), changes, site, max_speed_mps)
+
+
+def changed_layout_for(scenario: Scenario, scenario_file: str, changes: Sequence[Change],
+                       site: ChangeSite) -> Layout:
+    """The scenario's layout (cached) with `changes` applied, checked against the scenario;
+    a problem is a refusal naming the experiment file, the variant and the change."""
+    layout_path = scenario.path(scenario.layout)
+    if not layout_path.exists():
+        raise InputError(scenario_file, "layout", scenario.layout,
+                         f"an existing layout file (looked for {layout_path})")
+    path, speed = str(layout_path.resolve()), scenario.fleet.max_speed_mps
+    layout = _cached_changed_layout(path, speed, tuple(changes), site)
+
+    def check(candidate: Layout) -> None:
+        check_against_layout(scenario, candidate, scenario_file)
+
+    try:
+        check(layout)
+    except InputError:  # the same again, to blame the change that made the scenario not fit
+        changed_layout(cached_layout(path, speed), changes, site, speed, check)
+        raise
+    return layout
+
+
+def run_layout(scenario: Scenario, spec: RunSpec) -> Layout:
+    """The layout run `spec` drives on: its scenario's (cached per process), with its
+    variant's layout changes applied, checked against the scenario. What a worker calls."""
+    if not spec.layout_changes:
+        return layout_for(scenario, spec.scenario_file)
+    return changed_layout_for(scenario, spec.scenario_file, spec.layout_changes,
+                              ChangeSite(spec.experiment_file, spec.variant))
 
 
 def _check_scenarios(experiment: Experiment, levels: Mapping[str, list[Any]]) -> None:
