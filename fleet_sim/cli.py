@@ -148,7 +148,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _Parser(prog="fleet-sim", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(
         dest="command", required=True,
-        metavar="{run,layout,crosscheck,emulate,sweep,size,report,schema,profile}")
+        metavar="{run,layout,crosscheck,emulate,sweep,size,compare,report,schema,profile}")
 
     run = sub.add_parser("run", help="run one scenario and write its run directory")
     run.add_argument("scenario", type=Path, help="scenario YAML file")
@@ -213,6 +213,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     size = sub.add_parser("size", help="smallest fleet that meets the experiment's targets")
     size.add_argument("experiment", type=Path, help="experiment YAML file")
     _runner_options(size)
+
+    _add_compare(sub)
 
     rep = sub.add_parser("report", help="HTML and PDF report of a sweep or sizing results folder")
     rep.add_argument("results", type=Path, help="results folder of `sweep` or `size`")
@@ -285,6 +287,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _sweep(args)
         if args.command == "size":
             return _size(args)
+        if args.command == "compare":
+            return _compare(args)
         if args.command == "report":
             return _report(args)
         if args.command == "crosscheck":
@@ -562,6 +566,42 @@ def _size(args: argparse.Namespace) -> int:
         print(f"  simulation: {result.statement()}")
     print(f"  sizing       {out / 'sizing.json'}")
     return 0
+
+
+def _add_compare(sub: typing.Any) -> None:
+    cmp = sub.add_parser("compare", help="every variant against the baseline: paired "
+                         "differences with common random numbers, replications added until "
+                         "decided, the best variant selected (resumable)")
+    cmp.add_argument("experiment", type=Path, help="experiment YAML file with variants")
+    _runner_options(cmp)
+    cmp.add_argument("--max-replications", type=lambda t: _integer(t, "--max-replications", 2),
+                     metavar="N", help="replication limit (default: the file's "
+                                       "compare.max_replications)")
+
+
+def _compare(args: argparse.Namespace) -> int:
+    import time
+
+    from fleet_sim.config.experiment import load_experiment
+    from fleet_sim.study.compare import check_compare, compare, table_lines
+    from fleet_sim.study.runner import default_out
+
+    _check_workers(args)
+    experiment = load_experiment(args.experiment)
+    check_compare(experiment, args.max_replications)
+    _warn_experiment(experiment)
+    out = args.out or default_out(experiment)
+    print(f"compare {experiment.name}: {', '.join(experiment.variant_names[1:])} against "
+          f"{experiment.baseline_name}, {max(1, len(experiment.points))} design point(s)")
+    start = time.perf_counter()
+    outcome = compare(experiment, out, args.workers, args.scheduler, args.quiet,
+                      args.max_replications)
+    print(f"  {outcome.runs_made} runs made, {outcome.runs_skipped} already finished, "
+          f"{len(outcome.failed)} failed; {time.perf_counter() - start:.0f} s")
+    for line in table_lines(outcome):
+        print(line)
+    print(f"  comparison   {out / 'compare.json'}  (`fleet-sim report {out}` for the report)")
+    return 1 if outcome.failed else 0
 
 
 def _report(args: argparse.Namespace) -> int:

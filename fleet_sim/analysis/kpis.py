@@ -224,11 +224,15 @@ def kpi_unit(name: str) -> str:
     return next((k.unit for k in CATALOGUE if k.name == name), "")
 
 
+def kpi_short(name: str) -> str:
+    """KPI `name` in a planner's words, without its unit: ``p95 lead time``."""
+    return SHORT_NAMES.get(name, name.replace("_", " "))
+
+
 def kpi_label(name: str) -> str:
     """Name and unit for an axis or a table: ``p95 lead time [s]``."""
     unit = kpi_unit(name)
-    short = SHORT_NAMES.get(name, name.replace("_", " "))
-    return f"{short} [{unit}]" if unit else short
+    return f"{kpi_short(name)} [{unit}]" if unit else kpi_short(name)
 
 
 def is_kpi_name(name: str) -> bool:

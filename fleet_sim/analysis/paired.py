@@ -144,14 +144,15 @@ def paired_difference(baseline: Sequence[float] | np.ndarray,
 
 def verdict(diff: PairedDifference, better: Better, precision: float | None) -> Verdict:
     """better/worse (higher/lower without a better direction) when the interval excludes zero;
-    no_difference when its half-width is at most `precision`; else undecided."""
+    no_difference when its half-width is at most `precision` (none given: zero, as when every
+    pair is equal); else undecided."""
     if diff.excludes_zero:
         up = diff.low > 0
         if better is None:
             return "higher" if up else "lower"
         return "better" if up == (better == "higher") else "worse"
-    if precision is not None and diff.pairs >= 2 and not math.isnan(diff.half_width) \
-            and diff.half_width <= precision:
+    if diff.pairs >= 2 and not math.isnan(diff.half_width) \
+            and diff.half_width <= (precision or 0.0):
         return "no_difference"
     return "undecided"
 
@@ -167,7 +168,7 @@ def kn_h2(k: int, n0: int, pcs: float) -> float:
     """KN's h^2 = 2 eta (n0 - 1) for k systems, first stage n0 and probability `pcs`."""
     alpha = 1.0 - pcs
     eta = 0.5 * ((2.0 * alpha / (k - 1)) ** (-2.0 / (n0 - 1)) - 1.0)
-    return 2.0 * eta * (n0 - 1)
+    return float(2.0 * eta * (n0 - 1))
 
 
 @dataclass(frozen=True)

@@ -70,7 +70,7 @@ import pandas as pd
 import yaml
 
 from fleet_sim.analysis.congestion import WORK_SPELL_COLUMNS, node_waits
-from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, layout_for, load_trace_for
+from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, load_trace_for, run_layout
 from fleet_sim.config.scenario import VEHICLE_TYPES
 from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.study.progress import Progress
@@ -177,7 +177,7 @@ def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
     try:
         shutil.rmtree(partial, ignore_errors=True)
         scenario = load_scenario(spec.scenario_file, spec.override_dict())
-        layout = layout_for(scenario, spec.scenario_file)
+        layout = run_layout(scenario, spec)
         run, figures = stream_run(scenario, layout, partial, load_trace_for(scenario, layout),
                                   record_occupancy=True)
         events = pd.read_parquet(partial / "events.parquet", columns=list(WORK_SPELL_COLUMNS))
