@@ -435,6 +435,7 @@ def compare(experiment: Experiment, out_dir: Path, workers: int = 0,
             prepare(experiment, out_dir)
             objective_kpi = [cfg.objective.kpi] if cfg.objective else []
             wanted = list(dict.fromkeys([*kpis, *objective_kpi]))
+            earlier = 0
             for n in planned:
                 specs = specs_for(experiment, n)
                 if not quiet:
@@ -445,7 +446,9 @@ def compare(experiment: Experiment, out_dir: Path, workers: int = 0,
                 done = execute(specs, out_dir, n_workers, scheduler, quiet, run_fn, stream,
                                pool=pool)
                 outcome.runs_made += len(done.results)
-                outcome.runs_skipped += done.skipped if not outcome.looks_done else 0
+                # skipped: finished before this invocation (not the runs of its earlier looks)
+                outcome.runs_skipped += max(0, done.skipped - earlier)
+                earlier = len(specs)
                 outcome.failed += [r.run_id for r in done.results if r.status != OK]
                 outcome.looks_done.append(n)
                 values = _read_values(experiment, out_dir / "runs", n, wanted)
