@@ -328,7 +328,7 @@ def _section_congestion(out_dir: Path, summary: pd.DataFrame, experiment: Experi
         title = (f"{variant} - {variants[0]}{where}: change of AGV waiting per node "
                  "(s per hour; red more, blue less)")
         sec.figures.append(_figure(f"waits_{variant}", title, cfigs.wait_difference(
-            drawn.layout, drawn.baseline, change.to_dict(), title)))
+            drawn.layout, drawn.baseline, {str(k): float(v) for k, v in change.items()}, title)))
         top = change[change.abs() > 0].abs().sort_values(ascending=False).head(3).index
         if len(top):
             rows.append([variant, f"{float(mine.sum() - base.sum()):+.0f}",

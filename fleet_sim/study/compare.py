@@ -410,8 +410,10 @@ def _means(experiment: Experiment, values: Mapping[tuple[str, int], Mapping[str,
 def compare(experiment: Experiment, out_dir: Path, workers: int = 0,
             scheduler: str | None = None, quiet: bool = False,
             max_replications: int | None = None, run_fn: RunFn = execute_run,
-            stream: IO[str] | None = None) -> CompareOutcome:
-    """Run the comparison into `out_dir` (see the module docstring) and write compare.json."""
+            stream: IO[str] | None = None, pool: LocalPool | DaskPool | None = None
+            ) -> CompareOutcome:
+    """Run the comparison into `out_dir` (see the module docstring) and write compare.json.
+    `pool`: worker processes to reuse (else a pool is started, and closed at the end)."""
     check_compare(experiment, max_replications)
     cfg = experiment.spec.compare
     cap = max_replications if max_replications is not None else cfg.max_replications
@@ -424,9 +426,11 @@ def compare(experiment: Experiment, out_dir: Path, workers: int = 0,
     outcome = CompareOutcome(out_dir, experiment, kpis, correction, planned)
     n_workers = workers or os.cpu_count() or 1
     with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
-        pool: LocalPool | DaskPool = DaskPool(scheduler, n_workers, run_fn) if scheduler \
-            else LocalPool(n_workers, run_fn)
-        with pool:
+        own = pool is None
+        if pool is None:
+            pool = DaskPool(scheduler, n_workers, run_fn) if scheduler \
+                else LocalPool(n_workers, run_fn)
+        try:
             if experiment.spec.warmup.method != "fixed":
                 with Progress(stream=stream, quiet=quiet) as progress:
                     experiment = settle_warmup(experiment, out_dir, pilot_groups(experiment),
@@ -458,6 +462,9 @@ def compare(experiment: Experiment, out_dir: Path, workers: int = 0,
                 outcome.means = _means(experiment, values, wanted)
                 if outcome.all_decided and all(s.done for s in outcome.selections):
                     break
+        finally:
+            if own:
+                pool.close()
         write_compare(outcome)
     return outcome
 
