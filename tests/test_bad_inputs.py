@@ -214,6 +214,44 @@ FACTSHEET_CASES: list[tuple[str, Callable[[dict[str, Any]], dict[str, Any]]]] = 
 ]
 
 
+def _changes(*changes: Any) -> dict[str, Any]:
+    return {"variants": {"v": {"layout_changes": list(changes)}}}
+
+
+# What-if variants on the tiny loop (SW -> S1 -> P -> S3 -> SE ... -> NW -> K -> SW).
+VARIANT_CASES: list[tuple[str, dict[str, Any]]] = [
+    ("unknown-kind", _changes({"one_wya": ["SW", "S1"]})),
+    ("two-kinds", _changes({"one_way": ["SW", "S1"], "two_way": ["S1", "P"]})),
+    ("not-a-mapping", _changes("one_way SW S1")),
+    ("not-a-list", {"variants": {"v": {"layout_changes": {"one_way": ["SW", "S1"]}}}}),
+    ("missing-node", _changes({"one_way": ["SW", "ZZ"]})),
+    ("not-a-segment", _changes({"two_way": ["SW", "SE"]})),
+    ("chain-of-one", _changes({"one_way": ["SW"]})),
+    ("dead-end", _changes({"close_segment": ["SW", "S1"]})),
+    ("turned-hop", _changes({"one_way": ["S1", "SW"]})),
+    ("conflict", _changes({"two_way": ["SW", "S1"]}, {"one_way": ["S1", "SW"]})),
+    ("close-a-station-node", _changes({"close_node": "P"})),
+    ("closed-then-used", _changes({"close_node": "S1"}, {"two_way": ["SW", "S1"]})),
+    ("speed-nan", _changes({"speed_limit": {"chain": ["SW", "S1"], "speed_mps": NAN}})),
+    ("speed-zero", _changes({"speed_limit": {"chain": ["SW", "S1"], "speed_mps": 0}})),
+    ("parking-too-small", _changes({"parking_capacity": {"id": "PARK", "capacity": 1}})),
+    ("remove-the-only-pickup", _changes({"remove_station": "PICK"})),
+    ("handling-not-a-distribution",
+     _changes({"station_handling": {"id": "DROP", "handling": 5}})),
+    ("unknown-station", _changes({"station_handling": {"id": "NOPE",
+                                                       "handling": {"mean_s": 5}}})),
+    ("charger-on-a-station", _changes({"add_charger": {"id": "C", "node": "P"}})),
+    ("variant-named-baseline", {"variants": {"baseline": {}}}),
+    ("variant-name-path", {"variants": {"../x": {}}}),
+    ("baseline-unknown", {"variants": {"a": {}}, "baseline": "b"}),
+    ("override-seed", {"variants": {"v": {"overrides": {"seed": 3}}}}),
+    ("override-a-factor", {"variants": {"v": {"overrides": {"fleet.size": 3}}}}),
+    ("override-bad-value", {"variants": {"v": {"overrides": {"demand.rate_per_hour": NAN}}}}),
+    ("layout-missing", {"variants": {"v": {"layout": "nowhere.yaml"}}}),
+    ("unknown-key", {"variants": {"v": {"layout_change": []}}}),
+]
+
+
 @dataclass(frozen=True)
 class Case:
     id: str
@@ -294,6 +332,9 @@ def _cases() -> Iterator[Case]:
                 _set(data, f, v)
             return _yaml(data)
         yield Case(f"experiment-{field}-{value!r}"[:80], "experiment", experiment)
+    for name, extra in VARIANT_CASES:
+        yield Case(f"experiment-variants-{name}", "experiment",
+                   lambda d, e=extra: _yaml({**_experiment(_write_base(d)), **e}))
     yield Case("experiment-lhs-samples", "experiment", lambda d: _yaml({
         **_experiment(_write_base(d)), "design": "latin_hypercube", "samples": 10_001,
         "factors": {"demand.rate_per_hour": {"min": 10, "max": 50}}}))
@@ -391,6 +432,8 @@ def test_bad_input_is_one_named_error(case: Case, tmp_path: Path) -> None:
     assert "\n" not in message, message
     assert message.startswith(str(tmp_path)) or message.startswith(str(ROOT)), message
     assert "; expected " in message, message
+    if case.id.startswith("experiment-variants-"):
+        assert ": variants." in message or ": baseline: " in message, message
 
 
 def test_the_valid_lif_and_factsheet_the_cases_change_are_read(tmp_path: Path) -> None:

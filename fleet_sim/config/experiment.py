@@ -707,6 +707,11 @@ def _check_variants(experiment: Experiment) -> None:
             except InputError as exc:
                 if exc.file == file:  # a refused layout change names the variant already
                     raise
+                own = next((k for k in variant.overrides if exc.element == k
+                            or exc.element.startswith((f"{k}.", f"{k}["))), None)
+                if own is not None:  # the variant's own override is wrong
+                    raise InputError(file, f"{at}.overrides.{own}", exc.value,
+                                     f"{exc.expected} ({exc.element}{where})") from None
                 raise InputError(file, f"{at}{where}", exc.value,
                                  f"{exc.expected} ({exc.element}, in {exc.file})") from None
 
@@ -835,7 +840,9 @@ def _check_scenarios(experiment: Experiment, levels: Mapping[str, list[Any]]) ->
     for name, values in levels.items():
         for i, value in enumerate(values):
             try:
-                experiment.scenario({name: value})
+                scenario = experiment.scenario({name: value})
+                if name == "layout":
+                    layout_for(scenario, str(experiment.scenario_file))
             except InputError as exc:
                 raise InputError(file, f"factors.{name}[{i}]", value,
                                  f"a valid scenario field: {exc.element}: got {exc.value!r}; "
@@ -851,15 +858,16 @@ def _check_scenarios(experiment: Experiment, levels: Mapping[str, list[Any]]) ->
                              f"{exc.expected} (scenario field {exc.element})") from None
 
 
-def experiment_warnings(experiment: Experiment) -> list[str]:
-    """The setup warnings of the experiment's design points, each kind once: the line of the
-    first point that has it, and in how many of the points it holds."""
+def experiment_warnings(experiment: Experiment, variant: str | None = None) -> list[str]:
+    """The setup warnings of the experiment's design points (in `variant`; None: the base
+    scenario), each kind once: the line of the first point that has it, and in how many of
+    the points it holds."""
     first: dict[str, str] = {}
     points: dict[str, int] = {}
     design = experiment.points or ((),)
     for point in design:
-        scenario = experiment.scenario(dict(point))
-        layout = layout_for(scenario, str(experiment.scenario_file))
+        scenario = experiment.scenario(dict(point), variant)
+        layout = experiment.layout(scenario, variant)
         for warning in setup_warnings(scenario, layout):
             first.setdefault(warning.kind, warning.text)
             points[warning.kind] = points.get(warning.kind, 0) + 1

@@ -54,6 +54,7 @@ Decisions, where the issue is silent:
 from __future__ import annotations
 
 import difflib
+import itertools
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -383,9 +384,9 @@ class _Editor:
 
     def hops(self, chain: Sequence[str], attribute: str) -> list[tuple[str, str, list[int]]]:
         out = []
-        for a, b in zip(chain, chain[1:], strict=False):
-            found = self.between(a, b)
+        for a, b in itertools.pairwise(chain):
             self.claim("segment", "|".join(sorted((a, b))), attribute, _hop(a, b))
+            found = self.between(a, b)
             out.append((a, b, found))
         return out
 
@@ -485,9 +486,9 @@ class _Editor:
 
     def _close_segment(self, change: CloseSegment) -> None:
         a, b = change.close_segment
+        self.claim("segment", "|".join(sorted((a, b))), WHOLE, _hop(a, b))
         for i in self.between(a, b):
             self.segments[i] = None
-        self.claim("segment", "|".join(sorted((a, b))), WHOLE, _hop(a, b))
 
     def _close_node(self, change: CloseNode) -> None:
         node = self.node(change.close_node)
@@ -705,13 +706,23 @@ class LayoutDiff:
                     or self.removed_segments or self.changed_places or self.removed_places)
 
 
+SEGMENT_FIELDS: Final = ("length_m", "speed_limit_mps", "two_way", "branch", "rssi_dbm",
+                         "obstacle_rate_per_km", "obstacle_duration", "allowed_types",
+                         "speed_limit_mps_by_type")
+"""What the layout says about a hop (graph edge data; the segment's place in the file and
+what the engine caches on the graph, such as free_time_s, are not compared)."""
+NODE_FIELDS: Final = ("x", "y", "kind")
+
+
 def layout_diff(old: Layout, new: Layout) -> LayoutDiff:
     """What `new` changes against `old` (the segments' order in the file is not compared)."""
     def edge(layout: Layout, u: str, v: str) -> dict[str, Any]:
-        return {k: x for k, x in layout.graph.edges[u, v].items() if k != "index"}
+        data = layout.graph.edges[u, v]
+        return {k: data.get(k) for k in SEGMENT_FIELDS}
 
     def node(layout: Layout, n: str) -> dict[str, Any]:
-        return {k: x for k, x in layout.graph.nodes[n].items() if k != "index"}
+        data = layout.graph.nodes[n]
+        return {k: data.get(k) for k in NODE_FIELDS}
 
     old_places, new_places = old.places, new.places
     changed_places = sorted(p for p in new_places if old_places.get(p) != new_places[p])
