@@ -574,7 +574,7 @@ def _add_compare(sub: typing.Any) -> None:
                          "decided, the best variant selected (resumable)")
     cmp.add_argument("experiment", type=Path, help="experiment YAML file with variants")
     _runner_options(cmp)
-    cmp.add_argument("--max-replications", type=lambda t: _integer(t, "--max-replications", 2),
+    cmp.add_argument("--max-replications", type=lambda t: _integer(t, "number of replications", 2),
                      metavar="N", help="replication limit (default: the file's "
                                        "compare.max_replications)")
 

@@ -40,7 +40,10 @@ Decisions, where the issue is silent:
   r = n0, n0 + 1, ... one replication at a time, so the decision is exactly KN's (a batch may
   hold replications KN would not have needed: they cost time, not correctness). A cap on the
   replications stops it early; the best mean among the survivors is then named, without the
-  guarantee, and `KnResult.guaranteed` says so.
+  guarantee, and `KnResult.guaranteed` says so. Survivors whose results are identical in
+  every replication so far (a variant that changes nothing: its runs are byte-identical to
+  the baseline's) are one system: KN would never part them, so the first stands for all and
+  the selection names the others as identical.
 """
 
 from __future__ import annotations
@@ -186,6 +189,9 @@ class KnResult:
     guaranteed: bool = True
     """False when the cap stopped KN with several survivors (see `best_at_cap`)."""
     best_at_cap: int | None = None
+    identical: tuple[int, ...] = ()
+    """Survivors whose results equal the selected system's in every replication: the same
+    system under another name (KN alone would never part them)."""
 
 
 def kn_select(samples: np.ndarray, indifference_zone: float, pcs: float, n0: int,
@@ -234,6 +240,11 @@ def kn_select(samples: np.ndarray, indifference_zone: float, pcs: float, n0: int
                 survivors.append(i)
         if len(survivors) == 1:
             return KnResult(survivors[0], (survivors[0],), eliminated, r, h2)
+        if all(np.array_equal(x[survivors[0], :r], x[i, :r]) for i in survivors[1:]):
+            # the survivors gave identical results in every replication: one system (a
+            # variant that changes nothing); the first (the baseline first) stands for them
+            return KnResult(survivors[0], tuple(survivors), eliminated, r, h2,
+                            identical=tuple(survivors[1:]))
         if r >= n:
             break
         r += 1

@@ -64,7 +64,7 @@ from fleet_sim.analysis.paired import (
     paired_difference,
     verdict,
 )
-from fleet_sim.config.experiment import BASE_VARIANT, Experiment, RunSpec, point_text
+from fleet_sim.config.experiment import Experiment, RunSpec, point_text
 from fleet_sim.errors import InputError
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
@@ -204,7 +204,10 @@ class Selection:
         if self.result is None:
             return f"No selection{where}: {self.note}"
         if self.result.selected is not None:
-            return (f"Best{where}: {self.selected}, {what} (KN: correct with probability at "
+            same = [self.systems[i] for i in self.result.identical]
+            twins = (f" ({', '.join(same)} gave identical results in every replication)"
+                     if same else "")
+            return (f"Best{where}: {self.selected}{twins}, {what} (KN: correct with probability at "
                     f"least {self.pcs:.0%} when the best beats the others by {zone} or more; "
                     f"decided at {self.result.replications} replications).")
         if not self.result.guaranteed:
@@ -223,6 +226,7 @@ class Selection:
                 "selected": self.selected,
                 "guaranteed": bool(r is not None and r.selected is not None),
                 "survivors": [self.systems[i] for i in r.survivors] if r else [],
+                "identical": [self.systems[i] for i in r.identical] if r else [],
                 "eliminated_at": {self.systems[i]: n for i, n in r.eliminated_at.items()}
                 if r else {},
                 "replications": r.replications if r else 0,
