@@ -146,9 +146,14 @@ def test_kn_minimises_and_stops_at_a_cap_without_promise() -> None:
     x = rng.normal(0.0, 1.0, (3, 200))
     x[0] -= 3.0
     assert kn_select(x, 0.5, 0.95, 5, maximise=False).selected == 0
-    twins = np.vstack([x[1], x[1]])  # identical systems: KN cannot tell them apart
-    capped = kn_select(twins[:, :10], 0.5, 0.95, 5, final=True)
-    assert capped.selected is None and not capped.guaranteed and capped.best_at_cap == 0
+    # two systems alike within the noise, cut off at 10 replications: no promise
+    close = rng.normal(0.0, 1.0, (2, 10))
+    capped = kn_select(close, 0.1, 0.95, 5, final=True)
+    assert capped.selected is None and not capped.guaranteed
+    assert capped.best_at_cap == int(np.argmax(close.mean(axis=1)))
+    # identical results (a variant that changes nothing): one system, the first stands for it
+    twins = kn_select(np.vstack([x[1], x[1], x[2] - 5]), 0.5, 0.95, 5)
+    assert twins.selected == 0 and twins.identical == (1,) and 2 in twins.eliminated_at
 
 
 # ---- real runs ---------------------------------------------------------------------------------
@@ -213,10 +218,10 @@ def test_selection_picks_the_known_best_in_the_stated_share(tmp_path: Path) -> N
     with LocalPool(2) as pool:
         for seed in range(10):
             path = tiny_compare(tmp_path, f"sel{seed}", master_seed=100 + seed,
-                                overrides={**SHORT, "duration_h": 0.5},
+                                overrides={**SHORT, "duration_h": 0.4},
                                 variants=variants, compare={
                                     "kpis": ["lead_time_mean_s"], "min_replications": 3,
-                                    "max_replications": 12, "objective": {
+                                    "max_replications": 6, "objective": {
                                         "kpi": "lead_time_mean_s", "direction": "min",
                                         "indifference_zone": 5,
                                         "probability_correct_selection": 0.9}})
@@ -257,18 +262,20 @@ def test_compare_killed_midway_resumes_and_recomputes_nothing(tmp_path: Path) ->
 
 @pytest.mark.parametrize(("compare_section", "variants", "element"), [
     ({"kpis": ["lead_time_p95"]}, None, "compare.kpis[0]"),
-    ({"precision": {"lead_time_p95_s": 5}}, None, "compare.precision.lead_time_p95_s"),
+    ({"precision": {"blocked_time_pct": 5}}, None, "compare.precision.blocked_time_pct"),
     ({"kpis": ["throughput_per_hour"], "precision": {"lead_time_p95_s": 5}}, None,
      "compare.precision.lead_time_p95_s"),
     ({"min_replications": 6, "max_replications": 4}, None, "compare.max_replications"),
     ({"min_replications": 1}, None, "compare.min_replications"),
     ({"confidence": 1.5}, None, "compare.confidence"),
+    ({"objective": {"kpi": "lead_time_p95", "direction": "min", "indifference_zone": 5}},
+     None, "compare.objective.kpi"),
     ({"objective": {"kpi": "lead_time_p95_s", "direction": "down",
                     "indifference_zone": 5}}, None, "compare.objective.direction"),
     ({"objective": {"kpi": "lead_time_p95_s", "direction": "min",
                     "indifference_zone": 0}}, None, "compare.objective.indifference_zone"),
     ({"objective": {"kpi": "lead_time_p95_s", "direction": "min", "indifference_zone": 5,
-                    "probability_correct_selection": 0.6}}, None,
+                    "probability_correct_selection": 0.5}}, None,
      "compare.objective.probability_correct_selection"),
     ({"replications": 3}, None, "compare.replications"),
     ({}, {}, "variants"),

@@ -98,8 +98,8 @@ def compared_kpis(experiment: Experiment) -> list[str]:
 
 def check_compare(experiment: Experiment, max_replications: int | None = None) -> None:
     """Refuse, with one line, a comparison that cannot run: no variant but the baseline, an
-    unknown KPI, a precision for a KPI not compared, a cap below min_replications, a PCS no
-    better than choosing at random."""
+    unknown KPI, a precision for a KPI not compared, a cap below min_replications (a PCS of
+    at most 1/2, no better than a coin between two, is refused by the file's model)."""
     file = str(experiment.file)
     cfg = experiment.spec.compare
     if len(experiment.variant_names) < 2:
@@ -122,11 +122,6 @@ def check_compare(experiment: Experiment, max_replications: int | None = None) -
         if not is_kpi_name(objective.kpi):
             raise InputError(file, "compare.objective.kpi", objective.kpi,
                              "a KPI of the catalogue, such as lead_time_p95_s")
-        k = len(experiment.variant_names)
-        if objective.probability_correct_selection <= 1 / k:
-            raise InputError(file, "compare.objective.probability_correct_selection",
-                             objective.probability_correct_selection,
-                             f"a probability above 1/{k} (choosing one of {k} at random)")
     if max_replications is not None and max_replications < cfg.min_replications:
         raise InputError("--max-replications", "max_replications", max_replications,
                          f"an integer >= compare.min_replications ({cfg.min_replications})")
