@@ -206,6 +206,10 @@ class Objective(StrictModel):
     probability_correct_selection: float = Field(default=0.95, gt=0.5, lt=1)
     """The chance of selecting the best when it beats every other by the indifference zone
     (Kim and Nelson's KN procedure, docs/whatif.md)."""
+    among: Items[Text] = ()
+    """The variants to select from (at least two; `baseline` names the base scenario);
+    default: every variant and the baseline. A variant that is a scenario rather than a
+    choice (20 % more demand) is compared but not selected."""
 
 
 class CompareConfig(StrictModel):

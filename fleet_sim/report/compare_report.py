@@ -87,15 +87,22 @@ def _signed(value: float | None) -> str:
     return text if text.startswith("-") or text == "n/a" else "+" + text
 
 
-def _unit(kpi: str) -> str:
+def _unit(kpi: str, difference: bool = False) -> str:
+    """The unit after a number; a difference of percentages is in percentage points."""
     unit = kpi_unit(kpi)
+    if unit == "%" and difference:
+        return " points"
     return f" {unit}" if unit and unit != "count" else ""
+
+
+def _and(parts: Sequence[str]) -> str:
+    return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
 
 
 def _clause_effect(row: Mapping[str, Any]) -> str:
     """``cuts p95 lead time by 180 s (41 to 320 s)``."""
     kpi, mean, low, high = row["kpi"], row["difference"], row["ci_low"], row["ci_high"]
-    u = _unit(kpi)
+    u = _unit(kpi, difference=True)
     if mean < 0:
         return (f"cuts {kpi_short(kpi)} by {_fmt(-mean)}{u} ({_fmt(-high)} to "
                 f"{_fmt(-low)}{u})")
@@ -105,7 +112,7 @@ def _clause_effect(row: Mapping[str, Any]) -> str:
 def _clause_none(row: Mapping[str, Any]) -> str:
     """``p95 lead time +7 s (-34 to +48 s)``."""
     kpi = row["kpi"]
-    u = _unit(kpi)
+    u = _unit(kpi, difference=True)
     return (f"{kpi_short(kpi)} {_signed(row['difference'])}{u} ({_signed(row['ci_low'])} to "
             f"{_signed(row['ci_high'])}{u})")
 
@@ -124,7 +131,7 @@ def variant_sentence(subject: str, rows: Sequence[Mapping[str, Any]]) -> str:
             text += ": " + "; ".join(_clause_none(r) for r in others)
         text += tail
     else:
-        text = f"{subject} " + " and ".join(_clause_effect(r) for r in effects)
+        text = f"{subject} " + _and([_clause_effect(r) for r in effects])
         if others:
             text += "; no difference we can detect in " + "; ".join(
                 _clause_none(r) for r in others) + tail

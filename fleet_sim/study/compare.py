@@ -122,6 +122,14 @@ def check_compare(experiment: Experiment, max_replications: int | None = None) -
         if not is_kpi_name(objective.kpi):
             raise InputError(file, "compare.objective.kpi", objective.kpi,
                              "a KPI of the catalogue, such as lead_time_p95_s")
+        names = experiment.variant_names
+        for i, name in enumerate(objective.among):
+            if name not in names:
+                raise InputError(file, f"compare.objective.among[{i}]", name,
+                                 "the name of a variant of this file (" + ", ".join(names) + ")")
+        if objective.among and len(set(objective.among)) < 2:
+            raise InputError(file, "compare.objective.among", list(objective.among),
+                             "at least two distinct variants to select from")
     if max_replications is not None and max_replications < cfg.min_replications:
         raise InputError("--max-replications", "max_replications", max_replications,
                          f"an integer >= compare.min_replications ({cfg.min_replications})")
@@ -374,7 +382,7 @@ def evaluate(experiment: Experiment, values: Mapping[tuple[str, int], Mapping[st
         objective = cfg.objective
         if objective is None:
             continue
-        systems = experiment.variant_names
+        systems = selection_systems(experiment)
         sample = np.vstack([values[(v, i)][objective.kpi] for v in systems]) \
             if (base, i) in values and objective.kpi in values[(base, i)] else None
         common = dict(point=point, kpi=objective.kpi, direction=objective.direction,
@@ -391,6 +399,13 @@ def evaluate(experiment: Experiment, values: Mapping[tuple[str, int], Mapping[st
                            maximise=objective.direction == "max", final=final)
         selections.append(Selection(**common, result=result))  # type: ignore[arg-type]
     return comparisons, selections
+
+
+def selection_systems(experiment: Experiment) -> list[str]:
+    """The variants the objective selects from, in the file's order (the baseline first)."""
+    objective = experiment.spec.compare.objective
+    among = set(objective.among) if objective is not None and objective.among else None
+    return [v for v in experiment.variant_names if among is None or v in among]
 
 
 def _means(experiment: Experiment, values: Mapping[tuple[str, int], Mapping[str, np.ndarray]],
