@@ -208,6 +208,19 @@ def test_slower_handling_is_worse_with_an_interval_clear_of_zero(compared: Path)
         {f"r{r:02d}" for r in range(n)}
 
 
+def test_on_a_dask_cluster_the_same_comparison(compared: Path, tmp_path: Path) -> None:
+    pytest.importorskip("dask.distributed")
+    import yaml
+
+    file = yaml.safe_load((compared / "experiment.resolved.yaml").read_text())["experiment_file"]
+    outcome = compare(load_experiment(file), tmp_path / "dask", workers=2, scheduler="local",
+                      quiet=True)
+    local = json.loads((compared / "compare.json").read_text())
+    assert [c.as_dict() for c in outcome.comparisons] == local["comparisons"]
+    assert (tmp_path / "dask" / "runs" / "r01" / "events.parquet").read_bytes() == \
+        (compared / "runs" / "r01" / "events.parquet").read_bytes()
+
+
 def test_selection_picks_the_known_best_in_the_stated_share(tmp_path: Path) -> None:
     """Variants that differ only in drop-off handling (20 s, 45 s, 70 s): the fastest has the
     lowest mean lead time by far more than the indifference zone; KN at PCS 0.9 picks it in
