@@ -323,6 +323,9 @@ REFUSED = [
     ({"baseline": {}}, "variants.baseline", "baseline", "the base scenario"),
     ({"a/b": {}}, "variants.a/b", "a/b", "variant name"),
     ({"v": {"layout_changez": []}}, "variants.v.layout_changez", [], "no such key"),
+    ({f"v{i}": {} for i in range(100)} | {"v100": {}}, "variants", {f"v{i}": {} for i in
+                                                                   range(101)},
+     "at most 100 items"),
 ]
 
 
@@ -339,6 +342,15 @@ def test_a_refused_variant_names_the_file_variant_change_and_element(
     assert info.value.value == value
     assert expected in info.value.expected
     assert "\n" not in str(info.value)
+
+
+def test_variants_count_towards_the_most_runs_of_an_experiment(tmp_path: Path) -> None:
+    path = whatif(tmp_path, {f"v{i}": {} for i in range(40)}, replications=200,
+                  factors={"fleet.size": [4, 5]})
+    with pytest.raises(InputError) as info:
+        load_experiment(path)
+    assert info.value.element == "variants"
+    assert info.value.value == "41 variants x 2 design points x 200 replications"
 
 
 def test_baseline_must_name_a_variant(tmp_path: Path) -> None:

@@ -46,6 +46,20 @@ Decisions, where the issue is silent:
   count min_agvs and max_agvs then bound; run ids read ``fleet.vehicles.heavy.count=3__r00``.
   Why one type: "how many heavy tuggers do my eight carriers need beside them" is the
   planner's question; a search over several counts at once has no single smallest answer.
+* Variants (``variants:``, docs/whatif.md): name -> overrides over the experiment's, another
+  layout file, layout changes (fleet_sim.config.layout_changes). The baseline is the base
+  scenario (named BASE_VARIANT, ``baseline``) unless ``baseline:`` names a variant; the base
+  scenario is among the variants compared only as the baseline. Every variant runs at every
+  design point, replication r with the base scenario's seed of replication r (common random
+  numbers). The base scenario's run ids and spec.json stay exactly what a sweep makes, so a
+  comparison shares its runs with sweep and size; a named variant's run ids are prefixed
+  ``v=<variant>__`` whatever its role (a run id says what runs, not how it is compared).
+  A variant may not override a factor, ``seed`` or ``layout`` (its own `layout` key says
+  it); every variant is validated at every design point when the file is loaded, so sweep
+  and size refuse a broken variant too, though they run the base scenario only.
+* ``layout`` may be a factor or an override, its values layout files relative to the
+  experiment file (as a variant's `layout`); run ids and the summary show a level as
+  written, the runs' overrides hold the absolute path.
 * Battery and charging traps (fleet_sim.config.scenario.setup_warnings) are said once per
   experiment (`experiment_warnings`): each kind of trap once, with the first design point's
   line and how many design points have it, not once per run.
@@ -660,6 +674,11 @@ def load_experiment(path: str | Path) -> Experiment:
         element = "factors" if spec.design == "full_factorial" else "samples"
         raise InputError(file, element, f"{n_points} design points x {spec.replications} "
                          "replications", f"at most {MAX_RUNS} runs in one experiment")
+    compared = len(spec.variants) + (spec.baseline in (None, BASE_VARIANT))
+    if spec.variants and max(n_points, 1) * spec.replications * compared > MAX_RUNS:
+        raise InputError(file, "variants", f"{compared} variants x {max(n_points, 1)} design "
+                         f"points x {spec.replications} replications",
+                         f"at most {MAX_RUNS} runs in one experiment")
     if spec.design == "full_factorial":
         points = full_factorial(levels)
     else:
