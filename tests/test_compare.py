@@ -313,6 +313,9 @@ def test_max_replications_below_the_first_look_is_refused(
     code = main(["compare", str(tiny_compare(tmp_path)), "--max-replications", "2"])
     err = capsys.readouterr().err
     assert code == 2 and "--max-replications" in err and "min_replications (3)" in err
+    code = main(["compare", str(tiny_compare(tmp_path)), "--max-replications", "5000"])
+    err = capsys.readouterr().err
+    assert code == 2 and "at most 10000 runs in one comparison (15000 = 3 variants" in err
 
 
 # ---- the report --------------------------------------------------------------------------------

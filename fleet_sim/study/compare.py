@@ -64,7 +64,7 @@ from fleet_sim.analysis.paired import (
     paired_difference,
     verdict,
 )
-from fleet_sim.config.experiment import Experiment, RunSpec, point_text
+from fleet_sim.config.experiment import MAX_RUNS, Experiment, RunSpec, point_text
 from fleet_sim.errors import InputError
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
@@ -133,6 +133,15 @@ def check_compare(experiment: Experiment, max_replications: int | None = None) -
     if max_replications is not None and max_replications < cfg.min_replications:
         raise InputError("--max-replications", "max_replications", max_replications,
                          f"an integer >= compare.min_replications ({cfg.min_replications})")
+    cap = max_replications if max_replications is not None else cfg.max_replications
+    runs = len(experiment.variant_names) * len(design(experiment)) * cap
+    if runs > MAX_RUNS:
+        raise InputError(file if max_replications is None else "--max-replications",
+                         "compare.max_replications" if max_replications is None
+                         else "max_replications", cap,
+                         f"at most {MAX_RUNS} runs in one comparison ({runs} = "
+                         f"{len(experiment.variant_names)} variants x "
+                         f"{len(design(experiment))} design points x {cap})")
 
 
 # ---- results ----------------------------------------------------------------------------------
