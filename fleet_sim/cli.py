@@ -216,8 +216,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     _add_compare(sub)
 
-    rep = sub.add_parser("report", help="HTML and PDF report of a sweep or sizing results folder")
-    rep.add_argument("results", type=Path, help="results folder of `sweep` or `size`")
+    rep = sub.add_parser("report", help="HTML and PDF report of a sweep, sizing or compare "
+                         "results folder")
+    rep.add_argument("results", type=Path, help="results folder of `sweep`, `size` or `compare`")
     rep.add_argument("--no-pdf", action="store_true", help="write the HTML report only")
 
     schema = sub.add_parser("schema", help="print the JSON Schema of a file kind, for editors")

@@ -70,8 +70,9 @@ class CompareSection(Section):
 def _fmt(value: float | None) -> str:
     if value is None or (isinstance(value, float) and np.isnan(value)):
         return "n/a"
+    value = round(float(value), 6)  # as compare.json keeps it: float noise is no digit
     a = abs(value)
-    if float(value).is_integer() and a < 1e6:
+    if value.is_integer() and a < 1e6:
         return f"{int(value)}"
     if a >= 100:
         return f"{value:,.0f}"

@@ -301,8 +301,9 @@ def _fmt(value: float) -> str:
     """A number as a planner reads it: 3 significant figures, no exponent."""
     if value is None or math.isnan(value):
         return "n/a"
+    value = round(float(value), 6)  # as compare.json keeps it: float noise is no digit
     a = abs(value)
-    if float(value).is_integer() and a < 1e6:
+    if value.is_integer() and a < 1e6:
         return f"{int(value)}"
     if a >= 100:
         return f"{value:,.0f}"
