@@ -276,6 +276,7 @@ WINDOW_HOURS = Number("hours", 0, MAX_DURATION_H, low_open=False)
 SPEED = Number("metres per second", 0, 100)
 SEED = Integer("seed", 0)
 WORKERS = Integer("number of workers (0: one per core)", 0, 1024)
+REPLICATIONS = Integer("number of replications", 2, 1000)
 DASK_TIMEOUT = Number("seconds", 0, 86_400)
 AGV_COUNT = Integer("number of AGVs", 1, MAX_FLEET_SIZE)
 
@@ -649,8 +650,34 @@ def _size(args: argparse.Namespace) -> int:
     return 0
 
 
-@command("report", "HTML and PDF report of a sweep or sizing results folder",
-         arg("results", type=Path, help="results folder of `sweep` or `size`"),
+@command("compare", "every variant against the baseline: paired differences with common random "
+         "numbers, replications added until decided, the best variant selected (resumable)",
+         arg("experiment", type=Path, help="experiment YAML file with variants"), *RUNNER,
+         arg("--max-replications", type=REPLICATIONS, metavar="N",
+             help="replication limit (default: the file's compare.max_replications)"))
+def _compare(args: argparse.Namespace) -> int:
+    import time
+
+    from fleet_sim.study.compare import check_compare, compare, table_lines
+    from fleet_sim.study.runner import default_out
+
+    experiment = experiment_for(args.experiment, args.settings)
+    check_compare(experiment, args.max_replications)
+    out = args.out or default_out(experiment)
+    print(f"compare {experiment.name}: {', '.join(experiment.variant_names[1:])} against "
+          f"{experiment.baseline_name}, {max(1, len(experiment.points))} design point(s)")
+    start = time.perf_counter()
+    outcome = compare(experiment, out, args.workers, args.scheduler, args.quiet,
+                      args.max_replications, dask_timeout_s=args.dask_timeout)
+    print(f"  {outcome.runs_made} runs made, {outcome.runs_skipped} already finished, "
+          f"{len(outcome.failed)} failed; {time.perf_counter() - start:.0f} s")
+    print("\n".join(table_lines(outcome)))
+    print(f"  comparison   {out / 'compare.json'}  (`fleet-sim report {out}` for the report)")
+    return 1 if outcome.failed else 0
+
+
+@command("report", "HTML and PDF report of a sweep, sizing or compare results folder",
+         arg("results", type=Path, help="results folder of `sweep`, `size` or `compare`"),
          arg("--no-pdf", action="store_true", help="write the HTML report only"))
 def _report(args: argparse.Namespace) -> int:
     from fleet_sim.report.console import report_lines

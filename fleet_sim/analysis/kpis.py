@@ -65,7 +65,7 @@ from bisect import bisect_right
 from collections import Counter, deque
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -202,6 +202,61 @@ BY_TYPE: tuple[Kpi, ...] = (
         "SafeMode"),
 )
 """The per-type KPIs of a mixed fleet, named ``by_type.<type>.<name>`` (see the module)."""
+
+
+BETTER: Mapping[str, Literal["higher", "lower"]] = {
+    "orders_completed": "higher", "throughput_per_hour": "higher",
+    "throughput_pct_of_demand": "higher", "availability_pct": "higher",
+    "lead_time_mean_s": "lower", "lead_time_p95_s": "lower", "blocked_time_pct": "lower",
+    "deadlocks_detected": "lower", "order_wait_mean_s": "lower", "order_queue_mean": "lower",
+    "idle_with_orders_waiting_pct": "lower", "orders_failed": "lower",
+    "orders_reassigned": "lower", "charging_queue_wait_mean_s": "lower",
+    "command_retries": "lower", "orders_open_at_end": "lower", "distance_km": "lower",
+}
+"""Which way a KPI is better, where a planner would agree without knowing the study
+(utilisation, charges, time per state: neither); `kpi_better` adds the per-code counts
+(fewer errors are better). Used to put a comparison's verdict in words."""
+
+SHORT_NAMES: Mapping[str, str] = {
+    "throughput_per_hour": "throughput", "throughput_pct_of_demand": "throughput",
+    "lead_time_mean_s": "mean lead time", "lead_time_p95_s": "p95 lead time",
+    "agv_utilisation_pct": "AGV utilisation", "blocked_time_pct": "time blocked by traffic",
+    "deadlocks_detected": "deadlocks", "order_wait_mean_s": "mean wait for an AGV",
+    "order_queue_mean": "orders waiting", "distance_km": "distance driven",
+    "availability_pct": "availability", "charging_queue_wait_mean_s": "wait for a charger",
+    "idle_with_orders_waiting_pct": "AGVs idle while orders wait",
+    "orders_open_at_end": "orders open at the end",
+}
+"""A KPI's name in a planner's words, for sentences and axes (else its key, spaced)."""
+
+
+def kpi_better(name: str) -> Literal["higher", "lower"] | None:
+    """Which way KPI `name` is better (None: neither, by itself)."""
+    if name.startswith(("errors_by_code.", "warnings_by_code.")):
+        return "lower"
+    return BETTER.get(name)
+
+
+def kpi_unit(name: str) -> str:
+    """The unit of KPI `name` in the catalogue (per-type ones: the BY_TYPE unit); "" if none."""
+    family, _, rest = name.partition(".")
+    if family == "by_type":
+        base = rest.rpartition(".")[2]
+        return next((k.unit for k in BY_TYPE if k.name == base), "")
+    if family == "zone_wait_s":
+        return "s"
+    return next((k.unit for k in CATALOGUE if k.name == name), "")
+
+
+def kpi_short(name: str) -> str:
+    """KPI `name` in a planner's words, without its unit: ``p95 lead time``."""
+    return SHORT_NAMES.get(name, name.replace("_", " "))
+
+
+def kpi_label(name: str) -> str:
+    """Name and unit for an axis or a table: ``p95 lead time [s]``."""
+    unit = kpi_unit(name)
+    return f"{kpi_short(name)} [{unit}]" if unit else kpi_short(name)
 
 
 def is_kpi_name(name: str) -> bool:

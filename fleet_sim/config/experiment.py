@@ -79,7 +79,7 @@ from typing import Annotated, Any, Final, Literal
 import numpy as np
 from pydantic import Field, Strict, field_validator, model_validator
 
-from agv_model.inputs import Items, Problem, StrictModel, Text, read_yaml, validate
+from agv_model.inputs import Items, Positive, Problem, StrictModel, Text, read_yaml, validate
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.layout_changes import (
     Change,
@@ -208,6 +208,59 @@ class WarmupConfig(StrictModel):
     """Pilot runs per combination of the other factors' levels (mser5)."""
 
 
+class Objective(StrictModel):
+    """What `fleet-sim compare` selects the best variant by (baseline included)."""
+
+    kpi: Text
+    direction: Literal["min", "max"]
+    """min: the lowest mean is best (a lead time); max: the highest (a throughput)."""
+    indifference_zone: Positive
+    """The smallest difference of the KPI's mean worth telling apart, in the KPI's unit:
+    variants closer to the best than this count as good as the best."""
+    probability_correct_selection: float = Field(default=0.95, gt=0.5, lt=1)
+    """The chance of selecting the best when it beats every other by the indifference zone
+    (Kim and Nelson's KN procedure, docs/how-to/whatif.md)."""
+    among: Items[Text] = ()
+    """The variants to select from (at least two; `baseline` names the base scenario);
+    default: every variant and the baseline. A variant that is a scenario rather than a
+    choice (20 % more demand) is compared but not selected."""
+
+
+class CompareConfig(StrictModel):
+    """How `fleet-sim compare` compares the variants with the baseline (docs/how-to/whatif.md)."""
+
+    kpis: Items[Text] = ()
+    """KPIs compared; default: the targets' KPIs, else throughput_per_hour and
+    lead_time_p95_s."""
+    precision: dict[Text, Positive] = Field(default_factory=dict)
+    """KPI -> half-width of the paired difference's interval that is precise enough, in the
+    KPI's unit: a comparison whose interval is that narrow is decided (no difference larger
+    than its interval detected). A KPI without one is decided only by an interval clear of
+    zero (or the replication limit)."""
+    min_replications: int = Field(default=5, ge=2, le=MAX_REPLICATIONS)
+    """Replications of every variant before the first look."""
+    max_replications: int = Field(default=20, ge=2, le=MAX_REPLICATIONS)
+    """Replications a comparison may grow to (doubling from min_replications)."""
+    confidence: float = Field(default=0.95, gt=0.5, lt=1)
+    """Joint confidence of every interval reported, over all comparisons and looks."""
+    objective: Objective | None = None
+
+    @model_validator(mode="after")
+    def _ordered(self) -> CompareConfig:
+        if self.max_replications < self.min_replications:
+            raise Problem("max_replications", self.max_replications,
+                          f"an integer >= min_replications ({self.min_replications})")
+        if len(set(self.kpis)) != len(self.kpis):
+            raise Problem("kpis", list(self.kpis), "distinct KPIs")
+        if self.kpis:
+            for kpi in self.precision:
+                if kpi not in self.kpis:
+                    raise Problem(f"precision.{kpi}", self.precision[kpi],
+                                  "a precision for a compared KPI (one of kpis: "
+                                  f"{', '.join(self.kpis)})")
+        return self
+
+
 BASE_VARIANT: Final = "baseline"
 """The name of the base scenario as a variant: the baseline unless the file names another."""
 VARIANT_PREFIX: Final = "v="
@@ -260,6 +313,7 @@ class ExperimentSpec(StrictModel):
     targets: Items[Target] = ()
     sizing: SizingConfig = SizingConfig()
     warmup: WarmupConfig = WarmupConfig()
+    compare: CompareConfig = CompareConfig()
     variants: Annotated[dict[Text, VariantSpec], Field(max_length=MAX_VARIANTS)] = \
         Field(default_factory=dict)
     """What-if variants by name: each runs at every design point, with the baseline's seeds

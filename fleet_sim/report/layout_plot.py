@@ -23,6 +23,7 @@ import matplotlib.pyplot as plt
 from matplotlib.patches import Rectangle
 
 from fleet_sim.config.layout import Layout, TrafficZone
+from fleet_sim.config.layout_changes import LayoutDiff
 
 KIND_STYLE = {
     "tag": ("#9aa0a6", 8),
@@ -182,3 +183,67 @@ def draw_layout(layout: Layout, path: Path, title: str | None = None,
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return path
+
+
+CHANGE_COLOUR = "#d93025"
+"""What a variant changes, drawn over its layout (fleet_sim.report.compare_figures)."""
+
+
+def variant_figure(layout: Layout, baseline: Layout, diff: LayoutDiff, title: str) -> Any:
+    """`layout` (a variant's) in grey, with what it changes against `baseline` in red: changed
+    or new hops (arrows where one-way, thick where two-way), changed nodes and places ringed;
+    what it removes dashed, at the baseline's positions. Returns the matplotlib Figure."""
+    graph = layout.graph
+    pos = {n: layout.position(n) for n in graph.nodes}
+    old = {n: baseline.position(n) for n in baseline.graph.nodes}
+    xs = [p[0] for p in [*pos.values(), *old.values()]]
+    ys = [p[1] for p in [*pos.values(), *old.values()]]
+    span_x = (max(xs) - min(xs)) or 1.0
+    span_y = (max(ys) - min(ys)) or 1.0
+    width = min(12.0, max(6.0, span_x / 8))
+    fig, ax = plt.subplots(figsize=(width, max(3.0, width * span_y / span_x) + 1.0))
+    changed = set(diff.changed_segments)
+    for u, v in graph.edges():
+        if (u, v) in changed:
+            continue
+        (x0, y0), (x1, y1) = pos[u], pos[v]
+        ax.plot([x0, x1], [y0, y1], color="#bdc1c6", lw=1.0, zorder=1)
+    for u, v in diff.removed_segments:
+        if u in old and v in old and not graph.has_edge(u, v) and not graph.has_edge(v, u):
+            (x0, y0), (x1, y1) = old[u], old[v]
+            ax.plot([x0, x1], [y0, y1], color=CHANGE_COLOUR, lw=1.2, ls="--", zorder=2)
+    for u, v in changed:
+        (x0, y0), (x1, y1) = pos[u], pos[v]
+        if graph.edges[u, v].get("two_way"):
+            ax.plot([x0, x1], [y0, y1], color=CHANGE_COLOUR, lw=3.0, zorder=3)
+        else:
+            ax.annotate("", xy=(x1, y1), xytext=(x0, y0), zorder=3,
+                        arrowprops={"arrowstyle": "-|>", "color": CHANGE_COLOUR, "lw": 2.0,
+                                    "shrinkA": 1, "shrinkB": 1, "mutation_scale": 12})
+    for place in layout.places.values():
+        x, y = pos[place.nodes[0]]
+        ax.annotate(place.id, (x, y), xytext=(3, 3), textcoords="offset points", fontsize=5,
+                    color=PLACE_COLOUR[place.kind], zorder=4)
+    rings = set(diff.changed_nodes) | {n for p in diff.changed_places if p in layout.places
+                                       for n in layout.places[p].nodes}
+    if rings:
+        pts = [pos[n] for n in sorted(rings) if n in pos]
+        ax.scatter([p[0] for p in pts], [p[1] for p in pts], s=90, facecolors="none",
+                   edgecolors=CHANGE_COLOUR, linewidths=1.6, zorder=5)
+        for n in sorted(rings):
+            if n in pos:
+                ax.annotate(n, pos[n], xytext=(4, -8), textcoords="offset points", fontsize=6,
+                            color=CHANGE_COLOUR, zorder=5)
+    gone = [old[n] for n in diff.removed_nodes if n in old]
+    if gone:
+        ax.scatter([p[0] for p in gone], [p[1] for p in gone], s=60, marker="x",
+                   color=CHANGE_COLOUR, zorder=5)
+    if diff.empty:
+        ax.text(0.5, 0.02, "no change to the layout (the variant changes settings only)",
+                transform=ax.transAxes, ha="center", fontsize=8, color="#5f6368")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    return fig

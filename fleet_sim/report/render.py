@@ -56,14 +56,14 @@ def static_script(name: str) -> Markup:
 
 def render_html(report: Report) -> str:
     """The report as one HTML page (figures embedded)."""
-    return environment().get_template("report.html.j2").render(report=report)
+    return environment().get_template(report.template).render(report=report)
 
 
 def write_pdf(report: Report, path: Path) -> None:
     """A text page (recommendation, each section's text), then every figure, one a page."""
     from matplotlib.backends.backend_pdf import PdfPages
 
-    lines = ["RECOMMENDATION", *report.statements, "", *report.estimates, ""]
+    lines = [report.answer_title.upper(), *report.statements, "", *report.estimates, ""]
     for sec in report.sections:
         if sec.text:
             lines += [sec.title.upper(), *sec.text, ""]
@@ -77,8 +77,12 @@ def write_pdf(report: Report, path: Path) -> None:
 
 
 def write_report(out_dir: Path, pdf: bool = True) -> tuple[Path, Path | None]:
-    """Write report.html (and report.pdf) into `out_dir`; returns their paths."""
-    report = build_report(out_dir)
+    """Write report.html (and report.pdf) into `out_dir`; returns their paths. A folder of
+    `fleet-sim compare` (with compare.json) gets the comparison report."""
+    from fleet_sim.report.compare_report import build_compare_report, is_compare_folder
+
+    report = build_compare_report(out_dir) if is_compare_folder(out_dir) \
+        else build_report(out_dir)
     try:
         html_path = out_dir / "report.html"
         write_text_atomic(html_path, render_html(report))

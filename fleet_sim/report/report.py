@@ -265,6 +265,10 @@ class Report:
     """The recommendation, one statement per series (bold in the page)."""
     estimates: list[str]
     sections: list[Section]
+    template: str = "report.html.j2"
+    """The page's template: a sweep's or sizing's report, or a comparison's (compare.html.j2)."""
+    answer_title: str = "Recommendation"
+    """The heading of the first screen's box (and of the PDF's first lines)."""
 
     def figures(self) -> Iterator[Figure]:
         for sec in self.sections:

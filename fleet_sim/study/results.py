@@ -33,7 +33,7 @@ from typing import Any
 
 import pandas as pd
 
-from fleet_sim.config.experiment import Experiment
+from fleet_sim.config.experiment import BASE_VARIANT, Experiment
 from fleet_sim.config.writing import atomic_path, fsync_path, temp_path
 from fleet_sim.study.runner import DAMAGED, FAILED, MANIFEST, OK, run_problem
 
@@ -55,8 +55,11 @@ def tables_written(experiment: Experiment, out_dir: Path) -> Iterator[None]:
 # ---- tables --------------------------------------------------------------------------------
 
 
-def collect_summary(out_dir: Path, factor_names: Sequence[str]) -> pd.DataFrame:
-    """One row per run folder: status, factors, replication, seed, KPIs, runtime, error."""
+def collect_summary(out_dir: Path, factor_names: Sequence[str],
+                    variant_column: bool = False) -> pd.DataFrame:
+    """One row per run folder: status, (variant,) factors, replication, seed, KPIs, runtime,
+    error. `variant`: the run's variant (BASE_VARIANT for the base scenario's runs), when
+    `variant_column` or any run belongs to a named variant."""
     rows: list[dict[str, Any]] = []
     runs_dir = out_dir / "runs"
     for run_dir in sorted(p for p in runs_dir.iterdir() if p.is_dir()) if runs_dir.exists() \
@@ -67,6 +70,8 @@ def collect_summary(out_dir: Path, factor_names: Sequence[str]) -> pd.DataFrame:
         spec = json.loads(spec_file.read_text(encoding="utf-8"))
         row: dict[str, Any] = {"run_id": spec["run_id"], "status": "incomplete",
                                "replication": spec["replication"], "seed": spec["seed"]}
+        if "variant" in spec or variant_column:
+            row["variant"] = spec.get("variant") or BASE_VARIANT
         for name in factor_names:
             row[name] = spec["factors"].get(name)
         kpi_file, error_file = run_dir / "kpis.json", run_dir / "error.json"
@@ -93,6 +98,8 @@ def collect_summary(out_dir: Path, factor_names: Sequence[str]) -> pd.DataFrame:
             row["wall_s"] = error.get("wall_s")
         rows.append(row)
     frame = pd.DataFrame(rows)
+    if "variant" in frame.columns:  # the base scenario's runs keep the spec.json they had
+        frame["variant"] = frame["variant"].fillna(BASE_VARIANT)
     counts = [c for c in frame.columns if c.startswith(("errors_by_code.", "warnings_by_code."))]
     frame[counts] = frame[counts].fillna(0)  # a code a run never raised: zero times
     if frame.empty:
@@ -144,13 +151,16 @@ def read_summary(out_dir: Path, factor_names: Sequence[str]) -> tuple[pd.DataFra
 
 
 def write_tables(experiment: Experiment, out_dir: Path) -> pd.DataFrame:
-    """summary.parquet, stats.parquet and sweep.duckdb from the run folders on disk."""
+    """summary.parquet, stats.parquet and sweep.duckdb from the run folders on disk (with a
+    `variant` column, and statistics per variant, when the folder holds a comparison)."""
     from fleet_sim.analysis.stats import point_stats
 
     summary = collect_summary(out_dir, experiment.factor_names)
     with atomic_path(out_dir / "summary.parquet") as tmp:
         summary.to_parquet(tmp, index=False)
-    stats = point_stats(summary, experiment.factor_names)
+    by = ["variant", *experiment.factor_names] if "variant" in summary.columns \
+        else experiment.factor_names
+    stats = point_stats(summary, by)
     with atomic_path(out_dir / "stats.parquet") as tmp:
         stats.to_parquet(tmp, index=False)
     write_duckdb(out_dir)
