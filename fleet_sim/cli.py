@@ -276,7 +276,7 @@ WINDOW_HOURS = Number("hours", 0, MAX_DURATION_H, low_open=False)
 SPEED = Number("metres per second", 0, 100)
 SEED = Integer("seed", 0)
 WORKERS = Integer("number of workers (0: one per core)", 0, 1024)
-REPLICATIONS = Integer("number of replications", 2, 1000)
+REPLICATIONS = Integer("number of replications", 2)  # the run limit is checked with the file
 DASK_TIMEOUT = Number("seconds", 0, 86_400)
 AGV_COUNT = Integer("number of AGVs", 1, MAX_FLEET_SIZE)
 
