@@ -187,19 +187,19 @@ def test_an_agv_whose_re_entry_wait_is_broken_waits_again_and_never_shares_a_nod
     model = build_model(scenario, tiny_layout)
     env, traffic = model.env, model.traffic
     comer, holder = model.vehicles
-    comer._leave_track()
-    comer.process = env.process(comer._reenter_track("P"))
+    comer.driver.leave_track()
+    comer.process = env.process(comer.driver.reenter_track("P"))
     env.run(until=5)
     assert traffic.waiting[comer.id].key == traffic.node_locks["P"].key
     traffic._escapes[comer.id] = Escape("yield", (comer.node,))
-    comer.on_deadlock_victim(DeadlockVictim(Escape("yield", (comer.node,))))
+    comer.driver.on_deadlock_victim(DeadlockVictim(Escape("yield", (comer.node,))))
     env.run(until=20)
-    assert comer.process.is_alive and not comer.held  # still waiting, P not taken
+    assert comer.process.is_alive and not comer.driver.held  # still waiting, P not taken
     assert traffic.node_locks["P"].holder == holder.id
     assert comer.id not in traffic._escapes
     holder.process = env.process(holder.drive("S3"))
     env.run(until=120)
     assert not comer.process.is_alive
     assert comer.node == "P" and traffic.node_locks["P"].holder == comer.id
-    assert [h.node for h in comer.held] == ["P"]
+    assert [h.node for h in comer.driver.held] == ["P"]
     assert comer.id not in traffic.waiting

@@ -253,7 +253,7 @@ def test_idle_agvs_go_to_parking(warehouse_layout: Layout) -> None:
     parked = [e for e in run.recorder.events if e.event == "Event_Arrived_Parking"]
     assert sorted(e.agv for e in parked) == [0, 1, 2]
     assert all(v.parked_in is not None for v in run.vehicles)
-    assert all(not v.held for v in run.vehicles)
+    assert all(not v.driver.held for v in run.vehicles)
 
 
 def test_orders_are_never_lost(warehouse_layout: Layout) -> None:
@@ -493,7 +493,7 @@ def on_track_at_most(run: RunOutput) -> int:
         if spell.kind == "node":
             spans.setdefault(spell.agv, []).append((spell.start_s, spell.end_s))
     for vehicle in run.vehicles:  # holds still open at the end
-        for held in vehicle.held + vehicle.ahead:
+        for held in vehicle.driver.held + vehicle.driver.ahead:
             spans.setdefault(vehicle.id, []).append((held.since_s, run.scenario.duration_s))
     changes: list[tuple[float, int]] = []
     for agv_spans in spans.values():  # each AGV's union of holds: +1 when it starts, -1 at end

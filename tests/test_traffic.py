@@ -257,3 +257,73 @@ def test_the_detour_cache_is_bounded_and_forgetting_changes_no_result(
     assert largest_small <= 3
     assert small == full
     assert asked_small == asked_full
+
+
+def corridor_entry(layout: Layout) -> tuple[int, str, str]:
+    """A corridor, a junction outside it and the first node inside, on the way in."""
+    for corridor in layout.corridors:
+        for a, b in sorted(corridor.segments):
+            if a not in corridor.members and b in corridor.members:
+                return corridor.id, a, b
+    raise AssertionError("no corridor with a member")
+
+
+def test_a_hop_is_granted_whole_or_not_at_all(warehouse_layout: Layout) -> None:
+    """The look-ahead (`try_allocate`) takes the node and the corridor it enters together, or
+    nothing: with the corridor held by another AGV, the free node stays free."""
+    from fleet_sim.sim.traffic.allocation import Hop
+
+    traffic = make_traffic(warehouse_layout, clients=2)
+    cid, junction, inside = corridor_entry(warehouse_layout)
+    other = traffic.request(1, traffic.corridor_locks[cid], entry=junction)
+    assert traffic.try_allocate(0, Hop(junction, inside)) is None
+    assert traffic.node_locks[inside].holder is None and not traffic.corridors_of(0)
+    traffic.free(1, other)
+    claim = traffic.try_allocate(0, Hop(junction, inside))
+    assert claim is not None and traffic.node_locks[inside].holder == 0
+    assert traffic.holds_corridor(0, cid) and traffic.corridors_of(0)[cid][1] == junction
+
+
+def test_a_queued_hop_waits_for_its_corridor_then_takes_its_node(
+        warehouse_layout: Layout) -> None:
+    """`allocate` queues the AGV for the corridor first (it waits outside), then the node."""
+    from fleet_sim.sim.traffic.allocation import Hop
+
+    traffic = make_traffic(warehouse_layout)
+    client = Client(0, "")
+    traffic.register(client)
+    traffic.register(Client(1, ""))
+    cid, junction, inside = corridor_entry(warehouse_layout)
+    client.node = junction
+    other = traffic.request(1, traffic.corridor_locks[cid], entry=junction)
+    env = traffic.env
+    hop = env.process(traffic.allocate(client, Hop(junction, inside)))
+    env.run(until=3)
+    assert hop.is_alive and traffic.waiting[0].key == CorridorLock(cid)
+    assert traffic.node_locks[inside].holder is None
+    traffic.free(1, other)
+    env.run(until=4)
+    assert not hop.is_alive and isinstance(hop.value, Claim)
+    assert traffic.node_locks[inside].holder == 0 and traffic.holds_corridor(0, cid)
+    assert 0 not in traffic.waiting
+
+
+def test_only_traffic_reads_lock_state() -> None:
+    """Traffic (fleet_sim.sim.traffic) owns every allocation: no other module of fleet_sim
+    reads its locks, their holders or their queues."""
+    import ast
+
+    import fleet_sim
+
+    lock_state = {"node_locks", "corridor_locks", "zone_locks", "is_free", "admits",
+                  "put_queue", "users", "holder", "blockers", "_nodes", "_corridors", "_zones"}
+    root = Path(fleet_sim.__file__).parent
+    readers = []
+    for path in sorted(root.rglob("*.py")):
+        if (root / "sim" / "traffic") in path.parents:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Attribute) and node.attr in lock_state:
+                readers.append(f"{path.relative_to(root)}:{node.lineno} .{node.attr}")
+    assert len(list(root.rglob("*.py"))) > 50  # the walk saw the package
+    assert readers == []

@@ -217,7 +217,7 @@ def aisle_spells(spells: list[OccupancySpell], aisle: list[str] = AISLE) -> list
 def still_held(model: Any) -> list[OccupancySpell]:
     """The nodes the AGVs held when the run ended (the recorder has them once let go)."""
     return [OccupancySpell("node", h.node, v.id, h.since_s, model.env.now)
-            for v in model.vehicles for h in v.held + v.ahead]
+            for v in model.vehicles for h in v.driver.held + v.driver.ahead]
 
 
 def one_way_at_a_time(spells: list[Spell]) -> tuple[int, int]:

@@ -85,8 +85,8 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
                         record_moves=record_moves, sink=sink, batch_rows=batch_rows)
     costs = RouteCosts(scenario.traffic.congestion_cost_s, scenario.traffic.weak_wifi_cost_s,
                        scenario.rules.weak_rssi_dbm)
-    traffic = Traffic(env, layout, motion, recorder, costs=costs)
-    recorder.zone_wait_s = {z: 0.0 for z in traffic.zone_locks}
+    traffic = Traffic(env, layout, motion, recorder, costs=costs, config=scenario.traffic)
+    recorder.zone_wait_s = {z: 0.0 for z in traffic.zone_ids}
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
         from fleet_sim.sim.motion.sumo import SumoMotion
 

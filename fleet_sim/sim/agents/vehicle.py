@@ -1,5 +1,9 @@
 """The AGV: the RSS-AGV-001 state machine driving a `Driver` through its day.
 
+The vehicle holds its driver (fleet_sim.sim.agents.driving) and is the driver's `DriverHost`:
+where it is, what it holds and how it hops are the driver's; its state, its order, its battery
+and its faults are the vehicle's.
+
 Every change of state goes through `fire(event)`, which looks the (state, event) pair up in the
 table of fleet_sim.model.state_machine, checks the guard against this vehicle's facts (SOC, load
 sensor, link, obstacle timing...) and records the transition. The behaviours:
@@ -40,7 +44,7 @@ manager knows which AGVs stand Idle while orders wait (fleet_sim.model.not_dispa
 from __future__ import annotations
 
 import math
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from typing import Any, NoReturn, Protocol
 
 import networkx as nx
@@ -112,14 +116,27 @@ class Failure:
         self.detail = detail
 
 
-class Vehicle(Driver):
+class Vehicle:
     def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
                  fleet: FleetManagerLink, recorder: Recorder, scenario: Scenario,
                  rng: np.random.Generator, incident_rng: np.random.Generator,
                  profile: VehicleProfile | None = None) -> None:
         """`profile`: the AGV's vehicle (mixed fleets); default `scenario.fleet.vehicle`."""
         profile = profile if profile is not None else scenario.fleet.vehicle
-        super().__init__(agv_id, env, traffic, recorder, profile, scenario.traffic, rng)
+        self.id = agv_id
+        self.env = env
+        self.traffic = traffic
+        self.recorder = recorder
+        self.profile = profile
+        self.state = VehicleState.BOOTING
+        self.order: Order | None = None
+        self.failing = False
+        self.process: simpy.Process | None = None
+        self.driver = Driver(agv_id, env, traffic, recorder, profile, scenario.traffic, rng,
+                             host=self)
+        """Moves the AGV from node to node under traffic control."""
+        self.routes = self.driver.routes
+        self.clear_m = self.driver.clear_m
         self.fleet = fleet
         self.rules: Rules = scenario.rules
         self.charging: ChargingConfig = scenario.charging
@@ -146,6 +163,48 @@ class Vehicle(Driver):
         self.parking_target: Place | None = None
         self._charger_asked_s: float | None = None
         """With moves recorded: when the AGV asked for the charger it waits for."""
+
+    # ---- where it is: the driver's ------------------------------------------------------------
+    @property
+    def node(self) -> str:
+        return self.driver.node
+
+    @property
+    def prev(self) -> str | None:
+        return self.driver.prev
+
+    @property
+    def speed_mps(self) -> float:
+        return self.driver.speed_mps
+
+    @property
+    def parked_in(self) -> Place | None:
+        return self.driver.parked_in
+
+    @property
+    def in_parking(self) -> bool:
+        """In a parking area, off the track."""
+        return self.driver.in_parking
+
+    @property
+    def dispatch_node(self) -> str:
+        """Where the dispatcher should measure travel from: the node the AGV is committed to."""
+        return self.driver.dispatch_node
+
+    def note(self, event: str, detail: str = "") -> None:
+        """Record an event that changes no state (deadlock, reroute, assignment...)."""
+        self.driver.note(event, detail)
+
+    def place_at(self, node: str) -> None:
+        """Stand on `node` at t=0."""
+        self.driver.place_at(node)
+
+    def place_in_parking(self, place: Place) -> None:
+        self.driver.place_in_parking(place)
+
+    def drive(self, goal: str, stop_early: Callable[[], bool] | None = None) -> Proc:
+        """Drive to `goal` (fleet_sim.sim.agents.driving.Driver.drive)."""
+        yield from self.driver.drive(goal, stop_early)
 
     # ---- facts the guards read (fleet_sim.model.state_machine.Facts) -----------------------
     @property
@@ -292,7 +351,7 @@ class Vehicle(Driver):
                 if self.node == access and self.order is None and not self.charge_due:
                     # drive off the tape into a bay, at turn speed, before letting go of it
                     yield self.env.timeout(self.clear_m / self.profile.turn_speed_mps)
-                    self._enter_parking(place)
+                    self.driver.enter_parking(place)
                     if self.order is None:  # not one assigned while it drove in
                         self.fleet.parked(self)
                     self.parking_target = None
@@ -432,8 +491,8 @@ class Vehicle(Driver):
     def _unpark(self) -> Proc:
         place = self.parked_in
         assert place is not None
-        yield from self._reenter_track(place.nodes[0])
-        self.parked_in = None
+        yield from self.driver.reenter_track(place.nodes[0])
+        self.driver.parked_in = None
         self.fleet.release_parking(place)
 
     # ---- charging ------------------------------------------------------------------------------
@@ -496,7 +555,7 @@ class Vehicle(Driver):
                                        got))
 
     def end_of_run(self) -> None:
-        super().end_of_run()
+        self.driver.end_of_run()
         self._close_charger_wait(None)
 
     # ---- driving with the link, markers, obstacles and the battery -----------------------------
@@ -540,14 +599,16 @@ class Vehicle(Driver):
             self.link_changed.succeed()
         self.link_changed = self.env.event()
 
-    def _speed_cap_mps(self) -> float | None:
+    def speed_cap_mps(self) -> float | None:
+        """DriverHost: markers and slow modes cap the next hop's speed."""
         cap = self.marker_speed_mps
         if not self.fms_link and self.rules.comm_policy == "req_err_011":
             slow = self.rules.comm_loss_speed_mps
             cap = slow if cap is None else min(cap, slow)
         return cap
 
-    def _travel(self, u: str, v: str, time_s: float) -> Proc:
+    def travel(self, u: str, v: str, time_s: float) -> Proc:
+        """DriverHost: drive the hop, with dead spots, blocks, obstacles and line losses."""
         edge = self.traffic.routes.edge[u, v]
         dead = edge["rssi_dbm"] < self.rules.link_min_rssi_dbm
         if dead != self.in_dead_spot:
@@ -568,17 +629,17 @@ class Vehicle(Driver):
         if rate > 0 and rng.random() < 1.0 - math.exp(-rate * length / 1000.0):
             share = float(rng.random())
             duration = edge["obstacle_duration"] or self.incidents.obstacle_duration
-            yield from self._move(u, v, time_s, share)
+            yield from self.driver.move(u, v, time_s, share)
             yield from self._obstacle(duration.sample(rng), f"on {u} -> {v}")
-            yield from self._move(u, v, time_s, 1.0)
+            yield from self.driver.move(u, v, time_s, 1.0)
         else:
-            yield from self._move(u, v, time_s, 1.0)
+            yield from self.driver.move(u, v, time_s, 1.0)
         line_rate = self.incidents.line_loss_per_km
         if line_rate > 0 and rng.random() < 1.0 - math.exp(-line_rate * length / 1000.0):
             if rng.random() < self.incidents.line_found_prob:
                 self.recorder.warning("E_001")
                 self.note("line_lost", f"found again within {self.rules.line_keep_heading_m} m")
-                yield from self._pause(self.incidents.line_search_s)
+                yield from self.driver.pause(self.incidents.line_search_s)
             else:
                 self.fail_now("E_202")
 
@@ -624,21 +685,22 @@ class Vehicle(Driver):
         rules = self.rules
         if seen_s < rules.obstacle_pause_s:
             self.note("obstacle_slowdown", f"{where}: seen {seen_s:.2f} s")
-            yield from self._pause(seen_s, rules.obstacle_slow_speed_mps)
+            yield from self.driver.pause(seen_s, rules.obstacle_slow_speed_mps)
             return
-        yield from self._pause(rules.obstacle_pause_s, rules.obstacle_slow_speed_mps)
+        yield from self.driver.pause(rules.obstacle_pause_s, rules.obstacle_slow_speed_mps)
         self.fire("Event_Obstacle_Detected", f"{where}: within 1.0 m for "
                                               f">= {rules.obstacle_pause_s * 1000:.0f} ms")
         self.recorder.obstacle_pauses += 1
         wait = seen_s - rules.obstacle_pause_s + rules.obstacle_clear_s
         if wait >= rules.obstacle_timeout_s:
-            yield from self._pause(rules.obstacle_timeout_s)
+            yield from self.driver.pause(rules.obstacle_timeout_s)
             self.fail_now("E_101")
-        yield from self._pause(wait)
+        yield from self.driver.pause(wait)
         self._obstacle_clear_s = rules.obstacle_clear_s
         self.fire("Event_Obstacle_Cleared", f"paused {wait:.2f} s")
 
-    def _arrived(self, v: str, length_m: float) -> Proc:
+    def arrived(self, v: str, length_m: float) -> Proc:
+        """DriverHost: battery use and markers at `v`."""
         self.battery.drive(self.env.now, length_m, self.loaded)
         marker = self.traffic.layout.markers.get(v)
         if marker is not None:
@@ -675,7 +737,7 @@ class Vehicle(Driver):
         """Error -> (operator) -> Maintenance -> (repair) -> Idle, or SafeMode -> rescue."""
         env = self.env
         self.fleet.withdraw(self)
-        self._halt()
+        self.driver.halt()
         self.error_code = failure.code
         level, text = describe(failure.code)
         self.recorder.error(env.now, self.id, failure.code, level)
@@ -701,7 +763,7 @@ class Vehicle(Driver):
             yield env.timeout(self.incidents.operator_response.sample(self.incident_rng))
             self.fire("Event_Switch_Manual", "operator at the AGV")
         if self.parked_in is None:
-            self._leave_track()
+            self.driver.leave_track()
         if self.docked and self.charger is not None:
             self.docked = False
             self.fleet.release_charger(self.charger)
@@ -713,7 +775,7 @@ class Vehicle(Driver):
         self.marker_speed_mps = None
         yield env.timeout(self.incidents.relocalise_s)
         if self.parked_in is None:
-            yield from self._reenter_track(self._recovery_node())
+            yield from self.driver.reenter_track(self._recovery_node())
             self.in_dead_spot = self.rssi_dbm < self.rules.link_min_rssi_dbm
         self.failing = False
         self.fire("Event_Switch_Auto", "back to AUTO, position re-estimated")

@@ -2,10 +2,13 @@
 AGVs about routes, escapes and deadlocks.
 
 Like openTCS's Scheduler, `Traffic` owns every allocation: its clients (the AGVs' drivers,
-anything that satisfies `TrafficClient`) ask it for a lock (`request`), wait for the claim it
-hands back, and give it back (`free`, or `withdraw` a claim not yet granted). A client cannot
-free what it does not hold. Nobody else writes locks; traffic never reads a client's own
-bookkeeping, only what `TrafficClient` declares.
+anything that satisfies `TrafficClient`) ask it once per hop for the hop's whole set
+(`allocate(client, hop)`, queued; `try_allocate`, all or nothing now), each kind of resource
+answering through its module whether it may allocate (fleet_sim.sim.traffic.allocation);
+traffic waits for the claims, gives back what a given-up request took, and lets go of
+corridors and zones the client has left. Clients give back node claims (`free`). A client
+cannot free what it does not hold. Nobody else writes or reads locks; traffic never reads a
+client's own bookkeeping, only what `TrafficClient` declares and what it is told (`hopped`).
 
 Rules (see docs/background/engine.md for why):
 
@@ -49,16 +52,28 @@ at its last look has nothing new to find.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+import itertools
+from collections.abc import Generator, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Protocol, cast
+from typing import Any, Protocol, cast
 
 import simpy
 
-from fleet_sim.config.layout import BACKWARD, FORWARD, Corridor, Layout
+from fleet_sim.config.layout import BACKWARD, FORWARD, Corridor, Layout, TrafficZone
+from fleet_sim.config.scenario import TrafficConfig
 from fleet_sim.errors import SimulationError
 from fleet_sim.model.kinematics import Motion, MotionBackend
-from fleet_sim.model.records import Recorder
+from fleet_sim.model.records import MoveRecord, Recorder
+from fleet_sim.sim.traffic.allocation import (
+    DIRECTION_NAMES,
+    AllocationModule,
+    CorridorModule,
+    Hop,
+    MutexZoneModule,
+    Need,
+    NodeModule,
+    SameDirectionModule,
+)
 from fleet_sim.sim.traffic.deadlock import (
     DeadlockPolicy,
     DeadlockVictim,
@@ -129,8 +144,10 @@ class Traffic:
 
     def __init__(self, env: simpy.Environment, layout: Layout, motion: Motion,
                  recorder: Recorder, policy: DeadlockPolicy | None = None,
-                 costs: RouteCosts | None = None) -> None:
+                 costs: RouteCosts | None = None, config: TrafficConfig | None = None) -> None:
         self.env = env
+        self.config = config if config is not None else TrafficConfig()
+        """How long a blocked AGV waits before it looks again, gives way or replans."""
         self.layout = layout
         self.graph = layout.graph
         self.motion = motion
@@ -182,6 +199,23 @@ class Traffic:
         self._suspects: set[int] = set()
         """Clients found in a wait-for cycle that may still stand: they look again while they
         wait; nobody else needs to (see the module docstring)."""
+        self._zone_since: dict[int, dict[str, float]] = {}
+        """Client id -> zone id -> when the client was given the zone it holds."""
+        self._zone_entry: dict[int, dict[str, str]] = {}
+        """Client id -> same-direction zone id -> the end node from which the client will
+        drive in, while it holds the zone and is not inside yet."""
+        self._open_waits: dict[int, tuple[float, str, int]] = {}
+        """With moves recorded: client id -> the lock wait under way (since_s, lock,
+        holder)."""
+        self.modules: tuple[AllocationModule, ...] = (
+            CorridorModule(self), MutexZoneModule(self), SameDirectionModule(self),
+            NodeModule(self))
+        """What a hop needs, in the order a queued request takes it (allocation)."""
+
+    @property
+    def zone_ids(self) -> tuple[str, ...]:
+        """The mutex and same-direction zones traffic hands out, in the layout's order."""
+        return tuple(self.zone_locks)
 
     # ---- vehicle types ----------------------------------------------------------------------
     def add_vehicle_type(self, name: str, motion: Motion) -> None:
@@ -204,6 +238,8 @@ class Traffic:
         self._nodes[client.id] = set()
         self._corridors[client.id] = {}
         self._zones[client.id] = {}
+        self._zone_since[client.id] = {}
+        self._zone_entry[client.id] = {}
 
     def request(self, client_id: int, lock: Lock, entry: str | None = None,
                 direction: int = ANY_DIRECTION) -> Claim:
@@ -551,3 +587,350 @@ class Traffic:
         if corridor is None or self.holds_corridor(client_id, corridor.id):
             return True
         return self.corridor_locks[corridor.id].is_free
+
+    # ---- a hop's allocation (fleet_sim.sim.traffic.allocation) -------------------------------
+    def _needs(self, client_id: int, hop: Hop) -> list[tuple[AllocationModule, Need]]:
+        return [(m, need) for m in self.modules for need in m.needs(client_id, hop)]
+
+    def may_allocate(self, client_id: int, hop: Hop) -> bool:
+        """True if `try_allocate` would grant the hop now."""
+        return all(m.may_allocate(client_id, need) for m, need in self._needs(client_id, hop))
+
+    def try_allocate(self, client_id: int, hop: Hop) -> Claim | None:
+        """Grant the whole hop now (its node, the corridors and zones it enters) if every
+        module may allocate its part, else nothing; never waits. Returns the node's claim."""
+        needs = self._needs(client_id, hop)
+        if not all(m.may_allocate(client_id, need) for m, need in needs):
+            return None
+        now = self.env.now
+        node_claim: Claim | None = None
+        by_kind = {m.name: [n for k, n in needs if k is m] for m in self.modules}
+        for need in by_kind["mutex"]:
+            self.request(client_id, need.lock)
+            self._zone_since[client_id][need.zone_id] = now
+        for need in by_kind["same_direction"]:
+            assert need.entry is not None
+            self.request(client_id, need.lock, direction=need.direction)
+            self._zone_since[client_id][need.zone_id] = now
+            self._note_entry(client_id, need.zone_id, need.entry)
+        for need in by_kind["corridor"]:
+            self.request(client_id, need.lock, entry=need.entry)
+        for need in by_kind["node"]:
+            node_claim = self.request(client_id, need.lock)
+        assert node_claim is not None and node_claim.triggered
+        return node_claim
+
+    def allocate(self, client: TrafficClient,
+                 hop: Hop) -> Generator[simpy.Event, Any, Claim | None]:
+        """Queue the client for the whole hop: its parts are taken in the modules' order,
+        waiting for each. Returns the node's claim once all are held; None if the client gave
+        up waiting (deadlock victim, or blocked long with another way at hand), what it took
+        for the hop given back (see fleet_sim.sim.traffic.allocation)."""
+        client_id = client.id
+        needs = self._needs(client_id, hop)
+        taken: list[Claim] = []
+        for m, need in needs:
+            if m.name == "corridor":
+                claim = self.request(client_id, need.lock, entry=need.entry)
+                if not (yield from self.wait(client, need.lock, claim)):
+                    self._free_all(client_id, taken)
+                    return None
+                taken.append(claim)
+            elif m.name == "mutex":
+                claim = self.request(client_id, need.lock)
+                if not (yield from self._wait_zone(client, need.zone_id, need.lock, claim)):
+                    self._free_all(client_id, taken)
+                    self.release_left_zones(client_id)
+                    return None
+            elif m.name == "same_direction":
+                if not (yield from self._take_direction(client, need)):
+                    self._free_all(client_id, taken)
+                    self._drop_pending_zones(client_id)
+                    self.release_left_zones(client_id)
+                    return None
+            else:
+                claim = self.request(client_id, need.lock)
+                if not (yield from self.wait(client, need.lock, claim)):
+                    self._free_all(client_id, taken)
+                    self.release_left_zones(client_id)
+                    return None
+                return claim
+        raise SimulationError(f"AGV {client_id}: a hop to {hop.node} without its node")
+
+    def _free_all(self, client_id: int, claims: list[Claim]) -> None:
+        for claim in claims:
+            self.free(client_id, claim)
+
+    def wait(self, client: TrafficClient, lock: Lock, claim: Claim,
+             may_escape: bool = True) -> Generator[simpy.Event, Any, bool]:
+        """Wait for `claim`. Returns True once held; False if the client gave up (deadlock
+        victim, or blocked for long with another route at hand) and the claim was withdrawn.
+        Any other interrupt (a fault) withdraws or frees the claim and passes on."""
+        if claim.triggered:
+            return True
+        env = self.env
+        config = self.config
+        client_id = client.id
+        start = env.now
+        self.start_waiting(client_id, lock)
+        self.recorder.wait_began(client_id, start,
+                                 lock.key.zone_id if isinstance(lock.key, ZoneLock) else None)
+        if self.recorder.record_moves:
+            holder = lock.holder
+            self._open_waits[client_id] = (start, str(lock.key), -1 if holder is None else holder)
+        looked_at: tuple[int, bool, bool] | None = None
+        try:
+            while True:
+                waited = env.now - start
+                now_seen = (self.version, waited >= config.give_way_after_s,
+                            waited >= config.replan_after_s)
+                if may_escape and now_seen != looked_at:  # nothing changed, nothing to look at
+                    looked_at = now_seen
+                    if self.resolve_deadlock(client) is not None \
+                            or self.other_way(client, now_seen[1], now_seen[2]) is not None:
+                        self.withdraw(client_id, claim)
+                        return False
+                try:
+                    yield claim | env.timeout(config.deadlock_check_s)
+                except simpy.Interrupt as interrupt:
+                    if not isinstance(interrupt.cause, DeadlockVictim):
+                        # a fault: let go and pass it on
+                        if claim.triggered:
+                            self.free(client_id, claim)
+                        else:
+                            self.withdraw(client_id, claim)
+                        raise
+                    if claim.triggered:
+                        self.take_escape(client_id)  # the way is open after all
+                        return True
+                    self.withdraw(client_id, claim)
+                    return False
+                if claim.triggered:
+                    return True
+        finally:
+            self.stop_waiting(client_id)
+            self.recorder.blocked(start, env.now, client_id)
+            self._close_wait(client)
+
+    def _close_wait(self, client: TrafficClient) -> None:
+        opened = self._open_waits.pop(client.id, None)
+        if opened is None:
+            return
+        since, lock, holder = opened
+        self.recorder.moved(MoveRecord(client.id, "wait", since, self.env.now, client.node,
+                                       lock, holder))
+
+    def _wait_zone(self, client: TrafficClient, zone_id: str, gate: Lock, claim: Claim,
+                   may_escape: bool = True) -> Generator[simpy.Event, Any, bool]:
+        """`wait` for a zone, its waiting time counted for the zone."""
+        start = self.env.now
+        ok = yield from self.wait(client, gate, claim, may_escape)
+        if start < self.env.now:
+            self.recorder.zone_waited(zone_id, start, self.env.now)
+        if ok:
+            self._zone_since[client.id][zone_id] = self.env.now
+        return ok
+
+    def _take_direction(self, client: TrafficClient,
+                        need: Need) -> Generator[simpy.Event, Any, bool]:
+        """Hold a same-direction zone for `need.direction` before driving along it from
+        `need.entry`: by asking (waiting outside, or, holding it the other way, turning once
+        alone inside). False if the client gave up waiting."""
+        client_id = client.id
+        zone_id = need.zone_id
+        assert need.entry is not None
+        held = self._zones[client_id].get(zone_id)
+        since = self._zone_since[client_id].get(zone_id, self.env.now)
+        claim = self.request(client_id, need.lock, direction=need.direction)
+        if not (yield from self._wait_zone(client, zone_id, need.lock, claim)):
+            return False
+        if held is not None:  # a turn inside: the old claim ends here
+            self._record_zone(client_id, zone_id, held, since)
+            self.turned(client_id, claim)
+            client.note("zone_turn", f"{zone_id} {DIRECTION_NAMES[need.direction]}")
+        self._note_entry(client_id, zone_id, need.entry)
+        return True
+
+    def _note_entry(self, client_id: int, zone_id: str, entry: str) -> None:
+        """The client holds same-direction zone `zone_id` and will drive in from `entry` (if
+        `entry` is an end of it, not inside)."""
+        if entry not in self.layout.traffic_zone_by_id[zone_id].nodes:
+            self._zone_entry[client_id][zone_id] = entry
+
+    def zones_at(self, node: str) -> list[TrafficZone]:
+        """The mutex zones and the same-direction zone that `node` lies inside."""
+        zones = list(self.layout.mutex_zones_at.get(node, ()))
+        aisle = self.layout.direction_zones_at.get(node)
+        if aisle is not None:
+            zones.append(aisle)
+        return zones
+
+    # ---- on and off the track -----------------------------------------------------------------
+    def place(self, client_id: int, node: str) -> Claim:
+        """Put the client on `node` at the start (its corridor and zones with it)."""
+        corridor = self.layout.corridor_at(node)
+        if corridor is not None:
+            claim = self.request(client_id, self.corridor_locks[corridor.id])
+            if not claim.triggered:
+                raise SimulationError(f"AGV {client_id} starts in corridor {corridor.id}, "
+                                      "which another AGV already occupies")
+        for zone in self.zones_at(node):
+            if not self.request(client_id, self.zone_locks[zone.id]).triggered:
+                raise SimulationError(f"AGV {client_id} starts on node {node} in zone "
+                                      f"{zone.id}, which is full")
+            self._zone_since[client_id][zone.id] = self.env.now
+        claim = self.request(client_id, self.node_locks[node])
+        if not claim.triggered:
+            raise SimulationError(f"AGV {client_id} starts on node {node}, already occupied")
+        return claim
+
+    def reenter(self, client: TrafficClient,
+                access: str) -> Generator[simpy.Event, Any, Claim | None]:
+        """Back onto the track at `access` once it (its corridor and zones) is free. None: the
+        wait was broken (the client chosen to break a wait-for cycle), what it took given
+        back."""
+        client_id = client.id
+        corridor = self.layout.corridor_at(access)
+        taken: list[Claim] = []
+        if corridor is not None:
+            lock = self.corridor_locks[corridor.id]
+            claim = self.request(client_id, lock)
+            if not (yield from self.wait(client, lock, claim, may_escape=False)):
+                return None
+            taken.append(claim)
+        for zone in self.zones_at(access):
+            gate = self.zone_locks[zone.id]
+            if not (yield from self._wait_zone(client, zone.id, gate,
+                                               self.request(client_id, gate), False)):
+                self._free_all(client_id, taken)
+                self.release_left_zones(client_id)  # holding no node, it is inside none
+                return None
+        lock = self.node_locks[access]
+        claim = self.request(client_id, lock)
+        if not (yield from self.wait(client, lock, claim, may_escape=False)):
+            self._free_all(client_id, taken)
+            self.release_left_zones(client_id)
+            return None
+        return claim
+
+    def let_go(self, client_id: int) -> None:
+        """The client left the track (its nodes given back): let go of its corridors and of
+        the zones it is not inside."""
+        for cid in list(self._corridors[client_id]):
+            self._release_corridor(client_id, cid)
+        self.release_left_zones(client_id)
+
+    def check_hop(self, client_id: int, u: str, v: str) -> None:
+        """The client is about to drive u -> v: it must hold the corridor it drives in."""
+        corridor = self.layout.corridor_of(u, v)
+        if corridor is not None and corridor.id not in self._corridors[client_id]:
+            raise SimulationError(f"AGV {client_id} about to enter corridor {corridor.id} "
+                                  f"({u} -> {v}) without holding it")
+
+    def hopped(self, client_id: int, u: str, v: str, body: Sequence[str]) -> None:
+        """The client drove u -> v; `body`: the nodes it still holds, oldest first (v last).
+        Let go of the corridors and zones it has left."""
+        corridor = self.layout.corridor_of(u, v)
+        if corridor is not None:
+            self.entered_corridor(client_id, corridor.id)
+        self._release_left_corridors(client_id, body)
+        if self._zones[client_id]:
+            self.release_left_zones(client_id)
+
+    def drop_pending(self, client_id: int) -> None:
+        """A drive ended: give back the corridors and aisles reserved but not entered."""
+        self._drop_pending_corridors(client_id)
+        if self._zone_entry[client_id]:
+            self._drop_pending_zones(client_id)
+
+    def give_up(self, client_id: int) -> None:
+        """The client gave up a hop and looks for another way: `drop_pending`, and the zones
+        it is not inside."""
+        self.drop_pending(client_id)
+        if self._zones[client_id]:
+            self.release_left_zones(client_id)
+
+    def end_of_run(self, client_id: int) -> None:
+        """The run ends: record the client's wait and zones under way, as far as they got."""
+        self._close_wait(self._clients[client_id])
+        if self.recorder.record_moves:
+            since = self._zone_since[client_id]
+            for zone_id, claim in self._zones[client_id].items():
+                if claim.triggered and zone_id in since:
+                    self._record_zone(client_id, zone_id, claim, since[zone_id])
+
+    # ---- releasing ----------------------------------------------------------------------------
+    def _spots(self, client_id: int) -> set[str]:
+        """The nodes the client holds (stands on, drives to, or has not cleared yet)."""
+        return {cast(NodeLock, cast(Lock, c.resource).key).node
+                for c in self._nodes[client_id] if c.triggered}
+
+    def _release_corridor(self, client_id: int, cid: int) -> None:
+        claim, _ = self._corridors[client_id][cid]
+        self.free(client_id, claim)
+
+    def _release_left_corridors(self, client_id: int, body: Sequence[str]) -> None:
+        """Let go of corridors the client has entered and fully left, and of pending ones
+        whose entry node it is no longer at or heading to."""
+        corridors = self._corridors[client_id]
+        if not corridors:
+            return
+        spots = self._spots(client_id)
+        for cid, (_, entry) in list(corridors.items()):
+            corridor = self.layout.corridors[cid]
+            if entry is not None:
+                if entry not in spots:
+                    self._release_corridor(client_id, cid)
+                continue
+            if any(n in corridor.members for n in body):
+                continue
+            if any((a, b) in corridor.segments for a, b in itertools.pairwise(body)):
+                continue
+            self._release_corridor(client_id, cid)
+
+    def _drop_pending_corridors(self, client_id: int) -> None:
+        for cid, (_, entry) in list(self._corridors[client_id].items()):
+            if entry is not None:
+                self._release_corridor(client_id, cid)
+
+    def release_left_zones(self, client_id: int) -> None:
+        """Let go of the zones in which the client holds no node, but for a same-direction
+        zone it is about to drive into from a node it holds."""
+        spots = self._spots(client_id)
+        zones = self.layout.traffic_zone_by_id
+        entries = self._zone_entry[client_id]
+        for zone_id, claim in list(self._zones[client_id].items()):
+            if not claim.triggered:
+                continue
+            if spots & zones[zone_id].nodes:
+                entries.pop(zone_id, None)  # inside
+                continue
+            entry = entries.get(zone_id)
+            if entry is not None and entry in spots:
+                continue
+            self._free_zone(client_id, zone_id, claim)
+
+    def _drop_pending_zones(self, client_id: int) -> None:
+        """Let go of the same-direction zones the client holds but has not driven into."""
+        entries = self._zone_entry[client_id]
+        for zone_id in list(entries):
+            claim = self._zones[client_id].get(zone_id)
+            if claim is not None and claim.triggered:
+                self._free_zone(client_id, zone_id, claim)
+            else:
+                del entries[zone_id]
+
+    def _free_zone(self, client_id: int, zone_id: str, claim: Claim) -> None:
+        self._zone_entry[client_id].pop(zone_id, None)
+        self.free(client_id, claim)
+        self._record_zone(client_id, zone_id, claim,
+                          self._zone_since[client_id].pop(zone_id, self.env.now))
+
+    def _record_zone(self, client_id: int, zone_id: str, claim: Claim, since: float) -> None:
+        """The client held zone `zone_id` from `since` until now (the replay's holders)."""
+        now = self.env.now
+        self.recorder.occupied("zone", zone_id, client_id, since, now)
+        if self.recorder.record_moves:
+            direction = claim.direction if isinstance(claim, DirectedClaim) else 0
+            self.recorder.moved(MoveRecord(client_id, "zone", since, now, zone_id,
+                                           DIRECTION_NAMES[direction]))

@@ -3,7 +3,7 @@
 Mutex zones. A mutex zone of capacity N admits at most N AGVs at once. Its lock is a `Gate`: a
 `Lock` (the same reservation table, the same claims, the same waits) whose SimPy capacity is N.
 An AGV asks `Traffic` for the zone before it takes its first node in it, standing outside, and
-lets go once it holds no node in it any more (fleet_sim.sim.agents.driving). Ban zones need no
+lets go once it holds no node in it any more (`Traffic.release_left_zones`). Ban zones need no
 lock: a banned type's routes keep off them (fleet_sim.config.layout.Layout.type_graph).
 
 Same-direction zones (openTCS's "same direction only" blocks). The zone is a two-way aisle, its

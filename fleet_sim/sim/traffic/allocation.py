@@ -1,0 +1,179 @@
+"""A hop's allocation: what an AGV needs to drive one hop, and the modules that say whether each
+part of it may be allocated.
+
+The model is openTCS's `Scheduler.allocate(client, resources)` with its modules (the
+same-direction block module among them): the AGV asks traffic control once for the whole set a
+hop needs (`Hop`: the node it takes, the single-track corridors it enters on the way, the mutex
+and same-direction zones it enters), and `Traffic` grants it all or nothing
+(`Traffic.try_allocate`, the look-ahead, which never waits) or queues the AGV for it
+(`Traffic.allocate`), giving back what it took when the AGV gives up waiting. Each kind of
+resource is one `AllocationModule`: it names the locks of its kind the hop needs that the AGV
+does not hold yet (`needs`), and answers whether one may be granted now (`may_allocate`).
+
+Decisions (the issue is silent):
+
+* The order in which a queued request takes its parts is fixed by the order of the modules:
+  corridors, mutex zones, same-direction zones, the node (an AGV reserves a corridor or an
+  aisle before the node from which it drives in; waiting there, it would block the way out).
+  A look-ahead grant takes every part at the same instant, so its order is not observable.
+* A queued request that gives up keeps what it held before it asked; of what it took for the
+  hop, it gives back the corridors, and, once it got past them, the zones it is not inside (a
+  same-direction zone it took for an aisle it was about to drive into from the node it stands
+  on is given back only when the failing part was a same-direction zone or when the AGV then
+  finds another way, `Traffic.give_up`): exactly the rollback the driver did before.
+* A policy that avoids deadlocks is one more module (fleet_sim.sim.traffic.avoidance): it needs
+  no lock of its own, and answers "may it allocate?" for the hop as a whole.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol, cast
+
+from fleet_sim.config.layout import BACKWARD, FORWARD
+from fleet_sim.sim.traffic.locks import Lock, ZoneLock
+from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate
+
+if TYPE_CHECKING:
+    from fleet_sim.sim.traffic.control import Traffic
+
+DIRECTION_NAMES = {FORWARD: "forward", BACKWARD: "backward", ANY_DIRECTION: ""}
+"""How the replay's zone rows name a same-direction claim's direction ("": a mutex zone)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Hop:
+    """One hop an AGV asks to drive: from `via` to `node`, and on to `after` (if it knows it
+    already: the corridor or aisle it would enter from `node` is reserved with the node)."""
+
+    via: str
+    node: str
+    after: str | None = None
+
+    @property
+    def pairs(self) -> tuple[tuple[str, str | None], tuple[str, str | None]]:
+        return (self.via, self.node), (self.node, self.after)
+
+
+@dataclass(frozen=True, slots=True)
+class Need:
+    """One lock a hop needs that the AGV does not hold yet."""
+
+    lock: Lock
+    entry: str | None = None
+    """Corridor or same-direction zone: the node from which the AGV drives in."""
+    direction: int = ANY_DIRECTION
+    """Same-direction zone: the way the AGV will drive it."""
+    turn: bool = False
+    """Same-direction zone: the AGV holds it the other way (it asks to turn round)."""
+
+    @property
+    def zone_id(self) -> str:
+        return cast(ZoneLock, self.lock.key).zone_id
+
+
+class AllocationModule(Protocol):
+    """One kind of resource of a hop (openTCS: a Scheduler module)."""
+
+    name: str
+
+    def needs(self, client_id: int, hop: Hop) -> Sequence[Need]:
+        """The locks of this kind the hop needs that the client does not hold yet."""
+        ...
+
+    def may_allocate(self, client_id: int, need: Need) -> bool:
+        """True if `need` would be granted now, nobody waiting before."""
+        ...
+
+
+class CorridorModule:
+    """Single-track corridors: one AGV at a time, taken before the node it enters from."""
+
+    name = "corridor"
+
+    def __init__(self, traffic: Traffic) -> None:
+        self.traffic = traffic
+
+    def needs(self, client_id: int, hop: Hop) -> list[Need]:
+        traffic = self.traffic
+        held = traffic.corridors_of(client_id)
+        out: list[Need] = []
+        for a, b in hop.pairs:
+            corridor = traffic.entry_corridor(a, b)
+            if corridor is None or corridor.id in held \
+                    or any(n.lock is traffic.corridor_locks[corridor.id] for n in out):
+                continue
+            out.append(Need(traffic.corridor_locks[corridor.id], entry=a))
+        return out
+
+    def may_allocate(self, client_id: int, need: Need) -> bool:
+        return need.lock.is_free
+
+
+class MutexZoneModule:
+    """Mutex zones: at most N AGVs inside; taken before the first node inside."""
+
+    name = "mutex"
+
+    def __init__(self, traffic: Traffic) -> None:
+        self.traffic = traffic
+
+    def needs(self, client_id: int, hop: Hop) -> list[Need]:
+        traffic = self.traffic
+        held = traffic.zones_of(client_id)
+        return [Need(traffic.zone_locks[z.id])
+                for z in traffic.layout.mutex_zones_at.get(hop.node, ()) if z.id not in held]
+
+    def may_allocate(self, client_id: int, need: Need) -> bool:
+        return need.lock.is_free
+
+
+class SameDirectionModule:
+    """Same-direction zones (openTCS's same-direction blocks): the AGVs inside all drive the
+    aisle one way; taken for the way the AGV enters by, before the node it drives in from."""
+
+    name = "same_direction"
+
+    def __init__(self, traffic: Traffic) -> None:
+        self.traffic = traffic
+
+    def needs(self, client_id: int, hop: Hop) -> list[Need]:
+        traffic = self.traffic
+        layout = traffic.layout
+        if not layout.direction_zones_at:
+            return []
+        held_zones = traffic.zones_of(client_id)
+        out: list[Need] = []
+        for a, b in hop.pairs:
+            along = layout.direction_zone_of(a, b) if b is not None else None
+            if along is None:
+                continue
+            zone, direction = along
+            held = held_zones.get(zone.id)
+            if held is not None and cast(DirectedClaim, held).direction == direction:
+                continue
+            if any(n.zone_id == zone.id for n in out):
+                continue
+            out.append(Need(traffic.zone_locks[zone.id], entry=a, direction=direction,
+                            turn=held is not None))
+        return out
+
+    def may_allocate(self, client_id: int, need: Need) -> bool:
+        # never the other way on the claim it holds without waiting for the turn
+        return not need.turn and cast(DirectionGate, need.lock).admits(need.direction)
+
+
+class NodeModule:
+    """Nodes: one AGV per node."""
+
+    name = "node"
+
+    def __init__(self, traffic: Traffic) -> None:
+        self.traffic = traffic
+
+    def needs(self, client_id: int, hop: Hop) -> list[Need]:
+        return [Need(self.traffic.node_locks[hop.node])]
+
+    def may_allocate(self, client_id: int, need: Need) -> bool:
+        return need.lock.is_free
