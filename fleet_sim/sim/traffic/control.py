@@ -626,7 +626,7 @@ class Traffic:
                 self.request(client_id, need.lock, direction=need.direction)
                 self._zone_since[client_id][need.zone_id] = now
                 self._note_entry(client_id, need.zone_id, need.entry)
-        assert node_claim is not None and node_claim.triggered
+        assert node_claim is not None
         return node_claim
 
     def allocate(self, client: TrafficClient,

@@ -91,10 +91,10 @@ class Lock(simpy.Resource):
         super().__init__(env, capacity=1)
         self.key = key
 
-    def _do_put(self, event: Request) -> None:
+    def _do_put(self, event: Claim) -> None:  # type: ignore[override]  # only Claims here
         if len(self.users) < self.capacity:
             self.users.append(event)
-            grant(self, cast(Claim, event))
+            grant(self, event)
 
     @property
     def holder(self) -> int | None:
