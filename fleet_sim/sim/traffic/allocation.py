@@ -21,8 +21,11 @@ Decisions (the issue is silent):
   same-direction zone it took for an aisle it was about to drive into from the node it stands
   on is given back only when the failing part was a same-direction zone or when the AGV then
   finds another way, `Traffic.give_up`): exactly the rollback the driver did before.
-* A policy that avoids deadlocks is one more module (fleet_sim.sim.traffic.avoidance): it needs
-  no lock of its own, and answers "may it allocate?" for the hop as a whole.
+* A look-ahead grant takes nothing it would have to wait for, so it schedules no SimPy event
+  (fleet_sim.sim.traffic.locks.Claim.grant_at_once).
+* A traffic policy that avoids deadlocks (issue 21) would answer "may it allocate?" for the
+  hop as a whole, beside these modules; none is built yet (traffic is reactive: cycles are found
+  and broken, fleet_sim.sim.traffic.deadlock).
 """
 
 from __future__ import annotations

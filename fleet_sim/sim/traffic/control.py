@@ -599,10 +599,6 @@ class Traffic:
     def _needs(self, client_id: int, hop: Hop) -> list[tuple[AllocationModule, Need]]:
         return [(m, need) for m in self._active_modules for need in m.needs(client_id, hop)]
 
-    def may_allocate(self, client_id: int, hop: Hop) -> bool:
-        """True if `try_allocate` would grant the hop now."""
-        return all(m.may_allocate(client_id, need) for m, need in self._needs(client_id, hop))
-
     def try_allocate(self, client_id: int, hop: Hop) -> Claim | None:
         """Grant the whole hop now (its node, the corridors and zones it enters) if every
         module may allocate its part, else nothing; never waits. Returns the node's claim."""
