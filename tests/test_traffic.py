@@ -327,3 +327,13 @@ def test_only_traffic_reads_lock_state() -> None:
                 readers.append(f"{path.relative_to(root)}:{node.lineno} .{node.attr}")
     assert len(list(root.rglob("*.py"))) > 50  # the walk saw the package
     assert readers == []
+
+
+def test_a_vehicle_holds_its_driver() -> None:
+    """The AGV's state machine holds a `Driver` (and is its host); it does not inherit from
+    it, so the driver's bookkeeping is not the vehicle's to touch."""
+    from fleet_sim.sim.agents.driving import Driver
+    from fleet_sim.sim.agents.vehicle import Vehicle
+
+    assert not issubclass(Vehicle, Driver)
+    assert "driver" in Vehicle.__init__.__code__.co_names

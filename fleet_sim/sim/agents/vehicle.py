@@ -203,8 +203,9 @@ class Vehicle:
         self.driver.place_in_parking(place)
 
     def drive(self, goal: str, stop_early: Callable[[], bool] | None = None) -> Proc:
-        """Drive to `goal` (fleet_sim.sim.agents.driving.Driver.drive)."""
-        yield from self.driver.drive(goal, stop_early)
+        """Drive to `goal` (fleet_sim.sim.agents.driving.Driver.drive: its generator itself,
+        not one wrapped in another, which every resumption would pass through)."""
+        return self.driver.drive(goal, stop_early)
 
     # ---- facts the guards read (fleet_sim.model.state_machine.Facts) -----------------------
     @property

@@ -21,15 +21,17 @@ Decisions (the issue is silent):
   same-direction zone it took for an aisle it was about to drive into from the node it stands
   on is given back only when the failing part was a same-direction zone or when the AGV then
   finds another way, `Traffic.give_up`): exactly the rollback the driver did before.
-* A policy that avoids deadlocks is one more module (fleet_sim.sim.traffic.avoidance): it needs
-  no lock of its own, and answers "may it allocate?" for the hop as a whole.
+* A look-ahead grant takes nothing it would have to wait for, so it schedules no SimPy event
+  (fleet_sim.sim.traffic.locks.Claim.grant_at_once).
+* A traffic policy that avoids deadlocks (issue 21) would answer "may it allocate?" for the
+  hop as a whole, beside these modules; none is built yet (traffic is reactive: cycles are found
+  and broken, fleet_sim.sim.traffic.deadlock).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol, cast
+from typing import TYPE_CHECKING, NamedTuple, Protocol, cast
 
 from fleet_sim.config.layout import BACKWARD, FORWARD
 from fleet_sim.sim.traffic.locks import Lock, ZoneLock
@@ -42,8 +44,7 @@ DIRECTION_NAMES = {FORWARD: "forward", BACKWARD: "backward", ANY_DIRECTION: ""}
 """How the replay's zone rows name a same-direction claim's direction ("": a mutex zone)."""
 
 
-@dataclass(frozen=True, slots=True)
-class Hop:
+class Hop(NamedTuple):
     """One hop an AGV asks to drive: from `via` to `node`, and on to `after` (if it knows it
     already: the corridor or aisle it would enter from `node` is reserved with the node)."""
 
@@ -51,13 +52,8 @@ class Hop:
     node: str
     after: str | None = None
 
-    @property
-    def pairs(self) -> tuple[tuple[str, str | None], tuple[str, str | None]]:
-        return (self.via, self.node), (self.node, self.after)
 
-
-@dataclass(frozen=True, slots=True)
-class Need:
+class Need(NamedTuple):
     """One lock a hop needs that the AGV does not hold yet."""
 
     lock: Lock
@@ -71,6 +67,9 @@ class Need:
     @property
     def zone_id(self) -> str:
         return cast(ZoneLock, self.lock.key).zone_id
+
+
+NO_NEEDS: tuple[Need, ...] = ()
 
 
 class AllocationModule(Protocol):
@@ -95,17 +94,21 @@ class CorridorModule:
     def __init__(self, traffic: Traffic) -> None:
         self.traffic = traffic
 
-    def needs(self, client_id: int, hop: Hop) -> list[Need]:
+    def needs(self, client_id: int, hop: Hop) -> Sequence[Need]:
         traffic = self.traffic
-        held = traffic.corridors_of(client_id)
-        out: list[Need] = []
-        for a, b in hop.pairs:
-            corridor = traffic.entry_corridor(a, b)
-            if corridor is None or corridor.id in held \
-                    or any(n.lock is traffic.corridor_locks[corridor.id] for n in out):
+        corridor_of = traffic.layout.corridor_of
+        out: list[Need] | None = None
+        for a, b in ((hop.via, hop.node), (hop.node, hop.after)):
+            corridor = corridor_of(a, b) if b is not None else None
+            if corridor is None or a in corridor.members \
+                    or corridor.id in traffic.corridors_of(client_id):
                 continue
-            out.append(Need(traffic.corridor_locks[corridor.id], entry=a))
-        return out
+            lock = traffic.corridor_locks[corridor.id]
+            if out is None:
+                out = [Need(lock, a)]
+            elif all(n.lock is not lock for n in out):
+                out.append(Need(lock, a))
+        return NO_NEEDS if out is None else out
 
     def may_allocate(self, client_id: int, need: Need) -> bool:
         return need.lock.is_free
@@ -119,11 +122,13 @@ class MutexZoneModule:
     def __init__(self, traffic: Traffic) -> None:
         self.traffic = traffic
 
-    def needs(self, client_id: int, hop: Hop) -> list[Need]:
+    def needs(self, client_id: int, hop: Hop) -> Sequence[Need]:
         traffic = self.traffic
+        zones = traffic.layout.mutex_zones_at.get(hop.node)
+        if not zones:
+            return NO_NEEDS
         held = traffic.zones_of(client_id)
-        return [Need(traffic.zone_locks[z.id])
-                for z in traffic.layout.mutex_zones_at.get(hop.node, ()) if z.id not in held]
+        return [Need(traffic.zone_locks[z.id]) for z in zones if z.id not in held]
 
     def may_allocate(self, client_id: int, need: Need) -> bool:
         return need.lock.is_free
@@ -138,14 +143,14 @@ class SameDirectionModule:
     def __init__(self, traffic: Traffic) -> None:
         self.traffic = traffic
 
-    def needs(self, client_id: int, hop: Hop) -> list[Need]:
+    def needs(self, client_id: int, hop: Hop) -> Sequence[Need]:
         traffic = self.traffic
         layout = traffic.layout
         if not layout.direction_zones_at:
-            return []
+            return NO_NEEDS
         held_zones = traffic.zones_of(client_id)
         out: list[Need] = []
-        for a, b in hop.pairs:
+        for a, b in ((hop.via, hop.node), (hop.node, hop.after)):
             along = layout.direction_zone_of(a, b) if b is not None else None
             if along is None:
                 continue
@@ -155,8 +160,7 @@ class SameDirectionModule:
                 continue
             if any(n.zone_id == zone.id for n in out):
                 continue
-            out.append(Need(traffic.zone_locks[zone.id], entry=a, direction=direction,
-                            turn=held is not None))
+            out.append(Need(traffic.zone_locks[zone.id], a, direction, held is not None))
         return out
 
     def may_allocate(self, client_id: int, need: Need) -> bool:
@@ -172,8 +176,8 @@ class NodeModule:
     def __init__(self, traffic: Traffic) -> None:
         self.traffic = traffic
 
-    def needs(self, client_id: int, hop: Hop) -> list[Need]:
-        return [Need(self.traffic.node_locks[hop.node])]
+    def needs(self, client_id: int, hop: Hop) -> Sequence[Need]:
+        return (Need(self.traffic.node_locks[hop.node]),)
 
     def may_allocate(self, client_id: int, need: Need) -> bool:
         return need.lock.is_free

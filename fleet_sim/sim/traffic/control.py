@@ -211,6 +211,12 @@ class Traffic:
             CorridorModule(self), MutexZoneModule(self), SameDirectionModule(self),
             NodeModule(self))
         """What a hop needs, in the order a queued request takes it (allocation)."""
+        self._active_modules = tuple(
+            m for m in self.modules
+            if m.name == "node" or (m.name == "corridor" and layout.corridors)
+            or (m.name == "mutex" and layout.mutex_zones_at)
+            or (m.name == "same_direction" and layout.direction_zones_at))
+        """The modules this layout has resources for (the others never need anything)."""
 
     @property
     def zone_ids(self) -> tuple[str, ...]:
@@ -260,6 +266,7 @@ class Traffic:
             return claim
         claim = Claim(lock, client_id)
         if isinstance(key, NodeLock):
+            claim.node = key.node
             self._nodes[client_id].add(claim)
         elif isinstance(key, ZoneLock):
             self._zones[client_id][key.zone_id] = claim
@@ -590,34 +597,32 @@ class Traffic:
 
     # ---- a hop's allocation (fleet_sim.sim.traffic.allocation) -------------------------------
     def _needs(self, client_id: int, hop: Hop) -> list[tuple[AllocationModule, Need]]:
-        return [(m, need) for m in self.modules for need in m.needs(client_id, hop)]
-
-    def may_allocate(self, client_id: int, hop: Hop) -> bool:
-        """True if `try_allocate` would grant the hop now."""
-        return all(m.may_allocate(client_id, need) for m, need in self._needs(client_id, hop))
+        return [(m, need) for m in self._active_modules for need in m.needs(client_id, hop)]
 
     def try_allocate(self, client_id: int, hop: Hop) -> Claim | None:
         """Grant the whole hop now (its node, the corridors and zones it enters) if every
         module may allocate its part, else nothing; never waits. Returns the node's claim."""
         needs = self._needs(client_id, hop)
-        if not all(m.may_allocate(client_id, need) for m, need in needs):
-            return None
+        for m, need in needs:
+            if not m.may_allocate(client_id, need):
+                return None
         now = self.env.now
         node_claim: Claim | None = None
-        by_kind = {m.name: [n for k, n in needs if k is m] for m in self.modules}
-        for need in by_kind["mutex"]:
-            self.request(client_id, need.lock)
-            self._zone_since[client_id][need.zone_id] = now
-        for need in by_kind["same_direction"]:
-            assert need.entry is not None
-            self.request(client_id, need.lock, direction=need.direction)
-            self._zone_since[client_id][need.zone_id] = now
-            self._note_entry(client_id, need.zone_id, need.entry)
-        for need in by_kind["corridor"]:
-            self.request(client_id, need.lock, entry=need.entry)
-        for need in by_kind["node"]:
-            node_claim = self.request(client_id, need.lock)
-        assert node_claim is not None and node_claim.triggered
+        for m, need in needs:  # granted at once (never scheduled): their order is unseen
+            kind = m.name
+            if kind == "node":
+                node_claim = self.request(client_id, need.lock)
+            elif kind == "corridor":
+                self.request(client_id, need.lock, entry=need.entry)
+            elif kind == "mutex":
+                self.request(client_id, need.lock)
+                self._zone_since[client_id][need.zone_id] = now
+            else:
+                assert need.entry is not None
+                self.request(client_id, need.lock, direction=need.direction)
+                self._zone_since[client_id][need.zone_id] = now
+                self._note_entry(client_id, need.zone_id, need.entry)
+        assert node_claim is not None
         return node_claim
 
     def allocate(self, client: TrafficClient,
@@ -833,7 +838,8 @@ class Traffic:
         corridor = self.layout.corridor_of(u, v)
         if corridor is not None:
             self.entered_corridor(client_id, corridor.id)
-        self._release_left_corridors(client_id, body)
+        if self._corridors[client_id]:
+            self._release_left_corridors(client_id, body)
         if self._zones[client_id]:
             self.release_left_zones(client_id)
 
@@ -862,8 +868,7 @@ class Traffic:
     # ---- releasing ----------------------------------------------------------------------------
     def _spots(self, client_id: int) -> set[str]:
         """The nodes the client holds (stands on, drives to, or has not cleared yet)."""
-        return {cast(NodeLock, cast(Lock, c.resource).key).node
-                for c in self._nodes[client_id] if c.triggered}
+        return {c.node for c in self._nodes[client_id] if c.triggered}
 
     def _release_corridor(self, client_id: int, cid: int) -> None:
         claim, _ = self._corridors[client_id][cid]

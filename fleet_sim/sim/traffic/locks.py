@@ -50,11 +50,38 @@ LockKey = NodeLock | CorridorLock | ZoneLock
 
 
 class Claim(Request):
-    """A request for a lock that knows which client made it."""
+    """A request for a lock that knows which client made it.
+
+    A claim granted the moment it is made is not scheduled as a SimPy event: nobody can be
+    waiting on a claim that is being made, and processing it would do nothing (SimPy's
+    `_trigger_get` finds no release queued). It is marked granted and processed at once
+    (`grant_at_once`), which saves one event per lock taken without waiting (the look-ahead
+    and most hops) and leaves the order of every other event as it was."""
+
+    node = ""
+    """For a node lock: the node (set by traffic control when it makes the claim)."""
 
     def __init__(self, resource: Lock, client_id: int) -> None:
         self.client_id = client_id
+        self.asking = True
         super().__init__(resource)
+        self.asking = False
+
+    def grant_at_once(self) -> None:
+        """Granted while being made: triggered and processed, never scheduled."""
+        self._ok = True
+        self._value = None
+        self.callbacks = None  # type: ignore[assignment]  # SimPy's mark of "processed"
+
+
+def grant(lock: simpy.Resource, claim: Claim) -> None:
+    """Give `claim` the lock (it is among its users): at once if it is being made, else by
+    scheduling it (its client waits on it)."""
+    claim.usage_since = lock._env.now
+    if claim.asking:
+        claim.grant_at_once()
+    else:
+        claim.succeed()
 
 
 class Lock(simpy.Resource):
@@ -63,6 +90,11 @@ class Lock(simpy.Resource):
     def __init__(self, env: simpy.Environment, key: LockKey) -> None:
         super().__init__(env, capacity=1)
         self.key = key
+
+    def _do_put(self, event: Claim) -> None:  # type: ignore[override]  # only Claims here
+        if len(self.users) < self.capacity:
+            self.users.append(event)
+            grant(self, event)
 
     @property
     def holder(self) -> int | None:

@@ -49,7 +49,7 @@ from typing import cast
 
 import simpy
 
-from fleet_sim.sim.traffic.locks import Claim, Lock, ZoneLock
+from fleet_sim.sim.traffic.locks import Claim, Lock, ZoneLock, grant
 
 ANY_DIRECTION = 0
 """A claim for a same-direction zone by an AGV put on the track inside it: it takes the
@@ -123,8 +123,7 @@ class DirectionGate(Gate):
             if claim.direction == ANY_DIRECTION:
                 claim.direction = self.direction or 1
             self.users.append(claim)
-            claim.usage_since = self._env.now
-            claim.succeed()
+            grant(self, claim)
 
     def admits(self, direction: int) -> bool:
         """A claim for `direction` would be granted now (nobody waits before it)."""

@@ -1,0 +1,90 @@
+"""What the SimPy events of a run are spent on, per hop: the three 50-AGV warehouse shifts of
+bench/engine_scaling.py's ring comparison, and the bare SimPy ring beside them.
+
+Every event the environment schedules is counted by its kind (Timeout, Claim, Release,
+Condition...) and by the fleet_sim function that made it (the first caller outside SimPy:
+`move` is a hop's drive, `wait` a blocked AGV's periodic look for a deadlock or another way,
+`free` SimPy's Release event of a lock given back, `grant` a claim granted to an AGV that waited
+for it, `_handle` the load and unload sub-states...). Events per hop and wall microseconds per
+hop are printed beside the bare ring's (3 events per hop: request, timeout, release), with the
+load average: compare figures within one run only.
+
+    .venv/bin/python bench/events_per_hop.py [--hours 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import simpy
+from simpy.core import Environment
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
+
+from engine_scaling import SHIFTS, bare_ring, model_run  # noqa: E402
+
+from fleet_sim.model import records  # noqa: E402
+
+COUNTS: collections.Counter[tuple[str, str]] = collections.Counter()
+HOPS = [0]
+
+
+def _counting_schedule(original: Any) -> Any:
+    def schedule(self: Environment, event: simpy.Event, priority: int = 1,
+                 delay: float = 0) -> None:
+        frame = sys._getframe(1)
+        while frame is not None and "simpy" in frame.f_code.co_filename:
+            frame = frame.f_back
+        COUNTS[(type(event).__name__, frame.f_code.co_name if frame else "?")] += 1
+        original(self, event, priority, delay)
+    return schedule
+
+
+def _counting_drove(original: Any) -> Any:
+    def drove(self: records.Recorder, start_s: float, end_s: float, length_m: float) -> None:
+        HOPS[0] += 1
+        original(self, start_s, end_s, length_m)
+    return drove
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--hours", type=float, default=2.0)
+    args = parser.parse_args()
+    print(f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} "
+          f"{os.getloadavg()[2]:.2f}; {args.hours:g} simulated hours each")
+    wall, _ = bare_ring(hours=args.hours)
+    ring_hops = 50 * args.hours * 3600 / 4.0
+    print(f"bare ring: 3.00 events/hop, {wall / ring_hops * 1e6:.1f} us/hop")
+    Environment.schedule = _counting_schedule(Environment.schedule)  # type: ignore[method-assign]
+    records.Recorder.drove = _counting_drove(records.Recorder.drove)  # type: ignore[method-assign]
+    for title, (scenario_file, overrides) in SHIFTS.items():
+        COUNTS.clear()
+        HOPS[0] = 0
+        start = time.perf_counter()
+        model_run(scenario_file, {**overrides, "duration_h": args.hours})
+        wall = time.perf_counter() - start
+        hops = HOPS[0]
+        total = sum(COUNTS.values())
+        print()
+        print(f"## {title}: {hops:,} hops, {total / hops:.2f} events/hop, "
+              f"{wall / hops * 1e6:.0f} us/hop (wall {wall:.2f} s, load "
+              f"{os.getloadavg()[0]:.2f})")
+        print()
+        print("| event | made by | per hop | share |")
+        print("|---|---|---:|---:|")
+        for (kind, by), n in COUNTS.most_common():
+            if n / hops >= 0.01:
+                print(f"| {kind} | {by} | {n / hops:.2f} | {n / total:.0%} |")
+
+
+if __name__ == "__main__":
+    main()
