@@ -226,6 +226,9 @@ SHORT_NAMES: Mapping[str, str] = {
     "availability_pct": "availability", "charging_queue_wait_mean_s": "wait for a charger",
     "idle_with_orders_waiting_pct": "AGVs idle while orders wait",
     "orders_open_at_end": "orders open at the end",
+    "open_order_age_mean_s": "mean age of open orders",
+    "open_order_age_p95_s": "p95 age of open orders", "open_order_age_max_s": "oldest open order",
+    "wall_s": "wall-clock time",
 }
 """A KPI's name in a planner's words, for sentences and axes (else its key, spaced)."""
 
@@ -248,14 +251,43 @@ def kpi_unit(name: str) -> str:
     return next((k.unit for k in CATALOGUE if k.name == name), "")
 
 
+STATE_OF_KPI: Mapping[str, str] = {f"state_{s.key}_pct": s.value for s in VehicleState}
+"""The time-in-state KPIs: name -> the state (``state_charging_pct`` -> ``Charging``)."""
+
+
 def kpi_short(name: str) -> str:
     """KPI `name` in a planner's words, without its unit: ``p95 lead time``."""
-    return SHORT_NAMES.get(name, name.replace("_", " "))
+    if name in STATE_OF_KPI:
+        return f"time in state {STATE_OF_KPI[name]}"
+    if name in SHORT_NAMES:
+        return SHORT_NAMES[name]
+    family, dot, rest = name.partition(".")
+    if dot and family == BY_REASON:
+        return "AGVs idle while orders wait, " + rest.replace("_", " ")
+    if dot and family == "by_type":
+        kind, _, base = rest.rpartition(".")
+        return f"{kind} AGVs: {kpi_short(base)}"
+    if dot and family == "zone_wait_s":
+        return f"wait to enter zone {rest}"
+    if dot and family in ("errors_by_code", "warnings_by_code"):
+        return f"{family.split('_')[0]} {rest}"
+    for suffix in ("_per_hour", "_pct", "_s", "_km", "_h"):  # the unit says it
+        if name.endswith(suffix) and "." not in name:
+            name = name.removesuffix(suffix)
+            break
+    return name.replace("_", " ")
 
 
 def kpi_label(name: str) -> str:
-    """Name and unit for an axis or a table: ``p95 lead time [s]``."""
+    """Name and unit for an axis or a table: ``p95 lead time [s]``; a share says of what
+    (``[% of AGV time]``, ``[% of demand]``), as its meaning in the catalogue does."""
     unit = kpi_unit(name)
+    if unit == "%":
+        meaning = next((k.meaning for k in CATALOGUE if k.name == name), "")
+        if name == "throughput_pct_of_demand":
+            unit = "% of demand"
+        elif meaning.startswith("share of AGV time"):
+            unit = "% of AGV time"
     return f"{kpi_short(name)} [{unit}]" if unit else kpi_short(name)
 
 

@@ -12,8 +12,16 @@ Decisions, where the issue is silent:
   value for a target's KPI (such as a p95 lead time when nothing was delivered) fails it.
 * Replications needed to decide: the smallest n with t(n-1) * s / sqrt(n) < |mean - bound|, with
   the sample standard deviation s as it stands; none when the mean sits on the bound.
-* Paired differences compare adjacent levels of one factor with every other factor held fixed,
-  replication by replication (the same seed, so common random numbers cancel shared noise).
+* Paired differences (`paired_differences`) compare two design points that differ in one
+  factor, every other factor held fixed, replication by replication: replication r has the
+  same seed at every design point, so common random numbers cancel the noise both share, and
+  the interval is the Student t interval of the differences (`pair_difference`, any KPI).
+  Which pairs (`one_factor_pairs`): for a factor whose levels are all numbers (fleet size,
+  demand), adjacent levels in increasing order (what one more step buys); for any other
+  factor (a policy, true/false), every level against the factor's first level as the
+  experiment file lists it (the reference a planner starts from). A replication run at only
+  one of the two points (a sizing search adds replications where it must) is left out, and
+  so is one without a value on either side; `pairs` says how many were used.
 * Warm-up from the data: MSER-5 (White 1997; Hoad, Robinson & Davies 2010). The output series
   is cut into batches of 5 and their means Z_1..Z_k; deleting the first d batches leaves the
   marginal standard error statistic MSER(d) = sum_{j>d} (Z_j - mean_{j>d} Z)^2 / (k - d)^2,
@@ -25,7 +33,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -34,7 +42,7 @@ import pandas as pd
 from scipy.special import stdtrit
 
 from fleet_sim.analysis.kpis import COUNTS_BY_CODE, OPEN_AGE_OF
-from fleet_sim.config.experiment import Target, point_text
+from fleet_sim.config.experiment import Target, level_text, point_text
 
 CONFIDENCE = 0.95
 NOT_KPIS = {"replication", "seed", "point", "agvs_requested"}
@@ -162,29 +170,130 @@ def point_stats(summary: pd.DataFrame, factor_names: Sequence[str]) -> pd.DataFr
     return pd.DataFrame(rows, columns=columns)
 
 
-def paired_differences(summary: pd.DataFrame, factor: str, factor_names: Sequence[str],
-                       kpis: Sequence[str]) -> pd.DataFrame:
-    """Adjacent levels of `factor`, others fixed: mean and 95 % CI of (next - this) per KPI,
-    over the replications both levels ran."""
+@dataclass(frozen=True)
+class PointPair:
+    """Two design points that differ in one factor: `factor` goes from `from_level` to
+    `to_level`, the other factors stay at `fixed`."""
+
+    factor: str
+    from_level: Any
+    to_level: Any
+    fixed: dict[str, Any]
+
+    def point(self, level: Any) -> dict[str, Any]:
+        return {**self.fixed, self.factor: level}
+
+
+def is_number(value: Any) -> bool:
+    """A level that is a number (not true/false): its factor's pairs are adjacent levels."""
+    return isinstance(value, (int, float, np.integer, np.floating)) \
+        and not isinstance(value, (bool, np.bool_))
+
+
+def one_factor_pairs(summary: pd.DataFrame, factor_names: Sequence[str],
+                     factors: Sequence[str] | None = None,
+                     listed: Mapping[str, Sequence[Any]] | None = None) -> list[PointPair]:
+    """The pairs of design points of `summary` (finished runs) that differ in one factor (each
+    of `factors`, default every factor): adjacent levels of a numeric factor, every level
+    against the first of any other (the first `listed` for it in the experiment file, else
+    the first in the summary), each at every combination of the other factors."""
     ok = _ok(summary)
-    others = [f for f in factor_names if f != factor]
-    columns = [*others, "kpi", "from_level", "to_level", "pairs", "mean_diff", "half_width",
-               "ci_low", "ci_high"]
+    pairs: list[PointPair] = []
+    for factor in factors if factors is not None else factor_names:
+        if factor not in ok.columns:
+            continue
+        others = [f for f in factor_names if f != factor]
+        groups = ok.groupby(others, sort=True, dropna=False) if others else [((), ok)]
+        for key, group in groups:
+            fixed = dict(zip(others, key if isinstance(key, tuple) else (key,), strict=True))
+            levels = list(dict.fromkeys(group[factor].tolist()))
+            if len(levels) < 2:
+                continue
+            if all(is_number(v) for v in levels):
+                ordered = sorted(levels)
+                steps = list(itertools.pairwise(ordered))
+            else:
+                order = [level_text(v) for v in (listed or {}).get(factor, [])]
+                rank = {k: i for i, k in enumerate(order)}
+                ordered = sorted(levels, key=lambda v: rank.get(level_text(v), len(rank)))
+                steps = [(ordered[0], other) for other in ordered[1:]]
+            pairs += [PointPair(factor, a, b, fixed) for a, b in steps]
+    return pairs
+
+
+def _at(frame: pd.DataFrame, point: Mapping[str, Any]) -> pd.DataFrame:
+    mask = np.ones(len(frame), dtype=bool)
+    for name, value in point.items():
+        column = frame[name]
+        if value is None or (isinstance(value, float) and math.isnan(value)):
+            mask &= column.isna().to_numpy()
+        else:
+            mask &= (column == value).fillna(False).to_numpy(dtype=bool)
+    return frame[mask]
+
+
+@dataclass(frozen=True)
+class PairDifference:
+    """KPI at `to` minus KPI at `from`, replication by replication: the interval of the
+    differences, and each point's mean over the same pairs."""
+
+    kpi: str
+    from_mean: float
+    to_mean: float
+    interval: Interval
+
+    @property
+    def pairs(self) -> int:
+        return self.interval.n
+
+    @property
+    def excludes_zero(self) -> bool:
+        ci = self.interval
+        return ci.n >= 2 and not math.isnan(ci.half_width) and (ci.low > 0 or ci.high < 0)
+
+
+def pair_difference(summary: pd.DataFrame, from_point: Mapping[str, Any],
+                    to_point: Mapping[str, Any], kpi: str,
+                    confidence: float = CONFIDENCE) -> PairDifference:
+    """`kpi` at design point `to_point` minus at `from_point` (any two points of the summary),
+    paired by replication: the replications both ran with a value on both sides."""
+    ok = _ok(summary)
+    nan = PairDifference(kpi, math.nan, math.nan, Interval(0, math.nan, math.nan, math.nan))
+    if kpi not in ok.columns:
+        return nan
+    left = _at(ok, from_point).drop_duplicates("replication").set_index("replication")[kpi]
+    right = _at(ok, to_point).drop_duplicates("replication").set_index("replication")[kpi]
+    common = left.index.intersection(right.index).sort_values()
+    a = left.loc[common].to_numpy(dtype=float, na_value=np.nan)
+    b = right.loc[common].to_numpy(dtype=float, na_value=np.nan)
+    keep = ~(np.isnan(a) | np.isnan(b))
+    if not keep.any():
+        return nan
+    return PairDifference(kpi, float(a[keep].mean()), float(b[keep].mean()),
+                          mean_ci(b[keep] - a[keep], confidence))
+
+
+def paired_differences(summary: pd.DataFrame, factor_names: Sequence[str], kpis: Sequence[str],
+                       factors: Sequence[str] | None = None,
+                       listed: Mapping[str, Sequence[Any]] | None = None,
+                       confidence: float = CONFIDENCE) -> pd.DataFrame:
+    """Long table: one row per pair of design points differing in one factor
+    (`one_factor_pairs`) and KPI, with each point's mean over the pairs and the mean and
+    interval of the paired difference (to - from). The other factors' columns hold the levels
+    they are fixed at (None in the column of the factor that varies)."""
+    columns = [*factor_names, "factor", "from_level", "to_level", "kpi", "pairs", "from_mean",
+               "to_mean", "mean_diff", "half_width", "ci_low", "ci_high"]
     rows: list[dict[str, Any]] = []
-    groups = ok.groupby(others, sort=True, dropna=False) if others else [((), ok)]
-    for key, group in groups:
-        fixed = dict(zip(others, key if isinstance(key, tuple) else (key,), strict=True))
-        levels = sorted(group[factor].dropna().unique())
-        for a, b in itertools.pairwise(levels):
-            left = group[group[factor] == a].set_index("replication")
-            right = group[group[factor] == b].set_index("replication")
-            common = left.index.intersection(right.index)
-            for kpi in kpis:
-                diff = (right.loc[common, kpi].astype(float) - left.loc[common, kpi].astype(float))
-                ci = mean_ci(diff.to_numpy(dtype=float, na_value=np.nan))
-                rows.append({**fixed, "kpi": kpi, "from_level": a, "to_level": b,
-                             "pairs": ci.n, "mean_diff": ci.mean, "half_width": ci.half_width,
-                             "ci_low": ci.low, "ci_high": ci.high})
+    for pair in one_factor_pairs(summary, factor_names, factors, listed):
+        for kpi in kpis:
+            diff = pair_difference(summary, pair.point(pair.from_level),
+                                   pair.point(pair.to_level), kpi, confidence)
+            ci = diff.interval
+            rows.append({**{f: pair.fixed.get(f) for f in factor_names}, "factor": pair.factor,
+                         "from_level": pair.from_level, "to_level": pair.to_level, "kpi": kpi,
+                         "pairs": ci.n, "from_mean": diff.from_mean, "to_mean": diff.to_mean,
+                         "mean_diff": ci.mean, "half_width": ci.half_width, "ci_low": ci.low,
+                         "ci_high": ci.high})
     return pd.DataFrame(rows, columns=columns)
 
 

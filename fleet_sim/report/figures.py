@@ -17,20 +17,11 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
+from fleet_sim.analysis.kpis import kpi_label
 from fleet_sim.config.experiment import Target
 from fleet_sim.config.layout import Layout
 from fleet_sim.model.states import VehicleState
 
-KPI_LABELS = {
-    "throughput_per_hour": "throughput [orders/h]",
-    "throughput_pct_of_demand": "throughput [% of demand]",
-    "lead_time_p95_s": "p95 lead time [s]",
-    "lead_time_mean_s": "mean lead time [s]",
-    "blocked_time_pct": "time blocked by traffic [% of AGV time]",
-    "deadlocks_detected": "deadlocks detected [per run]",
-    "agv_utilisation_pct": "AGV utilisation [%]",
-    "state_charging_pct": "time charging [% of AGV time]",
-}
 STATE_COLOURS = {
     "booting": "#9aa0a6", "idle": "#dadce0", "moving": "#1a73e8", "loading": "#34a853",
     "unloading": "#0f9d58", "charging": "#f9ab00", "paused": "#e37400", "error": "#d93025",
@@ -44,7 +35,8 @@ replay page."""
 
 
 def label(kpi: str) -> str:
-    return KPI_LABELS.get(kpi, kpi.replace("_", " "))
+    """A KPI's name and unit from the KPI catalogue, for an axis: ``p95 lead time [s]``."""
+    return kpi_label(kpi)
 
 
 def png_bytes(fig: Figure, dpi: int = 110) -> bytes:

@@ -45,6 +45,8 @@ from __future__ import annotations
 import base64
 import json
 import math
+import shlex
+import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -55,10 +57,19 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from fleet_sim.analysis.kpis import BY_REASON
+from fleet_sim.analysis.kpis import BY_REASON, kpi_better, kpi_label, kpi_short, kpi_unit
 from fleet_sim.analysis.replay import LEAD_LABELS, LEAD_PARTS, lead_times, load_run, state_spells
-from fleet_sim.analysis.stats import check_targets, kpi_columns, paired_differences, point_stats
-from fleet_sim.config.experiment import FLEET, Target, layout_for, point_text
+from fleet_sim.analysis.stats import (
+    PointPair,
+    check_targets,
+    is_number,
+    kpi_columns,
+    one_factor_pairs,
+    pair_difference,
+    paired_differences,
+    point_stats,
+)
+from fleet_sim.config.experiment import FLEET, Target, layout_for, level_text, point_text
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario, load_scenario, type_count_path
 from fleet_sim.errors import InputError
@@ -249,6 +260,8 @@ class RunsSection(Section):
     wall_s: str
     failed_runs: Table | None
     database: str
+    query: str = ""
+    """A command that queries sweep.duckdb (`query_command`), shown as the example."""
     gridlocked_runs: Table | None = None
     """Runs that locked solid (gridlock_at_h set): when, where, what they left open."""
     open_orders: str = ""
@@ -324,6 +337,28 @@ class ReportData:
     def series_key(self, row: dict[str, Any]) -> str:
         return point_text({k: row[k] for k in self.others})
 
+    @property
+    def kind(self) -> str:
+        """What the study is: "sizing" (`fleet-sim size` ran: sizing.json), "sizing sweep" (a
+        sweep over the fleet factor with targets), or "sweep" (any other sweep)."""
+        if self.sizing is not None:
+            return "sizing"
+        if self.x == self.fleet and self.targets:
+            return "sizing sweep"
+        return "sweep"
+
+    @property
+    def listed(self) -> dict[str, list[Any]]:
+        """Each factor's levels as the experiment file lists them."""
+        return {name: list(levels) if isinstance(levels, list) else [levels]
+                for name, levels in (self.experiment.get("factors") or {}).items()}
+
+    @property
+    def compared_kpis(self) -> list[str]:
+        """The KPIs the study is about: every target's, then throughput and p95 lead time."""
+        kpis = dict.fromkeys([*(t.kpi for t in self.targets), *MAIN_KPIS])
+        return [k for k in kpis if k in self.summary.columns]
+
 
 def load(out_dir: Path) -> ReportData:
     resolved = out_dir / "experiment.resolved.yaml"
@@ -380,9 +415,8 @@ def recommendations(data: ReportData) -> tuple[dict[str, int | None], list[str],
                     f"{est['capacity_per_agv_per_hour']:.1f} orders/h. So at least "
                     f"{est['minimum']} AGVs; the simulation adds waiting and traffic.")
         return recommended, statements, estimates
-    if data.x != data.fleet or not data.targets:
-        return recommended, [f"No recommendation: the experiment has no {data.fleet} factor or "
-                             "no targets (run `fleet-sim size` for a fleet-size search)."], []
+    if data.kind == "sweep":
+        return recommended, sweep_statements(data), []
     checks = check_targets(data.summary, data.factors, data.targets)
     by_series: dict[str, dict[int, list[str]]] = {}
     for check in checks:
@@ -402,6 +436,124 @@ def recommendations(data: ReportData) -> tuple[dict[str, int | None], list[str],
             statements.append(f"{head}no fleet of the grid meets every target with 95 % "
                               "confidence.")
     return recommended, statements, estimates
+
+
+MAX_STATEMENTS = 8
+"""Sentences on a sweep's first screen; the rest are in the Statistics section."""
+
+
+def num(value: float) -> str:
+    """A number in a sentence: whole numbers plain, else three significant figures or so."""
+    if value is None or math.isnan(value):
+        return "n/a"
+    value = round(float(value), 6)
+    size = abs(value)
+    if value.is_integer() and size < 1e6:
+        return f"{int(value)}"
+    if size >= 100:
+        return f"{value:,.0f}"
+    if size >= 10:
+        return f"{value:.1f}"
+    if size >= 1:
+        return f"{value:.2f}"
+    return f"{value:.2g}"
+
+
+def signed(value: float) -> str:
+    text = num(value)
+    return text if text.startswith("-") or text == "n/a" else "+" + text
+
+
+def unit_after(kpi: str, difference: bool = False) -> str:
+    """The unit after a number; a difference of percentages is in percentage points."""
+    unit = kpi_unit(kpi)
+    if unit == "%" and difference:
+        return " points"
+    return f" {unit}" if unit and unit != "count" else ""
+
+
+def factor_words(name: str) -> str:
+    """A factor (a dotted scenario path) in words: ``demand.rate_per_hour`` -> ``demand rate
+    per hour``."""
+    return name.replace(".", " ").replace("_", " ")
+
+
+def _and(parts: list[str]) -> str:
+    return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
+
+
+def change_sentence(pair: PointPair, numeric: bool, diffs: list[Any]) -> str:
+    """One sentence: what changing one factor does to the study's KPIs, paired by
+    replication: "Raising demand rate per hour from 45 to 60 raises p95 lead time by 120 s (80
+    to 160 s); no difference we can detect in throughput: +0.4 orders/h (-1.2 to +2)."."""
+    a, b = level_text(pair.from_level), level_text(pair.to_level)
+    subject = (f"Raising {factor_words(pair.factor)} from {a} to {b}" if numeric else
+               f"{factor_words(pair.factor)} {b} instead of {a}".capitalize())
+    if pair.fixed:
+        subject += f" (at {point_text(pair.fixed)})"
+    effects: list[str] = []
+    none: list[str] = []
+    missing: list[str] = []
+    for diff in diffs:
+        ci, u = diff.interval, unit_after(diff.kpi, difference=True)
+        if ci.n < 2 or math.isnan(ci.half_width):
+            missing.append(kpi_short(diff.kpi))
+        elif diff.excludes_zero:
+            verb, mean, low, high = ("cuts", -ci.mean, -ci.high, -ci.low) if ci.mean < 0 \
+                else ("raises", ci.mean, ci.low, ci.high)
+            effects.append(f"{verb} {kpi_short(diff.kpi)} by {num(mean)}{u} ({num(low)} to "
+                           f"{num(high)}{u})")
+        else:
+            none.append(f"{kpi_short(diff.kpi)} {signed(ci.mean)}{u} ({signed(ci.low)} to "
+                        f"{signed(ci.high)}{u})")
+    if effects:
+        text = f"{subject} {_and(effects)}"
+        if none:
+            text += "; no difference we can detect in " + "; ".join(none)
+    else:
+        text = f"{subject} changes nothing we can detect" + (": " + "; ".join(none)
+                                                             if none else "")
+    if missing:
+        text += "; too few paired replications to compare " + ", ".join(missing)
+    pairs = max((d.pairs for d in diffs), default=0)
+    return text + f" (paired over {pairs} replications, 95 % intervals)."
+
+
+def headline_pairs(data: ReportData) -> list[tuple[PointPair, bool]]:
+    """The changes the first screen states: per factor and combination of the others, a
+    numeric factor from its lowest to its highest level, any other each level against the
+    first listed. (pair, numeric)."""
+    out: list[tuple[PointPair, bool]] = []
+    steps = one_factor_pairs(data.summary, data.factors, listed=data.listed)
+    groups: dict[tuple[str, str], list[PointPair]] = {}
+    for pair in steps:
+        groups.setdefault((pair.factor, point_text(pair.fixed)), []).append(pair)
+    for group in groups.values():
+        numeric = all(is_number(p.from_level) and is_number(p.to_level) for p in group)
+        if numeric:
+            first, last = group[0], group[-1]
+            out.append((PointPair(first.factor, first.from_level, last.to_level, first.fixed),
+                        True))
+        else:
+            out += [(p, False) for p in group]
+    return out
+
+
+def sweep_statements(data: ReportData) -> list[str]:
+    """A sweep's answer in a planner's words: per factor, what changing it does to the
+    study's KPIs (paired differences), at most MAX_STATEMENTS sentences."""
+    pairs = headline_pairs(data)
+    if not pairs:
+        return ["One design point: no factor varies, so there is no change to compare; its "
+                "KPIs are below."]
+    kpis = data.compared_kpis
+    statements = [change_sentence(pair, numeric, [
+        pair_difference(data.summary, pair.point(pair.from_level), pair.point(pair.to_level),
+                        kpi) for kpi in kpis]) for pair, numeric in pairs[:MAX_STATEMENTS]]
+    if len(pairs) > MAX_STATEMENTS:
+        statements.append(f"... and {len(pairs) - MAX_STATEMENTS} more changes: every paired "
+                          "difference is in the Statistics section.")
+    return statements
 
 
 # ---- sections ------------------------------------------------------------------------------
@@ -442,8 +594,8 @@ def section_scenario(data: ReportData) -> ScenarioSection:
         rows.append(["set in every run", ", ".join(f"{k} = {v}" for k, v in overrides.items())])
     for name, levels in (exp.get("factors") or {}).items():
         rows.append([f"factor {name}", str(levels)])
-    rows += [["design", f"{exp.get('design')}, {exp.get('replications')} replications, "
-                        f"master seed {exp.get('master_seed')}"],
+    rows += [["design", f"{exp.get('design')}, master seed {exp.get('master_seed')}"],
+             ["replications", replications_text(data)],
              ["targets", "; ".join(t.describe() for t in data.targets) or "none"]]
     sec = ScenarioSection(settings=Table(["", ""], rows, "settings"), problem=data.problem)
     sec.text += [f"{name}: {value}" for name, value in rows]
@@ -452,6 +604,28 @@ def section_scenario(data: ReportData) -> ScenarioSection:
         caption = f"Layout {data.layout.name}"
         sec.figures.append(Figure("layout", caption, png, figs.image_page(png, caption)))
     return sec
+
+
+def replications_text(data: ReportData) -> str:
+    """The replications run per design point, counted in the summary (finished runs): a
+    sizing search adds replications where a fleet size is undecided, so the file's number
+    is where each point started, not what the answer used."""
+    asked = data.experiment.get("replications")
+    ok = data.ok
+    if ok.empty:
+        return f"none finished (the file asks for {asked} per design point)"
+    counts = ok.groupby(data.factors, dropna=False).size() if data.factors \
+        else pd.Series([len(ok)])
+    low, high = int(counts.min()), int(counts.max())
+    ran = f"{low}" if low == high else f"{low} to {high}"
+    text = (f"{ran} per design point ({len(ok)} finished runs at {len(counts)} design "
+            f"point{'s' if len(counts) != 1 else ''})")
+    if low == high == asked:
+        return text
+    if data.sizing is not None and high > (asked or 0):
+        return text + (f"; the file asks for {asked}, and `fleet-sim size` added replications "
+                       "where a fleet size was not yet decided")
+    return text + f"; the file asks for {asked}"
 
 
 def section_kpis(data: ReportData, series: dict[str, pd.DataFrame],
@@ -758,17 +932,19 @@ def _incident_counts(data: ReportData) -> pd.DataFrame | None:
 
 
 def section_statistics(data: ReportData, stats: pd.DataFrame) -> StatisticsSection:
-    kpis = [k for k in TABLE_KPIS if k in set(stats["kpi"])]
+    present = set(stats["kpi"])
+    kpis = [k for k in dict.fromkeys([*TABLE_KPIS, *(t.kpi for t in data.targets)])
+            if k in present]
     keys = [*data.others, data.x] if data.x else []
-    header = [*keys, "n", *kpis]
+    header = [*keys, "replications", *(kpi_label(k) for k in kpis)]
     rows: list[list[str]] = []
     wide = stats.pivot_table(index=keys, columns="kpi", values=["mean", "half_width", "n"],
-                             aggfunc="first") if keys else None
+                             aggfunc="first", dropna=False) if keys else None
     if wide is not None:
         for index, row in wide.iterrows():
             idx = index if isinstance(index, tuple) else (index,)
             n = int(max(row[("n", k)] for k in kpis)) if kpis else 0
-            cells = [str(v) for v in idx] + [str(n)]
+            cells = [level_text(v) for v in idx] + [str(n)]
             for k in kpis:
                 mean, half = row[("mean", k)], row[("half_width", k)]
                 cells.append(f"{fmt(mean)} \u00b1 {fmt(half, 2)}")
@@ -777,18 +953,39 @@ def section_statistics(data: ReportData, stats: pd.DataFrame) -> StatisticsSecti
     warnings = [w for w in (c.warning() for c in checks) if w]
     sec = StatisticsSection(points=Table(header, rows, "stats"), warnings=warnings)
     sec.text += ["Too wide to decide: " + w for w in warnings]
-    if data.x:
-        diff_kpis = list(dict.fromkeys([*(t.kpi for t in data.targets), "throughput_per_hour"]))
-        diff_kpis = [k for k in diff_kpis if k in set(stats["kpi"])]
-        diffs = paired_differences(data.summary, data.x, data.factors, diff_kpis)
-        if not diffs.empty:
-            drows = [[*(str(r[o]) for o in data.others), str(r["kpi"]),
-                      f"{r['from_level']} -> {r['to_level']}", str(r["pairs"]),
-                      f"{fmt(r['mean_diff'])} [{fmt(r['ci_low'])}, {fmt(r['ci_high'])}]"]
-                     for _, r in diffs.iterrows()]
-            sec.differences = Table([*data.others, "KPI", data.x, "pairs",
-                                     "mean difference [95 % CI]"], drows, "stats")
+    diffs = paired_differences(data.summary, data.factors, data.compared_kpis,
+                               listed=data.listed)
+    if not diffs.empty:
+        drows = []
+        for r in diffs.to_dict("records"):
+            fixed = point_text({f: r[f] for f in data.factors if f != r["factor"]})
+            u = unit_after(r["kpi"], difference=True)
+            drows.append([
+                str(r["factor"]), f"{level_text(r['from_level'])} \u2192 "
+                f"{level_text(r['to_level'])}", fixed or "-", kpi_label(r["kpi"]),
+                str(r["pairs"]), f"{fmt(r['from_mean'])} \u2192 {fmt(r['to_mean'])}",
+                f"{signed(r['mean_diff'])}{u} ({signed(r['ci_low'])} to "
+                f"{signed(r['ci_high'])})", difference_words(r["kpi"], r["ci_low"],
+                                                             r["ci_high"])])
+        sec.differences = Table(["factor", "change", "other factors", "KPI", "pairs",
+                                 "means", "paired difference (95 % CI)", "reading"], drows,
+                                "differences")
+        sec.text += [f"{r[0]} {r[1]} ({r[2]}), {r[3]}: {r[6]}, {r[7]}" for r in drows]
     return sec
+
+
+def difference_words(kpi: str, low: float, high: float) -> str:
+    """A paired difference's interval in words: higher / lower, or none detected."""
+    if math.isnan(low) or math.isnan(high):
+        return "too few pairs"
+    if low <= 0 <= high:
+        return "no difference detected"
+    up = low > 0
+    better = kpi_better(kpi)
+    word = "higher" if up else "lower"
+    if better is None:
+        return word
+    return f"{word} (better)" if up == (better == "higher") else f"{word} (worse)"
 
 
 def section_runs(data: ReportData) -> RunsSection:
@@ -799,9 +996,12 @@ def section_runs(data: ReportData) -> RunsSection:
                     [[str(r["run_id"]), str(r["status"]), str(r.get("error", ""))]
                      for _, r in bad.iterrows()])
               if not bad.empty else None)
+    database = (data.out_dir / "sweep.duckdb").resolve()
     sec = RunsSection(runs=len(summary), finished=len(summary) - len(bad), failed=len(bad),
-                      wall_s=f"{wall:.0f}", failed_runs=failed,
-                      database=str(data.out_dir / "sweep.duckdb"))
+                      wall_s=f"{wall:.0f}", failed_runs=failed, database=str(database),
+                      query=query_command(database, data.factors,
+                                          orders=any((data.out_dir / "runs").glob(
+                                              "*/orders.parquet"))))
     sec.text += [f"run {r['run_id']}: {r['status']}: {r.get('error', '')}"
                  for _, r in bad.iterrows()]
     locked = gridlocked_runs(summary)
@@ -817,6 +1017,28 @@ def section_runs(data: ReportData) -> RunsSection:
     if sec.open_orders:
         sec.text.append(sec.open_orders)
     return sec
+
+
+def query_command(database: Path, factors: list[str], orders: bool = True,
+                  python: str | None = None) -> str:
+    """A shell command that queries `database` (sweep.duckdb) by design point, through the
+    DuckDB Python package of the Python running fleet-sim (no `duckdb` command needed): the
+    lead times of the orders delivered after the warm-up (view `orders`, or the summary's KPIs
+    when no run wrote orders), grouped by the study's own factors."""
+    columns = "".join(f's."{f}", ' for f in factors)
+    if orders:
+        sql = (f"SELECT {columns}count(DISTINCT run_id) AS runs, count(*) AS orders, "
+               "round(avg(o.lead_time_s), 1) AS lead_time_mean_s FROM orders o JOIN summary s "
+               "USING (run_id) WHERE o.delivered_s >= s.warmup_h * 3600")
+    else:
+        sql = (f"SELECT {columns}count(*) AS runs, round(avg(s.throughput_per_hour), 2) AS "
+               "throughput_per_hour FROM summary s WHERE s.status = 'ok'")
+    if factors:
+        sql += " GROUP BY ALL ORDER BY ALL"
+    code = (f"import duckdb; print(duckdb.connect({str(database)!r}, read_only=True)"
+            f".sql({sql!r}))")
+    quoted = "".join("\\" + c if c in '"\\$`' else c for c in code)
+    return f'{shlex.quote(python or sys.executable)} -c "{quoted}"'
 
 
 def gridlocked_runs(summary: pd.DataFrame) -> pd.DataFrame:
@@ -906,9 +1128,36 @@ def build_report(out_dir: Path) -> Report:
         statements = [warning, *statements]
     name = data.experiment.get("name", "experiment")
     n_ok = int((data.summary["status"] == "ok").sum())
-    scenario_name = data.scenario.name if data.scenario else "?"
-    layout_name = data.layout.name if data.layout else "?"
-    lead = (f"{progress_text(out_dir, data.summary)}Scenario {scenario_name} on layout "
-            f"{layout_name}; {n_ok} of {len(data.summary)} runs finished; generated "
-            f"{time.strftime('%Y-%m-%d %H:%M')} by fleet-sim.")
-    return Report(f"Fleet sizing report: {name}", lead, statements, estimates, sections)
+    lead = (f"{question(data)} {progress_text(out_dir, data.summary)}{n_ok} of "
+            f"{len(data.summary)} runs finished; generated {time.strftime('%Y-%m-%d %H:%M')} "
+            "by fleet-sim.")
+    if data.kind == "sweep":
+        what = "Sweep over " + _and([factor_words(f) for f in data.factors]) \
+            if data.factors else "Replications of one design point"
+        return Report(f"{what}: {name}", lead, statements, estimates, sections,
+                      answer_title="What the sweep shows")
+    title = "Fleet sizing report" if data.kind == "sizing" else "Fleet sizing sweep"
+    return Report(f"{title}: {name}", lead, statements, estimates, sections)
+
+
+def question(data: ReportData) -> str:
+    """The report's first sentence: the question the study answers, in a planner's words."""
+    scenario = data.scenario.name if data.scenario else "?"
+    layout = data.layout.name if data.layout else "?"
+    targets = "; ".join(t.describe() for t in data.targets)
+    points = data.ok.groupby(data.factors, dropna=False).ngroups if data.factors else 1
+    if data.kind == "sizing":
+        return (f"How many {data.fleet_unit} does scenario {scenario} on layout {layout} need "
+                f"to meet its targets ({targets})? `fleet-sim size` searched the fleet sizes, "
+                "adding replications until each was decided.")
+    if data.kind == "sizing sweep":
+        return (f"How many {data.fleet_unit} does scenario {scenario} on layout {layout} need "
+                f"to meet its targets ({targets})? A sweep of {points} design points answers "
+                "from its grid.")
+    kpis = _and([kpi_short(k) for k in data.compared_kpis]) or "the KPIs"
+    if not data.factors:
+        return f"Scenario {scenario} on layout {layout}: {kpis} over its replications."
+    return (f"How {kpis} change with {_and([factor_words(f) for f in data.factors])}: "
+            f"scenario {scenario} on layout {layout}, {points} design points, replication r "
+            "with the same seed at every point (common random numbers), so each change is "
+            "measured as a paired difference.")
