@@ -273,6 +273,43 @@ def pair_difference(summary: pd.DataFrame, from_point: Mapping[str, Any],
                           mean_ci(b[keep] - a[keep], confidence))
 
 
+def factor_effect(summary: pd.DataFrame, factor_names: Sequence[str], factor: str,
+                  from_level: Any, to_level: Any, kpi: str,
+                  confidence: float = CONFIDENCE) -> PairDifference:
+    """What moving `factor` from `from_level` to `to_level` does to `kpi`, averaged over the
+    levels of the other factors, paired by replication: replication r's difference is the mean
+    over the other factors' combinations of (KPI at to_level - KPI at from_level), over the
+    replications that ran, with a value, at both levels in every combination that has both.
+    With no other factor it is `pair_difference`."""
+    ok = _ok(summary)
+    nan = PairDifference(kpi, math.nan, math.nan, Interval(0, math.nan, math.nan, math.nan))
+    if kpi not in ok.columns or factor not in ok.columns:
+        return nan
+    others = [f for f in factor_names if f != factor]
+    groups = ok.groupby(others, sort=True, dropna=False) if others else [((), ok)]
+    sides: list[tuple[pd.Series, pd.Series]] = []
+    for _, group in groups:
+        at_a = _at(group, {factor: from_level}).drop_duplicates("replication")
+        at_b = _at(group, {factor: to_level}).drop_duplicates("replication")
+        if len(at_a) and len(at_b):
+            sides.append((at_a.set_index("replication")[kpi].astype(float),
+                          at_b.set_index("replication")[kpi].astype(float)))
+    if not sides:
+        return nan
+    common = sides[0][0].index
+    for one, other in sides:
+        common = common.intersection(one.index).intersection(other.index)
+    common = common.sort_values()
+    left = np.array([x.loc[common].to_numpy(dtype=float, na_value=np.nan) for x, _ in sides])
+    right = np.array([y.loc[common].to_numpy(dtype=float, na_value=np.nan) for _, y in sides])
+    keep = ~(np.isnan(left).any(axis=0) | np.isnan(right).any(axis=0))
+    if not keep.any():
+        return nan
+    left, right = left[:, keep].mean(axis=0), right[:, keep].mean(axis=0)
+    return PairDifference(kpi, float(left.mean()), float(right.mean()),
+                          mean_ci(right - left, confidence))
+
+
 def paired_differences(summary: pd.DataFrame, factor_names: Sequence[str], kpis: Sequence[str],
                        factors: Sequence[str] | None = None,
                        listed: Mapping[str, Sequence[Any]] | None = None,

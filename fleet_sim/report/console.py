@@ -79,7 +79,71 @@ def sweep_lines(experiment: Experiment, outcome: SweepOutcome, out: Path) -> str
               f"  statistics   {out / 'stats.parquet'}  (mean and 95 % CI per design point)",
               f"  SQL          {out / 'sweep.duckdb'}  (tables summary, stats; views orders, "
               "events, node_waits)"]
-    return "\n".join(lines)
+    table = kpi_table(summary, experiment.factor_names,
+                      [t.kpi for t in experiment.spec.targets])
+    return "\n".join([*lines, *table])
+
+
+TABLE_KPIS = ("throughput_per_hour", "lead_time_p95_s")
+"""The KPIs of the table that ends a sweep when the experiment has no targets."""
+
+
+def _number(value: float) -> str:
+    if value != value:  # NaN
+        return "n/a"
+    size = abs(value)
+    if size >= 1000:
+        return f"{value:,.0f}"
+    return f"{value:.3g}" if size >= 1 else f"{value:.2g}"
+
+
+def kpi_table(summary: Any, factor_names: Sequence[str], target_kpis: Sequence[str]) -> list[str]:
+    """The lines of a short table, one row per design point: the mean and 95 % interval of the
+    targets' KPIs (without targets: throughput and p95 lead time), named with their units from
+    the KPI catalogue, and a note where runs locked solid (gridlock) or left orders open."""
+    import pandas as pd
+
+    from fleet_sim.analysis.kpis import gridlocked, kpi_label
+    from fleet_sim.analysis.stats import mean_ci
+    from fleet_sim.config.experiment import level_text
+
+    if not len(summary) or "status" not in summary.columns:
+        return []
+    kpis = [k for k in dict.fromkeys(target_kpis or TABLE_KPIS) if k in summary.columns]
+    factors = [f for f in factor_names if f in summary.columns]
+    header = [*factors, "runs", *(kpi_label(k) for k in kpis), "note"]
+    rows: list[list[str]] = []
+    groups = summary.groupby(factors, sort=True, dropna=False) if factors \
+        else [((), summary)]
+    for key, group in groups:
+        values = key if isinstance(key, tuple) else (key,)
+        ok = group[group["status"] == "ok"]
+        cells = [level_text(v) for v in values] + [str(len(ok))]
+        for kpi in kpis:
+            ci = mean_ci(pd.to_numeric(ok[kpi], errors="coerce").to_numpy(dtype=float))
+            cells.append("n/a" if ci.n == 0 else _number(ci.mean) if ci.n == 1 else
+                         f"{_number(ci.mean)} ± {_number(ci.half_width)}")
+        notes = []
+        locked = sum(gridlocked(row) for row in ok.to_dict("records"))
+        if locked:
+            notes.append(f"GRIDLOCK in {locked} of {len(ok)} runs")
+        if "orders_open_at_end" in ok.columns:
+            open_orders = pd.to_numeric(ok["orders_open_at_end"], errors="coerce").fillna(0)
+            if (open_orders > 0).any():
+                notes.append(f"{open_orders.mean():.1f} orders open at the end (mean)")
+        if len(ok) < len(group):
+            notes.append(f"{len(group) - len(ok)} runs failed")
+        rows.append([*cells, "; ".join(notes)])
+    if not any(row[-1] for row in rows):
+        header, rows = header[:-1], [row[:-1] for row in rows]
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
+    numeric = range(len(factors), len(header) - (1 if header[-1] == "note" else 0))
+    def line(cells: Sequence[str]) -> str:
+        return "  " + "  ".join(c.rjust(w) if i in numeric else c.ljust(w)
+                                for i, (c, w) in enumerate(zip(cells, widths, strict=True))
+                                ).rstrip()
+    title = "KPIs per design point: mean ± half-width of the 95 % interval over the runs"
+    return ["", f"  {title}", line(header), *(line(r) for r in rows)]
 
 
 def size_header(experiment: Experiment) -> str:

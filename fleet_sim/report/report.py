@@ -60,12 +60,12 @@ import yaml
 from fleet_sim.analysis.kpis import BY_REASON, kpi_better, kpi_label, kpi_short, kpi_unit
 from fleet_sim.analysis.replay import LEAD_LABELS, LEAD_PARTS, lead_times, load_run, state_spells
 from fleet_sim.analysis.stats import (
-    PointPair,
+    PairDifference,
     check_targets,
+    factor_effect,
     is_number,
     kpi_columns,
     one_factor_pairs,
-    pair_difference,
     paired_differences,
     point_stats,
 )
@@ -482,23 +482,23 @@ def _and(parts: list[str]) -> str:
     return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
 
 
-def change_sentence(pair: PointPair, numeric: bool, diffs: list[Any]) -> str:
+def change_sentence(factor: str, from_level: Any, to_level: Any, numeric: bool,
+                    others: list[str], diffs: list[PairDifference]) -> str:
     """One sentence: what changing one factor does to the study's KPIs, paired by
     replication: "Raising demand rate per hour from 45 to 60 raises p95 lead time by 120 s (80
     to 160 s); no difference we can detect in throughput: +0.4 orders/h (-1.2 to +2)."."""
-    a, b = level_text(pair.from_level), level_text(pair.to_level)
-    subject = (f"Raising {factor_words(pair.factor)} from {a} to {b}" if numeric else
-               f"{factor_words(pair.factor)} {b} instead of {a}".capitalize())
-    if pair.fixed:
-        subject += f" (at {point_text(pair.fixed)})"
+    a, b = level_text(from_level), level_text(to_level)
+    subject = (f"Raising {factor_words(factor)} from {a} to {b}" if numeric else
+               f"{factor_words(factor)} {b} instead of {a}".capitalize())
+    if others:
+        subject += f" (mean over the levels of {_and([factor_words(f) for f in others])})"
+    usable = [d for d in diffs if d.pairs >= 2 and not math.isnan(d.interval.half_width)]
+    missing = [kpi_short(d.kpi) for d in diffs if d not in usable]
     effects: list[str] = []
     none: list[str] = []
-    missing: list[str] = []
-    for diff in diffs:
+    for diff in usable:
         ci, u = diff.interval, unit_after(diff.kpi, difference=True)
-        if ci.n < 2 or math.isnan(ci.half_width):
-            missing.append(kpi_short(diff.kpi))
-        elif diff.excludes_zero:
+        if diff.excludes_zero:
             verb, mean, low, high = ("cuts", -ci.mean, -ci.high, -ci.low) if ci.mean < 0 \
                 else ("raises", ci.mean, ci.low, ci.high)
             effects.append(f"{verb} {kpi_short(diff.kpi)} by {num(mean)}{u} ({num(low)} to "
@@ -506,7 +506,10 @@ def change_sentence(pair: PointPair, numeric: bool, diffs: list[Any]) -> str:
         else:
             none.append(f"{kpi_short(diff.kpi)} {signed(ci.mean)}{u} ({signed(ci.low)} to "
                         f"{signed(ci.high)}{u})")
-    if effects:
+    if usable and all(d.interval.mean == 0 and d.interval.sd == 0 for d in usable):
+        text = (f"{subject} gives the same {_and([kpi_short(d.kpi) for d in usable])} in "
+                "every replication")
+    elif effects:
         text = f"{subject} {_and(effects)}"
         if none:
             text += "; no difference we can detect in " + "; ".join(none)
@@ -519,39 +522,38 @@ def change_sentence(pair: PointPair, numeric: bool, diffs: list[Any]) -> str:
     return text + f" (paired over {pairs} replications, 95 % intervals)."
 
 
-def headline_pairs(data: ReportData) -> list[tuple[PointPair, bool]]:
-    """The changes the first screen states: per factor and combination of the others, a
-    numeric factor from its lowest to its highest level, any other each level against the
-    first listed. (pair, numeric)."""
-    out: list[tuple[PointPair, bool]] = []
-    steps = one_factor_pairs(data.summary, data.factors, listed=data.listed)
-    groups: dict[tuple[str, str], list[PointPair]] = {}
-    for pair in steps:
-        groups.setdefault((pair.factor, point_text(pair.fixed)), []).append(pair)
-    for group in groups.values():
-        numeric = all(is_number(p.from_level) and is_number(p.to_level) for p in group)
-        if numeric:
-            first, last = group[0], group[-1]
-            out.append((PointPair(first.factor, first.from_level, last.to_level, first.fixed),
-                        True))
+def headline_changes(data: ReportData) -> list[tuple[str, Any, Any, bool]]:
+    """The changes a sweep's first screen states, per factor: a numeric factor from its
+    lowest to its highest level, any other each level against its first listed.
+    (factor, from, to, numeric)."""
+    out: list[tuple[str, Any, Any, bool]] = []
+    for factor in data.factors:
+        pairs = [p for p in one_factor_pairs(data.summary, [factor], listed=data.listed)]
+        if not pairs:
+            continue
+        if all(is_number(p.from_level) and is_number(p.to_level) for p in pairs):
+            out.append((factor, pairs[0].from_level, pairs[-1].to_level, True))
         else:
-            out += [(p, False) for p in group]
+            out += [(factor, p.from_level, p.to_level, False) for p in pairs]
     return out
 
 
 def sweep_statements(data: ReportData) -> list[str]:
     """A sweep's answer in a planner's words: per factor, what changing it does to the
-    study's KPIs (paired differences), at most MAX_STATEMENTS sentences."""
-    pairs = headline_pairs(data)
-    if not pairs:
+    study's KPIs (paired differences, averaged over the other factors), at most
+    MAX_STATEMENTS sentences."""
+    changes = headline_changes(data)
+    if not changes:
         return ["One design point: no factor varies, so there is no change to compare; its "
                 "KPIs are below."]
-    kpis = data.compared_kpis
-    statements = [change_sentence(pair, numeric, [
-        pair_difference(data.summary, pair.point(pair.from_level), pair.point(pair.to_level),
-                        kpi) for kpi in kpis]) for pair, numeric in pairs[:MAX_STATEMENTS]]
-    if len(pairs) > MAX_STATEMENTS:
-        statements.append(f"... and {len(pairs) - MAX_STATEMENTS} more changes: every paired "
+    statements = []
+    for factor, a, b, numeric in changes[:MAX_STATEMENTS]:
+        others = [f for f in data.factors if f != factor]
+        statements.append(change_sentence(factor, a, b, numeric, others, [
+            factor_effect(data.summary, data.factors, factor, a, b, kpi)
+            for kpi in data.compared_kpis]))
+    if len(changes) > MAX_STATEMENTS:
+        statements.append(f"... and {len(changes) - MAX_STATEMENTS} more changes: every paired "
                           "difference is in the Statistics section.")
     return statements
 
