@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -14,12 +15,15 @@ import tomllib
 from html.parser import HTMLParser
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
 import pandas as pd
 import pytest
 import yaml
 from jinja2 import UndefinedError
 
+from fleet_sim.analysis.kpis import CATALOGUE
+from fleet_sim.analysis.stats import t_quantile
 from fleet_sim.config.experiment import load_experiment
 from fleet_sim.report.render import environment, render_html, write_report
 from fleet_sim.report.report import (
@@ -29,6 +33,8 @@ from fleet_sim.report.report import (
     RunsSection,
     ScenarioSection,
     Table,
+    fmt,
+    num,
     section_idle_waiting,
 )
 from fleet_sim.study.sizing import size_fleet
@@ -53,6 +59,7 @@ window.addEventListener('load', () => {
     settings: Object.fromEntries(Array.from(document.querySelectorAll('table.settings tr'))
       .filter(r => r.cells.length === 2)
       .map(r => [r.cells[0].textContent, r.cells[1].textContent])),
+    answer: document.querySelector('.rec').textContent,
     title: document.title});
   document.body.appendChild(pre);
 });
@@ -141,6 +148,76 @@ def test_report_files(results: Path) -> None:
     assert "In none of the" in text  # no AGV stood Idle while orders waited
 
 
+CATALOGUE_NAMES = {k.name for k in CATALOGUE}
+
+
+def test_the_settings_say_the_replications_each_design_point_ran(results: Path) -> None:
+    """The sizing search added replications to the sweep's 2 (up to 4): the settings table
+    counts them from the summary, design point by design point."""
+    page = _Page((results / "report.html").read_text(encoding="utf-8"))
+    settings = dict(row for row in page.tables["settings"] if len(row) == 2 and row[0])
+    summary = pd.read_parquet(results / "summary.parquet")
+    ok = summary[summary["status"] == "ok"]
+    counts = ok.groupby(["fleet.size", "description"]).size()
+    assert counts.max() > 2  # the search did add replications somewhere
+    ran = f"{counts.min()} to {counts.max()}" if counts.min() < counts.max() else \
+        str(counts.min())
+    assert settings["replications"].startswith(
+        f"{ran} per design point ({len(ok)} finished runs at {len(counts)} design points)")
+    assert "the file asks for 2, and `fleet-sim size` added replications" in \
+        settings["replications"]
+    assert "2 replications" not in settings["design"]
+
+
+def test_paired_differences_of_every_target_kpi_named_from_the_catalogue(results: Path) -> None:
+    """Every target's KPI and throughput, between fleet sizes and between the levels of the
+    other factor, named with their units; the difference is the replication-by-replication
+    one of the summary."""
+    page = _Page((results / "report.html").read_text(encoding="utf-8"))
+    rows = page.tables["differences"]
+    header, body = rows[0], rows[1:]
+    assert header[:4] == ["factor", "change", "other factors", "KPI"]
+    assert {r[3] for r in body} == {"throughput [% of demand]", "p95 lead time [s]",
+                                    "throughput [orders/h]"}
+    assert {r[0] for r in body} == {"fleet.size", "description"}
+    for table in ("stats", "differences"):  # no raw KPI key in a header or a KPI cell
+        cells = page.tables[table][0] + [r[3] for r in body]
+        assert not CATALOGUE_NAMES & set(cells), cells
+    # one row by hand: fleet 1 -> 2 at description "plain & simple", p95 lead time
+    summary = pd.read_parquet(results / "summary.parquet")
+    ok = summary[(summary["status"] == "ok") & (summary["description"] == "plain & simple")]
+    one = ok[ok["fleet.size"] == 1].set_index("replication")["lead_time_p95_s"]
+    two = ok[ok["fleet.size"] == 2].set_index("replication")["lead_time_p95_s"]
+    common = one.index.intersection(two.index)
+    diff = (two[common] - one[common]).dropna()
+    (row,) = [r for r in body if r[:4] == ["fleet.size", "1 \u2192 2",
+                                           "description=plain & simple", "p95 lead time [s]"]]
+    assert row[4] == str(len(diff))
+    mean = float(diff.mean())
+    assert row[6].startswith(("+" if mean >= 0 else "") + fmt(mean) + " s (")
+
+
+def run_query_hint(html: str, cwd: Path) -> tuple[str, str]:
+    """The query the report prints, run as printed (from another folder): (command, output)."""
+    import html as html_lib
+
+    found = re.search(r'<pre class="query">(.*?)</pre>', html, re.S)
+    assert found
+    command = html_lib.unescape(found.group(1))
+    result = subprocess.run(shlex.split(command), cwd=cwd, capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, (command, result.stderr)
+    return command, result.stdout
+
+
+def test_the_query_hint_runs_without_the_duckdb_command(results: Path, tmp_path: Path) -> None:
+    command, out = run_query_hint((results / "report.html").read_text(encoding="utf-8"),
+                                  tmp_path)
+    assert not command.startswith("duckdb") and " -c " in command
+    assert "fleet.size" in out and "description" in out and "lead_time_mean_s" in out
+    assert "plain & simple" in out
+
+
 def test_names_from_user_files_are_text_in_the_page(results: Path) -> None:
     """Experiment name and description, scenario name and a factor level: shown as written,
     never parsed as markup."""
@@ -206,13 +283,13 @@ def chromium() -> str | None:
     return shutil.which("chromium") or shutil.which("chromium-browser")
 
 
-def test_report_in_a_headless_browser(results: Path, tmp_path: Path) -> None:
+def in_browser(html: str, tmp_path: Path) -> tuple[dict[str, Any], str]:
+    """The page opened in headless Chromium: what CHECK found once it loaded, and the DOM."""
     browser = chromium()
     if browser is None:
         if os.environ.get("CI"):
             pytest.fail("chromium is missing (.ci/run installs it)")
         pytest.skip("chromium is not installed (apt-get install chromium)")
-    html = (results / "report.html").read_text(encoding="utf-8")
     page = tmp_path / "report.html"
     page.write_text(html.replace("</body>", CHECK), encoding="utf-8")
     result = subprocess.run(
@@ -227,7 +304,12 @@ def test_report_in_a_headless_browser(results: Path, tmp_path: Path) -> None:
     assert found, dom[-2000:]
     import html as html_lib
 
-    check = json.loads(html_lib.unescape(found.group(1)))
+    return json.loads(html_lib.unescape(found.group(1))), dom
+
+
+def test_report_in_a_headless_browser(results: Path, tmp_path: Path) -> None:
+    html = (results / "report.html").read_text(encoding="utf-8")
+    check, dom = in_browser(html, tmp_path)
     images = check["images"]
     assert {i["key"] for i in images} >= FIGURES
     assert len(images) == html.count("<img ")  # no image smuggled in by a name
@@ -248,6 +330,91 @@ def test_report_cli_prints_where_it_is(results: Path) -> None:
                              "--no-pdf"], capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     assert str((results / "report.html").resolve()) in result.stdout
+
+
+# ---- a sweep that is not a sizing study ------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def demand_sweep(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Demand 30 and 60 orders/h x two dispatch policies on the tiny loop, 3 replications,
+    targets on throughput and p95 lead time: a sweep, not a fleet sizing."""
+    tmp = tmp_path_factory.mktemp("demand")
+    path = write_yaml(tmp / "demand.yaml", {
+        "name": "demand_policy", "scenario": str(ROOT / "experiments" / "tiny_loop.yaml"),
+        "overrides": {"duration_h": 1.0, "warmup_h": 0.1},
+        "factors": {"demand.rate_per_hour": [30, 60],
+                    "dispatch.policy": ["nearest_idle", "fcfs"]},
+        "replications": 3, "master_seed": 2,
+        "targets": [{"kpi": "throughput_pct_of_demand", "at_least": 90},
+                    {"kpi": "lead_time_p95_s", "at_most": 1200}]})
+    out = tmp / "out"
+    sweep(load_experiment(path), out, workers=2, quiet=True)
+    write_report(out, pdf=False)
+    return out
+
+
+def test_a_sweep_report_says_what_it_varies_and_answers_in_words(demand_sweep: Path) -> None:
+    html = (demand_sweep / "report.html").read_text(encoding="utf-8")
+    page = _Page(html)
+    text = " ".join("".join(page.text).split())
+    title = "Sweep over demand rate per hour and dispatch policy: demand_policy"
+    assert text.count(title) == 2  # <title> and <h1>
+    assert "Fleet sizing" not in text and "No recommendation" not in text
+    assert "What the sweep shows" in text and "Recommendation" not in text
+    assert ("How throughput and p95 lead time change with demand rate per hour and dispatch "
+            "policy: scenario tiny_loop on layout tiny_loop, 4 design points") in text
+    # the first sentence, by hand: per replication, the mean over the policies of
+    # (throughput at 60 - at 30), and its 95 % t interval
+    summary = pd.read_parquet(demand_sweep / "summary.parquet")
+    wide = summary.pivot_table(index="replication", columns=["demand.rate_per_hour",
+                                                             "dispatch.policy"],
+                               values="throughput_per_hour")
+    per_rep = (wide[60] - wide[30]).mean(axis=1)
+    mean = float(per_rep.mean())
+    half = t_quantile(3) * float(per_rep.std(ddof=1)) / 3 ** 0.5
+    assert mean - half > 0  # doubling the demand clearly raises throughput
+    answer = text[text.index("What the sweep shows"):text.index("Scenario and layout")]
+    assert answer.startswith("What the sweep shows Raising demand rate per hour from 30 to 60 "
+                             "(mean over the levels of dispatch policy) ")
+    assert (f"raises throughput by {num(mean)} orders/h ({num(mean - half)} to "
+            f"{num(mean + half)} orders/h)") in answer
+    assert "Dispatch policy fcfs instead of nearest_idle (mean over the levels of demand rate " \
+        "per hour)" in answer
+    assert answer.count("(paired over 3 replications, 95 % intervals).") == 2
+
+
+def test_a_sweep_reports_paired_differences_for_every_target_kpi(demand_sweep: Path) -> None:
+    page = _Page((demand_sweep / "report.html").read_text(encoding="utf-8"))
+    body = page.tables["differences"][1:]
+    assert {(r[0], r[1], r[3]) for r in body} == {
+        (factor, change, kpi)
+        for factor, change in (("demand.rate_per_hour", "30 \u2192 60"),
+                               ("dispatch.policy", "nearest_idle \u2192 fcfs"))
+        for kpi in ("throughput [% of demand]", "p95 lead time [s]", "throughput [orders/h]")}
+    assert len(body) == 12  # each change at both levels of the other factor, 3 KPIs
+    settings = dict(row for row in page.tables["settings"] if len(row) == 2 and row[0])
+    assert settings["replications"] == "3 per design point (12 finished runs at 4 design points)"
+
+
+def test_the_sweeps_query_hint_groups_by_its_own_factors(demand_sweep: Path,
+                                                         tmp_path: Path) -> None:
+    command, out = run_query_hint((demand_sweep / "report.html").read_text(encoding="utf-8"),
+                                  tmp_path)
+    assert "fleet.size" not in command
+    assert "demand.rate_per_hour" in out and "dispatch.policy" in out
+    assert "nearest_idle" in out and "fcfs" in out
+    assert len(re.findall(r"\u2502\s+(30|60)\s+\u2502", out)) == 4  # one row per design point
+
+
+def test_a_sweep_report_in_a_headless_browser(demand_sweep: Path, tmp_path: Path) -> None:
+    html = (demand_sweep / "report.html").read_text(encoding="utf-8")
+    check, _ = in_browser(html, tmp_path)
+    assert check["title"] == "Sweep over demand rate per hour and dispatch policy: demand_policy"
+    answer = " ".join(check["answer"].split())
+    assert answer.startswith("What the sweep shows Raising demand rate per hour from 30 to 60")
+    assert {i["key"] for i in check["images"]} >= {"layout", "kpis", "states-0"}
+    assert all(i["ok"] and i["w"] > 100 for i in check["images"]), check["images"]
 
 
 # ---- the templates, without a sweep --------------------------------------------------------
@@ -282,7 +449,7 @@ def test_idle_with_orders_waiting_is_shown_where_it_is_above_zero(tmp_path: Path
 
 def _hostile_report() -> Report:
     png = b"\x89PNG\r\n\x1a\n"
-    runs = RunsSection(runs=2, finished=1, failed=1, wall_s="3", database=EVIL,
+    runs = RunsSection(runs=2, finished=1, failed=1, wall_s="3", database=EVIL, query=EVIL,
                        failed_runs=Table(["run", "status", "error"], [[EVIL, "failed", EVIL]]))
     return Report(
         title=f"Fleet sizing report: {EVIL}", lead=EVIL, statements=[EVIL], estimates=[EVIL],
@@ -301,17 +468,17 @@ def test_every_value_the_templates_print_is_escaped() -> None:
     assert img["src"] == "data:image/png;base64,iVBORw0KGgo="
     text = "".join(page.text)
     # title (twice), lead, statement, estimate, header, cell x2, problem, caption,
-    # failed run x2, database
-    assert text.count(EVIL) == 13
+    # failed run x2, database, query
+    assert text.count(EVIL) == 14
 
 
 def test_a_value_the_code_did_not_give_is_an_error() -> None:
     """StrictUndefined: a template printing a missing value fails instead of leaving a blank."""
     section = SimpleNamespace(title="Runs", template="runs.html.j2", figures=[], runs=2,
                               finished=2, failed=0, failed_runs=None, database="db",
-                              gridlocked_runs=None, open_orders="")
+                              gridlocked_runs=None, open_orders="", query="q")
     report = SimpleNamespace(title="t", lead="l", statements=[], estimates=[],
-                             sections=[section])
+                             sections=[section], answer_title="Recommendation")
     with pytest.raises(UndefinedError, match="wall_s"):
         environment().get_template("report.html.j2").render(report=report)
     section.wall_s = "5"

@@ -11,8 +11,11 @@ import pytest
 from fleet_sim.analysis.stats import (
     check_targets,
     decide,
+    factor_effect,
     mean_ci,
     mser5_truncation,
+    one_factor_pairs,
+    pair_difference,
     paired_differences,
     point_stats,
     replications_needed,
@@ -84,12 +87,90 @@ def test_point_stats_per_level() -> None:
 
 
 def test_paired_differences_by_replication() -> None:
-    diffs = paired_differences(summary_frame(), "fleet.size", ["fleet.size"], ["x"])
+    diffs = paired_differences(summary_frame(), ["fleet.size"], ["x"])
     row = diffs.iloc[0]
-    assert (row["from_level"], row["to_level"], row["pairs"]) == (1, 2, 3)
+    assert (row["factor"], row["from_level"], row["to_level"], row["pairs"]) == \
+        ("fleet.size", 1, 2, 3)
     # differences 1, 3, 0: mean 4/3, sd 1.527525, half-width t(2) * sd / sqrt(3)
     assert row["mean_diff"] == pytest.approx(4 / 3)
     assert row["half_width"] == pytest.approx(T_2DF * 1.527525 / math.sqrt(3), rel=1e-6)
+    assert (row["from_mean"], row["to_mean"]) == (pytest.approx(12.0), pytest.approx(40 / 3))
+
+
+def two_factor_frame() -> pd.DataFrame:
+    """demand 30/60 x policy b/a (the file lists b first), replications 0..2 (demand 60 with
+    policy a also ran replication 3, as a sizing search adds replications); KPIs x and y."""
+    rows = []
+    x = {(30, "b"): [10.0, 12.0, 14.0], (60, "b"): [13.0, 16.0, 14.0],
+         (30, "a"): [11.0, 12.0, 16.0], (60, "a"): [15.0, 15.0, 20.0, 99.0]}
+    for (demand, policy), values in x.items():
+        for r, value in enumerate(values):
+            rows.append({"run_id": f"{demand}{policy}{r}", "status": "ok", "replication": r,
+                         "demand": demand, "policy": policy, "x": value, "y": 2.0 * r})
+    return pd.DataFrame(rows)
+
+
+def test_pairs_differ_in_one_factor_adjacent_numbers_and_against_the_first_listed() -> None:
+    frame = two_factor_frame()
+    pairs = one_factor_pairs(frame, ["demand", "policy"], listed={"policy": ["b", "a"]})
+    got = [(p.factor, p.from_level, p.to_level, p.fixed) for p in pairs]
+    assert got == [("demand", 30, 60, {"policy": "a"}), ("demand", 30, 60, {"policy": "b"}),
+                   ("policy", "b", "a", {"demand": 30}), ("policy", "b", "a", {"demand": 60})]
+    # unlisted: the first level in the summary is the reference
+    unlisted = one_factor_pairs(frame, ["demand", "policy"], factors=["policy"])
+    assert [(p.from_level, p.to_level) for p in unlisted] == [("b", "a"), ("b", "a")]
+    three = pd.DataFrame({"status": "ok", "replication": 0, "n": [3, 1, 2], "x": 1.0})
+    assert [(p.from_level, p.to_level) for p in one_factor_pairs(three, ["n"])] == \
+        [(1, 2), (2, 3)]  # numbers: adjacent levels in increasing order
+    flags = pd.DataFrame({"status": "ok", "replication": 0, "on": [True, False, None],
+                          "x": 1.0})
+    assert [(p.from_level, p.to_level) for p in one_factor_pairs(
+        flags, ["on"], listed={"on": [False, True]})][:2] == [(False, True), (False, None)]
+
+
+def test_paired_differences_of_every_kpi_over_every_factor_by_hand() -> None:
+    diffs = paired_differences(two_factor_frame(), ["demand", "policy"], ["x", "y"],
+                               listed={"policy": ["b", "a"]})
+    assert len(diffs) == 8  # 4 pairs x 2 KPIs
+    one = diffs[(diffs["factor"] == "demand") & (diffs["policy"] == "a")
+                & (diffs["kpi"] == "x")].iloc[0]
+    # 60a - 30a over replications 0..2 (replication 3 ran at 60a only): 4, 3, 4
+    assert one["pairs"] == 3 and one["mean_diff"] == pytest.approx(11 / 3)
+    sd = float(np.std([4.0, 3.0, 4.0], ddof=1))
+    assert one["half_width"] == pytest.approx(T_2DF * sd / math.sqrt(3), rel=1e-6)
+    assert one["from_mean"] == pytest.approx(13.0) and one["to_mean"] == pytest.approx(50 / 3)
+    assert pd.isna(one["demand"])  # the factor that varies has no fixed level
+    policy = diffs[(diffs["factor"] == "policy") & (diffs["demand"] == 30)
+                   & (diffs["kpi"] == "x")].iloc[0]
+    # a - b at demand 30: 1, 0, 2
+    assert (policy["from_level"], policy["to_level"]) == ("b", "a")
+    assert policy["mean_diff"] == pytest.approx(1.0)
+    same = diffs[diffs["kpi"] == "y"]  # y is the same at every point: exactly zero
+    assert (same["mean_diff"] == 0).all() and (same["half_width"] == 0).all()
+
+
+def test_pair_difference_pairs_only_replications_both_points_have_with_values() -> None:
+    frame = two_factor_frame()
+    frame.loc[(frame["demand"] == 30) & (frame["policy"] == "b") & (frame["replication"] == 1),
+              "x"] = np.nan
+    diff = pair_difference(frame, {"demand": 30, "policy": "b"}, {"demand": 60, "policy": "b"},
+                           "x")
+    assert diff.pairs == 2 and diff.interval.mean == pytest.approx(1.5)  # 3 and 0
+    assert not diff.excludes_zero
+    missing = pair_difference(frame, {"demand": 30, "policy": "b"}, {"demand": 90}, "x")
+    assert missing.pairs == 0 and math.isnan(missing.interval.mean)
+
+
+def test_a_factors_effect_is_averaged_over_the_other_factors_replication_by_replication() -> None:
+    effect = factor_effect(two_factor_frame(), ["demand", "policy"], "demand", 30, 60, "x")
+    # replication r: mean over policies of (60 - 30): (3 + 4) / 2, (4 + 3) / 2, (0 + 4) / 2
+    per_rep = [3.5, 3.5, 2.0]
+    assert effect.pairs == 3 and effect.interval.mean == pytest.approx(np.mean(per_rep))
+    assert effect.interval.half_width == pytest.approx(
+        T_2DF * float(np.std(per_rep, ddof=1)) / math.sqrt(3), rel=1e-6)
+    assert effect.excludes_zero  # 3 +- 1.9
+    alone = factor_effect(two_factor_frame(), ["demand"], "demand", 30, 60, "y")
+    assert alone.interval.mean == 0.0
 
 
 def test_wide_interval_warning_says_how_many_replications() -> None:

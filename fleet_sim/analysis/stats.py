@@ -317,7 +317,7 @@ def paired_differences(summary: pd.DataFrame, factor_names: Sequence[str], kpis:
     """Long table: one row per pair of design points differing in one factor
     (`one_factor_pairs`) and KPI, with each point's mean over the pairs and the mean and
     interval of the paired difference (to - from). The other factors' columns hold the levels
-    they are fixed at (None in the column of the factor that varies)."""
+    they are fixed at (empty, None or NaN, in the column of the factor that varies)."""
     columns = [*factor_names, "factor", "from_level", "to_level", "kpi", "pairs", "from_mean",
                "to_mean", "mean_diff", "half_width", "ci_low", "ci_high"]
     rows: list[dict[str, Any]] = []

@@ -1156,7 +1156,8 @@ def question(data: ReportData) -> str:
         return (f"How many {data.fleet_unit} does scenario {scenario} on layout {layout} need "
                 f"to meet its targets ({targets})? A sweep of {points} design points answers "
                 "from its grid.")
-    kpis = _and([kpi_short(k) for k in data.compared_kpis]) or "the KPIs"
+    shorts = list(dict.fromkeys(kpi_short(k) for k in data.compared_kpis))
+    kpis = _and(shorts) if shorts else "the KPIs"
     if not data.factors:
         return f"Scenario {scenario} on layout {layout}: {kpis} over its replications."
     return (f"How {kpis} change with {_and([factor_words(f) for f in data.factors])}: "
