@@ -337,3 +337,65 @@ def test_an_interrupted_sweep_still_writes_its_summary(tmp_path: Path,
         sweep(exp, out, workers=1, quiet=True)
     summary = pd.read_parquet(out / "summary.parquet")
     assert list(summary["status"]) == [OK]
+
+
+def test_a_sweep_ends_with_a_kpi_table_that_flags_gridlock_and_open_orders(
+        tmp_path: Path) -> None:
+    """`fleet-sim sweep` on the one-way ring of tests/data/gridlock_ring.yaml: one AGV
+    circulates, four lock solid. Without targets the table shows throughput and p95 lead time
+    (names and units from the KPI catalogue), mean and 95 % interval as the summary gives
+    them; the four-AGV row says GRIDLOCK and the orders left open."""
+    from fleet_sim.analysis.stats import mean_ci
+
+    ring = Path(__file__).parent / "data" / "gridlock_ring.yaml"
+    scenario = write_yaml(tmp_path / "ring.yaml", {
+        "name": "ring", "layout": str(ring), "duration_h": 0.5, "warmup_h": 0.1, "seed": 3,
+        "fleet": {"size": 4, "start_nodes": ["N0", "N1", "N2", "N3"]},
+        "demand": {"rate_per_hour": 120}, "dispatch": {"park_idle": False},
+        "charging": {"enabled": False}, "traffic": {"gridlock_after_s": 120}})
+    experiment = write_yaml(tmp_path / "e.yaml", {
+        "name": "ring", "scenario": str(scenario), "factors": {"fleet.size": [1, 4]},
+        "replications": 2, "master_seed": 4})
+    out = tmp_path / "out"
+    result = subprocess.run(sweep_command(experiment, out, 2), cwd=ROOT, capture_output=True,
+                            text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.rstrip("\n").splitlines()
+    title = lines.index("  KPIs per design point: mean ± half-width of the 95 % interval over "
+                        "the runs")
+    header, one, four = lines[title + 1:]  # the table ends the output
+    assert header.split() == ["fleet.size", "runs", "throughput", "[orders/h]", "p95", "lead",
+                              "time", "[s]", "note"]
+    summary = pd.read_parquet(out / "summary.parquet")
+    small = summary[summary["fleet.size"] == 1]
+    thr = mean_ci(small["throughput_per_hour"].to_numpy(dtype=float))
+    assert one.split()[:2] == ["1", "2"]
+    assert f"{thr.mean:.3g} ± {thr.half_width:.3g}" in one
+    assert "GRIDLOCK" not in one
+    open_one = small["orders_open_at_end"].mean()
+    assert (f"{open_one:.1f} orders open at the end (mean)" in one) == (open_one > 0)
+    big = summary[summary["fleet.size"] == 4]
+    assert big["gridlock_at_h"].notna().all()
+    assert four.split()[:5] == ["4", "2", "0", "±", "0"]  # nothing delivered: no p95 either
+    assert "n/a" in four
+    assert four.endswith(f"GRIDLOCK in 2 of 2 runs; {big['orders_open_at_end'].mean():.1f} "
+                         "orders open at the end (mean)")
+
+
+def test_the_kpi_table_shows_the_targets_kpis_and_says_where_runs_failed() -> None:
+    from fleet_sim.report.console import kpi_table
+
+    summary = pd.DataFrame({
+        "run_id": ["a", "b", "c", "d"], "status": ["ok", "ok", "ok", "failed"],
+        "demand.rate_per_hour": [30, 30, 60, 60], "replication": [0, 1, 0, 1],
+        "throughput_pct_of_demand": [90.0, 100.0, 80.0, None],
+        "lead_time_p95_s": [100.0, 200.0, 300.0, None],
+        "throughput_per_hour": [27.0, 30.0, 48.0, None]})
+    lines = kpi_table(summary, ["demand.rate_per_hour"], ["throughput_pct_of_demand"])
+    header, thirty, sixty = lines[2:]
+    assert header.split() == ["demand.rate_per_hour", "runs", "throughput", "[%", "of",
+                              "demand]", "note"]
+    # 95 +- t(1) * 7.07 / sqrt(2) = 95 +- 63.5; one run: its value, no interval
+    assert thirty.split() == ["30", "2", "95", "±", "63.5"]
+    assert sixty.split()[:3] == ["60", "1", "80"]
+    assert sixty.endswith("1 run failed")

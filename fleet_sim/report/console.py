@@ -132,7 +132,8 @@ def kpi_table(summary: Any, factor_names: Sequence[str], target_kpis: Sequence[s
             if (open_orders > 0).any():
                 notes.append(f"{open_orders.mean():.1f} orders open at the end (mean)")
         if len(ok) < len(group):
-            notes.append(f"{len(group) - len(ok)} runs failed")
+            failed = len(group) - len(ok)
+            notes.append(f"{failed} run{'s' if failed > 1 else ''} failed")
         rows.append([*cells, "; ".join(notes)])
     if not any(row[-1] for row in rows):
         header, rows = header[:-1], [row[:-1] for row in rows]
