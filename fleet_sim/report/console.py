@@ -10,6 +10,10 @@ Decisions:
   printing it, so tests and other front ends can use the same words.
 * Column alignment (`nodes        186`) is part of the wording: the README and the docs quote
   these lines.
+* A sweep ends with a table per design point (`kpi_table`): the targets' KPIs (without
+  targets, throughput and p95 lead time) as mean ± the half-width of the 95 % interval over the
+  finished runs, named from the KPI catalogue, and a note where runs locked solid, left orders
+  open or failed. It is printed last so that the answer is what stays on the screen.
 """
 
 from __future__ import annotations

@@ -11,6 +11,12 @@ drawing); AGVs standing Idle while orders waited, by reason, and the runs' setti
 incidents (deadlocks, reroutes, give-way circulations); statistics per design point,
 wide-interval warnings and paired differences; failed runs.
 
+What the study is sets the title and the first screen (`ReportData.kind`): a sizing search
+(sizing.json: "Fleet sizing report", the recommendation), a sweep over the fleet factor with
+targets ("Fleet sizing sweep", the smallest fleet of the grid meeting every target), any other
+sweep ("Sweep over demand rate per hour and dispatch policy", "What the sweep shows": one
+sentence per factor). A comparison of variants has its own report (compare_report).
+
 Decisions, where the issue is silent:
 
 * Nothing here writes markup: every string is plain text (names from user files as they are),
@@ -35,6 +41,23 @@ Decisions, where the issue is silent:
   ``idle_with_orders_waiting_pct`` is above zero, with its reasons (the reasons above zero
   somewhere), and the setup warnings the runs recorded (kpis.json ``setup_warnings``), each
   once with the number of runs. Where it is zero everywhere, one sentence says so.
+* A sweep's sentences: per factor, a number factor from its lowest to its highest level, any
+  other factor each level against its first as the file lists it; the difference is averaged
+  over the other factors' levels replication by replication (stats.factor_effect), so one
+  sentence speaks for the whole grid (the Statistics section has every one-factor pair at
+  every level of the others). A KPI whose 95 % interval excludes zero is said with a verb
+  ("raises throughput by 26 orders/h (11 to 41 orders/h)"), the others as "no difference we
+  can detect" with their intervals; results equal in every replication say so. At most
+  MAX_STATEMENTS sentences; the KPIs are the targets', then throughput and p95 lead time.
+* Names: a KPI is shown by its name and unit from the KPI catalogue (kpis.kpi_label), in
+  tables and on axes; a factor by its dotted path in tables (what the file and the summary
+  call it), in words ("demand rate per hour") in titles and sentences.
+* The settings table counts the replications each design point actually ran (finished runs
+  in the summary), as a range when they differ: a sizing search adds replications.
+* The query hint runs the DuckDB Python package with the Python that wrote the report
+  (sys.executable: the project's venv, or wherever fleet-sim is installed) on the
+  database's absolute path, so it works from any folder and without the `duckdb` command;
+  it groups by the study's own factors (none: one row).
 * Charging: the runs' charging KPIs (``state_charging_pct``, ``charges``, the charger queue wait
   and any ``charger_*``/``soc_*`` KPI) against fleet size, and SOC curves of a few AGVs from the
   run's ``soc.parquet``. A run without charging says so instead of drawing empty axes.
