@@ -24,7 +24,7 @@ from jinja2 import UndefinedError
 
 from fleet_sim.analysis.kpis import CATALOGUE
 from fleet_sim.analysis.stats import t_quantile
-from fleet_sim.config.experiment import load_experiment
+from fleet_sim.config.experiment import Target, load_experiment
 from fleet_sim.report.render import environment, render_html, write_report
 from fleet_sim.report.report import (
     Figure,
@@ -35,6 +35,8 @@ from fleet_sim.report.report import (
     Table,
     fmt,
     num,
+    question,
+    recommendations,
     section_idle_waiting,
 )
 from fleet_sim.study.sizing import size_fleet
@@ -445,6 +447,36 @@ def test_idle_with_orders_waiting_is_shown_where_it_is_above_zero(tmp_path: Path
     assert quiet.points is None and quiet.warnings == []
     assert "In none of the 2 runs did an AGV stand Idle while an order waited" in " ".join(
         "".join(_Page(render_html(Report("t", "l", [], [], [quiet]))).text).split())
+
+
+def test_the_kind_of_study_sets_the_question_and_the_first_screen(tmp_path: Path) -> None:
+    """Without runs: a sweep over the fleet size with targets is a sizing sweep (its grid's
+    smallest fleet meeting the target), without targets or over another factor a sweep."""
+    summary = pd.DataFrame({
+        "run_id": [f"r{i}" for i in range(6)], "status": ["ok"] * 6,
+        "fleet.size": [1, 1, 2, 2, 3, 3], "replication": [0, 1] * 3,
+        "throughput_pct_of_demand": [60.0, 62.0, 97.0, 97.2, 99.0, 99.5],
+        "throughput_per_hour": [24.0, 25.0, 38.0, 39.0, 40.0, 40.0],
+        "lead_time_p95_s": [900.0, 950.0, 300.0, 310.0, 200.0, 205.0]})
+    target = Target(kpi="throughput_pct_of_demand", at_least=95)
+    experiment = {"name": "e", "factors": {"fleet.size": [1, 2, 3]}, "replications": 2}
+    sizing = ReportData(tmp_path, experiment, summary, ["fleet.size"], [target], None, None,
+                        None)
+    assert sizing.kind == "sizing sweep"
+    assert question(sizing).startswith("How many AGVs does scenario ? on layout ? need to meet "
+                                       "its targets (throughput at least 95 % of demand)?")
+    _, statements, _ = recommendations(sizing)
+    assert statements == ["2 AGVs is the smallest fleet of the grid that meets every target "
+                          "with 95 % confidence (grid of the sweep; `fleet-sim size` refines "
+                          "it)."]
+    plain = ReportData(tmp_path, experiment, summary, ["fleet.size"], [], None, None, None)
+    assert plain.kind == "sweep" and plain.compared_kpis == ["throughput_per_hour",
+                                                             "lead_time_p95_s"]
+    _, statements, _ = recommendations(plain)
+    (first,) = statements  # one numeric factor: lowest to highest fleet
+    assert first.startswith("Raising fleet size from 1 to 3 raises throughput by 15.5 "
+                            "orders/h (") and "cuts p95 lead time by 722 s (" in first
+    assert first.endswith("(paired over 2 replications, 95 % intervals).")
 
 
 def _hostile_report() -> Report:

@@ -456,8 +456,8 @@ def recommendations(data: ReportData) -> tuple[dict[str, int | None], list[str],
                               "meets every target with 95 % confidence (grid of the sweep; "
                               "`fleet-sim size` refines it).")
         else:
-            statements.append(f"{head}no fleet of the grid meets every target with 95 % "
-                              "confidence.")
+            statements.append(f"{head}{'n' if head else 'N'}o fleet of the grid meets every "
+                              "target with 95 % confidence.")
     return recommended, statements, estimates
 
 
@@ -1165,11 +1165,19 @@ def build_report(out_dir: Path) -> Report:
     return Report(f"{title}: {name}", lead, statements, estimates, sections)
 
 
+def target_words(target: Target) -> str:
+    """A target in words, its unit from the catalogue: ``throughput at least 95 % of demand``."""
+    name, _, unit = kpi_label(target.kpi).partition(" [")
+    unit = unit.removesuffix("]")
+    relation = "at least" if target.higher_is_better else "at most"
+    return f"{name} {relation} {num(target.bound)}" + (f" {unit}" if unit else "")
+
+
 def question(data: ReportData) -> str:
     """The report's first sentence: the question the study answers, in a planner's words."""
     scenario = data.scenario.name if data.scenario else "?"
     layout = data.layout.name if data.layout else "?"
-    targets = "; ".join(t.describe() for t in data.targets)
+    targets = "; ".join(target_words(t) for t in data.targets)
     points = data.ok.groupby(data.factors, dropna=False).ngroups if data.factors else 1
     if data.kind == "sizing":
         return (f"How many {data.fleet_unit} does scenario {scenario} on layout {layout} need "
