@@ -501,8 +501,20 @@ class FleetManager:
                 agv.note(NOT_DISPATCHED_END, ended.value)
         if not self.waiting:
             return
+        # the AGVs waiting in parking for a place on a full track, the many when a large fleet
+        # runs with admission, are told apart without `_reason`'s whole walk (the same answer)
+        held = None
+        if self.max_active is not None and len(self.admitted) >= self.max_active \
+                and not self.agv_types:
+            held = self.assigning | self.resuming | self.charger_wait | self.polling \
+                | self.held_back.keys()
+        admitted = self.admitted
         for agv in self.standing.values():
-            reason = self._reason(agv)
+            if held is not None and agv.id not in held and agv.id not in admitted \
+                    and agv.fms_link:
+                reason: NotDispatched | None = NotDispatched.ADMISSION_FULL
+            else:
+                reason = self._reason(agv)
             if reason is None:
                 raise SimulationError(
                     f"work conservation broken at t={self.env.now:.3f} s: AGV {agv.id} stands "
