@@ -13,7 +13,8 @@ compare figures within one run of this script only (the load average is printed)
   70 % busy by the analytic estimate (0.7 x AGVs x 3600 / cycle time), without admission and
   with --dc-max-active AGVs admitted: wall time per simulated AGV-hour against the 50-AGV
   figure. The layout carries ~200 orders/h, so beyond ~40 AGVs the demand exceeds it.
-* `site`: the 2,059-node fulfilment centre (experiments/fulfilment_shift.yaml) at --site-fleets
+* `site`: the 2,059-node fulfilment centre (experiments/fulfilment_shift.yaml, congestion-aware
+  routes as the scenario sets them) at --site-fleets
   AGVs for --site-hours, with demand --site-load times what the analytic estimate says the
   fleet can carry (--site-load x AGVs x 3600 / cycle time; nearest-idle dispatch shortens the
   empty legs, so 1.1 keeps every AGV busy until the floor saturates), without admission and
@@ -208,7 +209,10 @@ def site_section(fleets: list[int], hours: float, load: float, max_active: int,
     estimate = analytic_estimate(scenario, load_layout_for(scenario, str(path)))
     per_agv = load * 3600.0 / estimate.cycle_s
     policy = POLICY.get("traffic.policy", "the scenario's")
-    print(f"## fulfilment centre (2,059 nodes), {hours:g} h, traffic policy {policy}, demand "
+    routes = (f"congestion-aware routes ({scenario.traffic.congestion_cost_s:g} s)"
+              if scenario.traffic.congestion_cost_s else "shortest routes")
+    print(f"## fulfilment centre (2,059 nodes), {hours:g} h, traffic policy {policy}, {routes}, "
+          "demand "
           f"{per_agv:.2f} orders/h per AGV ({load:g} x the analytic estimate's "
           f"{3600.0 / estimate.cycle_s:.2f}: {estimate.cycle_s:.0f} s per order), medians of "
           f"{repeats}")
