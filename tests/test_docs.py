@@ -34,7 +34,15 @@ def test_relative_links_resolve(doc: Path) -> None:
 def test_the_studies_page_shows_its_three_plots() -> None:
     text = (ROOT / "docs" / "studies" / "2026-11-agv-model-dynamics.md").read_text(encoding="utf-8")
     shown = re.findall(r"!\[[^\]]*\]\(\.\./(img/[^)]+\.png)\)", text)
-    assert sorted(shown) == sorted(f"img/{p.name}" for p in (ROOT / "docs" / "img").glob("*.png"))
+    assert len(shown) == 3
+
+
+def test_every_picture_is_shown_by_a_page() -> None:
+    """Every picture in docs/img is shown by some page (from any folder of docs/)."""
+    shown = {m for doc in sorted((ROOT / "docs").rglob("*.md"))
+             for m in re.findall(r"!\[[^\]]*\]\((?:\.\./)*(img/[^)]+\.png)\)",
+                                 doc.read_text(encoding="utf-8"))}
+    assert shown == {f"img/{p.name}" for p in (ROOT / "docs" / "img").glob("*.png")}
 
 
 def test_the_readme_quotes_todays_error_messages(tmp_path: Path) -> None:

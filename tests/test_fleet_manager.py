@@ -109,7 +109,7 @@ def test_an_idle_agv_gets_the_oldest_order_at_once(tiny_layout: Layout) -> None:
     assert agv.orders == [first] and list(fm.waiting) == [second]
     assert (first.agv, first.assigned_s, first.pickup_node, first.dropoff_node) == \
         (3, 0.0, "P", "D")
-    assert fm.idle == []
+    assert not fm.idle
     assert fm.recorder.queue_lengths == [(0.0, 0), (0.0, 1), (0.0, 2), (0.0, 1)]
 
 
@@ -220,10 +220,10 @@ def test_asking_for_a_charger_withdraws_the_agv_from_orders(spurs_layout: Layout
     fm = fleet_manager(spurs_layout)
     agv = StubAgv(0, "D")
     fm.vehicle_idle(agv)
-    assert fm.idle == [agv]
+    assert list(fm.idle.values()) == [agv]
     fm.request_charger(agv)
     fm.submit(Order(0, 0.0, "PICK", "DROP"))
-    assert fm.idle == [] and agv.orders == [] and len(fm.waiting) == 1
+    assert not fm.idle and agv.orders == [] and len(fm.waiting) == 1
 
 
 def test_parking_nearest_with_room(spurs_layout: Layout) -> None:

@@ -1,9 +1,22 @@
-"""Generate the bundled warehouse layouts (layouts/warehouse.yaml, distribution_centre.yaml).
+"""Generate the bundled warehouse layouts (layouts/warehouse.yaml, distribution_centre.yaml,
+fulfilment_centre.yaml).
 
 Run `python tools/make_layouts.py` after changing this script; the YAML files are committed.
-The shape: a one-way main loop (counter-clockwise) with RFID tags every 4 m; two-way aisles across
-it with drop-off stations inside; pickup stations on one-way sidings below the loop (a queue tag,
-the station, an exit tag); chargers on two-way spurs to the west; parking areas on sidings.
+The warehouse and the distribution centre: a one-way main loop (counter-clockwise) with RFID
+tags every 4 m; two-way aisles across it with drop-off stations inside; pickup stations on
+one-way sidings below the loop (a queue tag, the station, an exit tag); chargers on two-way
+spurs to the west; parking areas on sidings.
+
+The fulfilment centre (`make_grid`) is built for hundreds of AGVs: a grid of one-way travel
+aisles (north and south in turn, 12 m apart: a 9 m rack block and a 3 m lane) crossed by one-way
+cross-aisles (east and west in turn, every 20 m), tags every 4 m, so every block of racks is a
+loop and traffic has many alternatives. The outermost aisles and cross-aisles run round the
+floor counter-clockwise, which makes the grid strongly connected. Nothing is two-way, so no
+single-track corridor serialises a stream of AGVs. Stations sit on one-way sidings beside the
+aisles (queue tag, station, exit tag, 3 m into the rack block), so an AGV handling a load
+never blocks the aisle; they are spread over the floor in a diagonal pattern, pickups and
+drop-offs in turn. Chargers sit on short sidings off the outer cross-aisles (south and north
+walls), parking areas on sidings outside the west and east walls.
 """
 
 from __future__ import annotations
@@ -111,8 +124,123 @@ def make(name: str, description: str, width: int, height: int, aisle_xs: list[in
     }
 
 
-def main() -> None:
-    out = Path(__file__).resolve().parent.parent / "layouts"
+def make_grid(name: str, description: str, columns: int, rows: int, column_pitch: int,
+              row_pitch: int, station_every: int, chargers_per_wall: int,
+              parking_rows: list[int], parking_capacity: int) -> dict[str, Any]:
+    """A grid of one-way aisles: see the module docstring. `columns` and `rows` must be even
+    (the outer aisles then run round the floor one way)."""
+    assert columns % 2 == 0 and rows % 2 == 0
+    assert column_pitch % STEP == 0 and row_pitch % STEP == 0
+    b = Builder(name, description)
+    width, height = (columns - 1) * column_pitch, (rows - 1) * row_pitch
+
+    def tag(x: int, y: int) -> str:
+        if (x, y) not in b.at:
+            b.node(f"T{x:03d}_{y:03d}", x, y)
+        return b.at[(x, y)]
+
+    # travel aisles: the westmost runs south, then north and south in turn (the eastmost north)
+    for ci in range(columns):
+        x = ci * column_pitch
+        ys = list(range(0, height + 1, STEP))
+        if ci % 2 == 0:
+            ys.reverse()
+        chain = [tag(x, y) for y in ys]
+        for a, c in itertools.pairwise(chain):
+            b.seg(a, c)
+    # cross-aisles: the southmost runs east, then west and east in turn (the northmost west)
+    for ri in range(rows):
+        y = ri * row_pitch
+        xs = list(range(0, width + 1, STEP))
+        if ri % 2 == 1:
+            xs.reverse()
+        chain = [tag(x, y) for x in xs]
+        for a, c in itertools.pairwise(chain):
+            b.seg(a, c)
+    # stations on sidings east of the aisles (3 m into the rack block), in a diagonal pattern
+    picks: list[dict[str, Any]] = []
+    drops: list[dict[str, Any]] = []
+    for ci in range(columns - 1):
+        x = ci * column_pitch
+        north = ci % 2 == 1
+        for ri in range(rows - 1):
+            if (ci + 3 * ri) % station_every != 0:
+                continue
+            y0 = ri * row_pitch
+            ys = [y0 + 6, y0 + row_pitch // 2, y0 + row_pitch - 6]
+            leave, rejoin = (y0 + 4, y0 + row_pitch - 4)
+            if not north:
+                ys.reverse()
+                leave, rejoin = rejoin, leave
+            pickup = (len(picks) + len(drops)) % 2 == 0
+            number = (len(picks) if pickup else len(drops)) + 1
+            letter = "P" if pickup else "D"
+            q = b.node(f"{letter}Q{number:02d}", x + 3, ys[0])
+            st = b.node(f"{letter}{number:02d}", x + 3, ys[1], "station")
+            e = b.node(f"{letter}E{number:02d}", x + 3, ys[2])
+            b.seg(b.at[(x, leave)], q)
+            b.seg(q, st)
+            b.seg(st, e)
+            b.seg(e, b.at[(x, rejoin)])
+            if pickup:
+                picks.append({"id": f"PICK{number:02d}", "kind": "pickup", "nodes": [st],
+                              "handling": {"dist": "triangular", "low_s": 15, "mode_s": 20,
+                                           "high_s": 35}})
+            else:
+                drops.append({"id": f"DROP{number:02d}", "kind": "dropoff", "nodes": [st],
+                              "handling": {"dist": "triangular", "low_s": 10, "mode_s": 15,
+                                           "high_s": 25}})
+    # chargers on sidings outside the south and north walls, spread along them
+    chargers: list[dict[str, Any]] = []
+    gaps = columns - 1
+    for wall_y, outside, east in ((0, -3, True), (height, height + 3, False)):
+        for k in range(chargers_per_wall):
+            # halfway between two aisles; the siding leaves and rejoins the wall at the tags
+            # 2 m either side
+            x0 = (k * gaps // chargers_per_wall) * column_pitch + column_pitch // 2
+            enter, leave = (x0 - 2, x0 + 2) if east else (x0 + 2, x0 - 2)
+            number = len(chargers) + 1
+            c = b.node(f"C{number:02d}", x0, outside, "charger")
+            b.seg(b.at[(enter, wall_y)], c)
+            b.seg(c, b.at[(leave, wall_y)])
+            chargers.append({"id": f"CHG{number:02d}", "node": c, "power_kw": 3.0,
+                             "docking_s": 30})
+    # parking areas on sidings outside the west (southbound) and east (northbound) walls, in
+    # the bands `parking_rows` (clear of the stations on the westmost aisle), listed west and
+    # east in turn: a fleet starts in the areas listed first, so it starts spread over both
+    parks: list[dict[str, Any]] = []
+    for ri in parking_rows:
+        for wall_x, outside, north in ((0, -STEP, False), (width, width + STEP, True)):
+            y0 = ri * row_pitch
+            ys = [y0 + 6, y0 + row_pitch // 2, y0 + row_pitch - 6]
+            leave, rejoin = y0 + 4, y0 + row_pitch - 4
+            if not north:
+                ys.reverse()
+                leave, rejoin = rejoin, leave
+            number = len(parks) + 1
+            k1 = b.node(f"K{number:02d}a", outside, ys[0])
+            park = b.node(f"PARK{number:02d}", outside, ys[1], "parking")
+            k2 = b.node(f"K{number:02d}b", outside, ys[2])
+            b.seg(b.at[(wall_x, leave)], k1)
+            b.seg(k1, park)
+            b.seg(park, k2)
+            b.seg(k2, b.at[(wall_x, rejoin)])
+            parks.append({"id": f"PARK{number:02d}", "node": park, "capacity": parking_capacity})
+    return {
+        "name": name,
+        "description": description,
+        "defaults": {"speed_limit_mps": 1.0, "turn_length_m": 1.0},
+        "nodes": b.nodes,
+        "segments": b.segments,
+        "stations": picks + drops,
+        "chargers": chargers,
+        "parking": parks,
+    }
+
+
+def layout_texts() -> dict[str, str]:
+    """The text of every generated layout file, by file name (tests compare them with the
+    committed files)."""
     warehouse = make(
         "warehouse",
         "Realistic warehouse: 96 x 40 m one-way main loop, 10 two-way aisles with 12 drop-off "
@@ -140,13 +268,28 @@ def main() -> None:
         200, 80, aisle_xs=[12 + 8 * i for i in range(23)], drop_ys=[28, 52],
         pickup_xs=[4 + 16 * i for i in range(12)], charger_ys=[12, 20, 28, 36, 44, 52, 60, 68],
         parking=[("east", 250), ("north", 250)])
-    for data in (warehouse, dc):
-        path = out / f"{data['name']}.yaml"
+    site = make_grid(
+        "fulfilment_centre",
+        "Fulfilment centre for hundreds of AGVs: 324 x 180 m grid of 28 one-way travel aisles "
+        "12 m apart and 10 one-way cross-aisles 20 m apart, stations on sidings beside the "
+        "aisles, chargers along the south and north walls, parking outside the west and east "
+        "walls.",
+        columns=28, rows=10, column_pitch=12, row_pitch=20, station_every=5,
+        chargers_per_wall=24, parking_rows=[4, 3, 6, 2, 7, 1], parking_capacity=50)
+    texts: dict[str, str] = {}
+    for data in (warehouse, dc, site):
         header = f"# Generated by tools/make_layouts.py; {len(data['nodes'])} nodes.\n"
         text = yaml.safe_dump(data, sort_keys=False, width=100, default_flow_style=None)
-        path.write_text(header + text, encoding="utf-8")
-        sys.stdout.write(f"{path}: {len(data['nodes'])} nodes, {len(data['segments'])} "
-                         "segments\n")
+        texts[f"{data['name']}.yaml"] = header + text
+    return texts
+
+
+def main() -> None:
+    out = Path(__file__).resolve().parent.parent / "layouts"
+    for name, text in layout_texts().items():
+        path = out / name
+        path.write_text(text, encoding="utf-8")
+        sys.stdout.write(f"{path}: {text.splitlines()[0].removeprefix('# ')}\n")
 
 
 if __name__ == "__main__":

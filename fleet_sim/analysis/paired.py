@@ -252,3 +252,30 @@ def kn_select(samples: np.ndarray, indifference_zone: float, pcs: float, n0: int
     if final:
         return KnResult(None, tuple(survivors), eliminated, r, h2, False, best)
     return KnResult(None, tuple(survivors), eliminated, r, h2, True, best)
+
+
+# ---- numbers in words ------------------------------------------------------------------------
+
+
+def number_text(value: float | None) -> str:
+    """A number as a planner reads it: three significant figures, no exponent, thousands
+    separated, "n/a" for none (what the comparison's table, sentences and report all say)."""
+    if value is None or math.isnan(value):
+        return "n/a"
+    value = round(float(value), 6)  # as compare.json keeps it: float noise is no digit
+    a = abs(value)
+    if value.is_integer() and a < 1e6:
+        return f"{int(value)}"
+    if a >= 100:
+        return f"{value:,.0f}"
+    if a >= 10:
+        return f"{value:.1f}"
+    if a >= 1:
+        return f"{value:.2f}"
+    return f"{value:.3g}"
+
+
+def signed_text(value: float | None) -> str:
+    """`number_text` with its sign: +7, -34."""
+    text = number_text(value)
+    return text if text.startswith("-") or text == "n/a" else "+" + text

@@ -38,6 +38,7 @@ import pandas as pd
 import yaml
 
 from fleet_sim.analysis.kpis import kpi_label, kpi_short, kpi_unit
+from fleet_sim.analysis.paired import number_text, signed_text
 from fleet_sim.analysis.stats import point_stats
 from fleet_sim.config.experiment import BASE_VARIANT, Experiment, load_experiment, point_text
 from fleet_sim.errors import FleetSimError, InputError
@@ -67,27 +68,6 @@ class CompareSection(Section):
 # ---- words ------------------------------------------------------------------------------------
 
 
-def _fmt(value: float | None) -> str:
-    if value is None or (isinstance(value, float) and np.isnan(value)):
-        return "n/a"
-    value = round(float(value), 6)  # as compare.json keeps it: float noise is no digit
-    a = abs(value)
-    if value.is_integer() and a < 1e6:
-        return f"{int(value)}"
-    if a >= 100:
-        return f"{value:,.0f}"
-    if a >= 10:
-        return f"{value:.1f}"
-    if a >= 1:
-        return f"{value:.2f}"
-    return f"{value:.2g}"
-
-
-def _signed(value: float | None) -> str:
-    text = _fmt(value)
-    return text if text.startswith("-") or text == "n/a" else "+" + text
-
-
 def _unit(kpi: str, difference: bool = False) -> str:
     """The unit after a number; a difference of percentages is in percentage points."""
     unit = kpi_unit(kpi)
@@ -105,17 +85,18 @@ def _clause_effect(row: Mapping[str, Any]) -> str:
     kpi, mean, low, high = row["kpi"], row["difference"], row["ci_low"], row["ci_high"]
     u = _unit(kpi, difference=True)
     if mean < 0:
-        return (f"cuts {kpi_short(kpi)} by {_fmt(-mean)}{u} ({_fmt(-high)} to "
-                f"{_fmt(-low)}{u})")
-    return f"raises {kpi_short(kpi)} by {_fmt(mean)}{u} ({_fmt(low)} to {_fmt(high)}{u})"
+        return (f"cuts {kpi_short(kpi)} by {number_text(-mean)}{u} ({number_text(-high)} to "
+                f"{number_text(-low)}{u})")
+    return (f"raises {kpi_short(kpi)} by {number_text(mean)}{u} ({number_text(low)} to "
+            f"{number_text(high)}{u})")
 
 
 def _clause_none(row: Mapping[str, Any]) -> str:
     """``p95 lead time +7 s (-34 to +48 s)``."""
     kpi = row["kpi"]
     u = _unit(kpi, difference=True)
-    return (f"{kpi_short(kpi)} {_signed(row['difference'])}{u} ({_signed(row['ci_low'])} to "
-            f"{_signed(row['ci_high'])}{u})")
+    return (f"{kpi_short(kpi)} {signed_text(row['difference'])}{u} "
+            f"({signed_text(row['ci_low'])} to {signed_text(row['ci_high'])}{u})")
 
 
 def variant_sentence(subject: str, rows: Sequence[Mapping[str, Any]]) -> str:
@@ -212,9 +193,9 @@ def _section_differences(data: Mapping[str, Any], rows: Sequence[Mapping[str, An
     table = Table(["variant", "design point", "KPI", "baseline", "variant mean",
                    "difference (interval)", "pairs", "verdict"],
                   [[str(r["variant"]), point_text(r["point"]) or "-", kpi_label(r["kpi"]),
-                    _fmt(r["baseline_mean"]), _fmt(r["variant_mean"]),
-                    f"{_signed(r['difference'])} ({_signed(r['ci_low'])} to "
-                    f"{_signed(r['ci_high'])})", str(r["pairs"]), str(r["words"])]
+                    number_text(r["baseline_mean"]), number_text(r["variant_mean"]),
+                    f"{signed_text(r['difference'])} ({signed_text(r['ci_low'])} to "
+                    f"{signed_text(r['ci_high'])})", str(r["pairs"]), str(r["words"])]
                    for r in rows])
     sec = CompareSection(heading="Paired differences from the baseline", tables=[table])
     sec.paragraphs.append(
@@ -251,9 +232,12 @@ def _section_side_by_side(summary: pd.DataFrame, factors: Sequence[str], kpis: S
                 means.setdefault(kpi, {})[variant] = (float(row["mean"].iloc[0]),
                                                       float(row["half_width"].iloc[0]))
     header = ["KPI", *variants]
-    table_rows = [[kpi_label(kpi), *(f"{_fmt(means.get(kpi, {}).get(v, (np.nan,))[0])} ± "
-                                     f"{_fmt(means.get(kpi, {}).get(v, (np.nan, np.nan))[1])}"
-                                     for v in variants)] for kpi in kpis]
+
+    def mean_pm(kpi: str, v: str) -> str:
+        mean, half = means.get(kpi, {}).get(v, (np.nan, np.nan))[:2]
+        return f"{number_text(mean)} ± {number_text(half)}"
+
+    table_rows = [[kpi_label(kpi), *(mean_pm(kpi, v) for v in variants)] for kpi in kpis]
     sec.tables.append(Table(header, table_rows))
     sec.paragraphs.append("Each variant's mean ± the half-width of its own 95 % interval"
                           + (f" at {where}" if where else "") + ". The comparison is the "
@@ -365,11 +349,13 @@ def _section_statistics(data: Mapping[str, Any]) -> CompareSection:
     if precision:
         sec.paragraphs.append("Precision asked (a comparison whose interval is this narrow "
                               "is decided): " + ", ".join(
-                                  f"{kpi_label(k)} ± {_fmt(v)}" for k, v in precision.items()))
+                                  f"{kpi_label(k)} ± {number_text(v)}"
+                                  for k, v in precision.items()))
     for s in data.get("selection") or []:
         sec.paragraphs.append(
             f"Selection by {s['procedure']} on {kpi_label(s['kpi'])} ({s['direction']}), "
-            f"indifference zone {_fmt(s['indifference_zone'])}{_unit(s['kpi'])}, probability "
+            f"indifference zone {number_text(s['indifference_zone'])}{_unit(s['kpi'])}, "
+            "probability "
             f"of correct selection {s['probability_correct_selection']:.0%}, first stage "
             f"{s['first_stage']} replications: " + s["statement"])
     sec.text += sec.paragraphs

@@ -61,7 +61,9 @@ from fleet_sim.analysis.paired import (
     decided,
     kn_select,
     looks,
+    number_text,
     paired_difference,
+    signed_text,
     verdict,
 )
 from fleet_sim.config.experiment import MAX_RUNS, Experiment, RunSpec, point_text
@@ -214,7 +216,7 @@ class Selection:
 
     def statement(self) -> str:
         unit = kpi_unit(self.kpi)
-        zone = f"{_fmt(self.indifference_zone)} {unit}".strip()
+        zone = f"{number_text(self.indifference_zone)} {unit}".strip()
         goal = "lowest" if self.direction == "min" else "highest"
         what = f"the {goal} {kpi_short(self.kpi)}"
         where = f" at {point_text(self.point)}" if self.point else ""
@@ -302,32 +304,10 @@ class CompareOutcome:
 # ---- words ------------------------------------------------------------------------------------
 
 
-def _fmt(value: float) -> str:
-    """A number as a planner reads it: 3 significant figures, no exponent."""
-    if value is None or math.isnan(value):
-        return "n/a"
-    value = round(float(value), 6)  # as compare.json keeps it: float noise is no digit
-    a = abs(value)
-    if value.is_integer() and a < 1e6:
-        return f"{int(value)}"
-    if a >= 100:
-        return f"{value:,.0f}"
-    if a >= 10:
-        return f"{value:.1f}"
-    if a >= 1:
-        return f"{value:.2f}"
-    return f"{value:.3g}"
-
-
-def _signed(value: float) -> str:
-    text = _fmt(value)
-    return text if text.startswith("-") or text == "n/a" else "+" + text
-
-
 def interval_text(diff: PairedDifference, unit: str) -> str:
     """``+7 s (-34 to +48 s)``."""
     u = f" {unit}" if unit else ""
-    return f"{_signed(diff.mean)}{u} ({_signed(diff.low)} to {_signed(diff.high)}{u})"
+    return f"{signed_text(diff.mean)}{u} ({signed_text(diff.low)} to {signed_text(diff.high)}{u})"
 
 
 def verdict_words(kpi: str, diff: PairedDifference, v: Verdict) -> str:
@@ -336,11 +316,11 @@ def verdict_words(kpi: str, diff: PairedDifference, v: Verdict) -> str:
     if v in ("better", "worse", "higher", "lower"):
         return f"{v}: {interval_text(diff, unit)}"
     if v == "no_difference":
-        return f"no difference larger than {_fmt(diff.largest_effect)}{u} detected"
+        return f"no difference larger than {number_text(diff.largest_effect)}{u} detected"
     if diff.pairs < 2:
         return f"undecided: {diff.pairs} pair(s) of replications with a value"
     return (f"undecided after {diff.pairs} replications: {interval_text(diff, unit)}; no "
-            f"difference larger than {_fmt(diff.largest_effect)}{u}")
+            f"difference larger than {number_text(diff.largest_effect)}{u}")
 
 
 # ---- running it -------------------------------------------------------------------------------
@@ -535,8 +515,8 @@ def table_lines(outcome: CompareOutcome) -> list[str]:
         d = c.diff
         verdict_text = c.words().split(": ")[0] if c.verdict in (
             "better", "worse", "higher", "lower") else c.words()
-        rows.append((c.variant, kpi_label(c.kpi), _fmt(d.baseline_mean), _fmt(d.variant_mean),
-                     interval_text(d, ""), verdict_text))
+        rows.append((c.variant, kpi_label(c.kpi), number_text(d.baseline_mean),
+                     number_text(d.variant_mean), interval_text(d, ""), verdict_text))
     widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
     for r in [header, *rows]:
         lines.append("  " + "  ".join(cell.ljust(widths[i]) for i, cell in enumerate(r))

@@ -142,7 +142,15 @@ class FleetManager:
         self.policy: DispatchPolicy = policy if policy is not None else POLICIES[config.policy]()
         self.recorder = recorder
         self.waiting: deque[Order] = deque()
-        self.idle: list[FleetAgv] = []
+        self.idle: dict[int, FleetAgv] = {}
+        """AGVs free for orders, by id, in the order they offered themselves."""
+        self._idle_since: dict[int, int] = {}
+        """AGV id -> its place in that order (a counter), for the idle AGVs."""
+        self._offer_count = 0
+        self.idle_admitted: dict[int, FleetAgv] = {}
+        """The idle AGVs that hold an admission (admission only): once the track is full, only
+        they may be given orders, and listing them from here costs what they number, not what
+        the parked fleet numbers."""
         self.parking_free = {p.id: p.capacity for p in layout.parking}
         self.bound_for: Counter[str] = Counter()
         self.chargers_free: list[Place] = list(layout.chargers)
@@ -225,8 +233,8 @@ class FleetManager:
     def _take_offer(self, agv: FleetAgv, offer: int) -> None:
         if self.offers.get(agv.id) == offer:
             self.polling.discard(agv.id)
-            if agv not in self.idle:
-                self.idle.append(agv)
+            if agv.id not in self.idle:
+                self._add_idle(agv)
             self._dispatch()
 
     def withdraw(self, agv: FleetAgv, reason: NotDispatched | None = None) -> None:
@@ -238,8 +246,8 @@ class FleetManager:
             self.held_back.pop(agv.id, None)
         else:
             self.held_back[agv.id] = reason
-        if agv in self.idle:
-            self.idle.remove(agv)
+        if agv.id in self.idle:
+            self._remove_idle(agv)
         self._changed()
 
     def link_restored(self) -> None:
@@ -392,18 +400,18 @@ class FleetManager:
             pickup = self.layout.places[order.chain[order.stops_done]]
             agv = self._choose(min(pickup.nodes, key=lambda n: self.bound_for[n]), order)
             if agv is None:
-                if self.agv_types and any(v.fms_link for v in self.idle):
+                if self.agv_types and any(v.fms_link for v in self.idle.values()):
                     skipped += 1  # ready AGVs, none of a type that may serve it: the next
                     continue
                 break
             del self.waiting[skipped]
             if order.stops:
-                self.idle.remove(agv)
+                self._remove_idle(agv)
                 self._admit(agv)
                 self._dock_chain(order)
             else:
                 order.pickup_node = self._docking_node(pickup)
-                self.idle.remove(agv)
+                self._remove_idle(agv)
                 self._admit(agv)
                 order.dropoff_node = self._docking_node(self.layout.places[order.dropoff])
             order.agv = agv.id
@@ -423,7 +431,7 @@ class FleetManager:
         self._changed()
 
     def _choose(self, pickup_node: str, order: Order | None = None) -> FleetAgv | None:
-        ready = [v for v in self.idle if v.fms_link and self._may_admit(v)]
+        ready = [v for v in self._may_work() if v.fms_link]
         if not ready:
             return None
         if self.agv_types and order is not None:
@@ -433,6 +441,26 @@ class FleetManager:
             return self.policy.choose(allowed, pickup_node, self.traffic.travel_time_s,
                                       self._travel_of)
         return self.policy.choose(ready, pickup_node, self.traffic.travel_time_s)
+
+    def _add_idle(self, agv: FleetAgv) -> None:
+        self.idle[agv.id] = agv
+        self._offer_count += 1
+        self._idle_since[agv.id] = self._offer_count
+        if agv.id in self.admitted:
+            self.idle_admitted[agv.id] = agv
+
+    def _remove_idle(self, agv: FleetAgv) -> None:
+        del self.idle[agv.id]
+        del self._idle_since[agv.id]
+        self.idle_admitted.pop(agv.id, None)
+
+    def _may_work(self) -> list[FleetAgv]:
+        """The idle AGVs that admission lets work, in the order they offered themselves: all
+        of them while the track has room, else those already admitted (the same AGVs as
+        filtering `idle` with `_may_admit`, without walking the AGVs waiting in parking)."""
+        if self.max_active is None or len(self.admitted) < self.max_active:
+            return list(self.idle.values())
+        return sorted(self.idle_admitted.values(), key=lambda v: self._idle_since[v.id])
 
     def _dock_chain(self, order: Order) -> None:
         """Choose the docking node of every stop of a chain not yet done."""
@@ -473,8 +501,20 @@ class FleetManager:
                 agv.note(NOT_DISPATCHED_END, ended.value)
         if not self.waiting:
             return
+        # the AGVs waiting in parking for a place on a full track, the many when a large fleet
+        # runs with admission, are told apart without `_reason`'s whole walk (the same answer)
+        held = None
+        if self.max_active is not None and len(self.admitted) >= self.max_active \
+                and not self.agv_types:
+            held = self.assigning | self.resuming | self.charger_wait | self.polling \
+                | self.held_back.keys()
+        admitted = self.admitted
         for agv in self.standing.values():
-            reason = self._reason(agv)
+            if held is not None and agv.id not in held and agv.id not in admitted \
+                    and agv.fms_link:
+                reason: NotDispatched | None = NotDispatched.ADMISSION_FULL
+            else:
+                reason = self._reason(agv)
             if reason is None:
                 raise SimulationError(
                     f"work conservation broken at t={self.env.now:.3f} s: AGV {agv.id} stands "
@@ -514,12 +554,16 @@ class FleetManager:
         if self.max_active is None or agv.id in self.admitted:
             return
         self.admitted.add(agv.id)
+        if agv.id in self.idle:
+            self.idle_admitted[agv.id] = agv
         agv.note("admitted", f"{len(self.admitted)} of {self.max_active} on the track")
 
     def on_track_at_start(self, agv: FleetAgv) -> None:
         """The AGV starts on the track (scenario `fleet.start_nodes`): it holds an admission."""
         if self.max_active is not None:
             self.admitted.add(agv.id)
+            if agv.id in self.idle:
+                self.idle_admitted[agv.id] = agv
 
     def parked(self, agv: FleetAgv) -> None:
         """The AGV has driven into a parking area with no order: its admission is free for
@@ -529,6 +573,7 @@ class FleetManager:
     def _release_if_parked(self, agv: FleetAgv) -> None:
         if agv.id in self.admitted and agv.in_parking and agv.id not in self.assigning:
             self.admitted.discard(agv.id)
+            self.idle_admitted.pop(agv.id, None)
             self._assign_chargers()  # a battery first, then orders
             self._dispatch()
 
