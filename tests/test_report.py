@@ -23,6 +23,7 @@ import yaml
 from jinja2 import UndefinedError
 
 from fleet_sim.analysis.kpis import CATALOGUE
+from fleet_sim.analysis.paired import number_text
 from fleet_sim.analysis.stats import t_quantile
 from fleet_sim.config.experiment import Target, load_experiment
 from fleet_sim.report.render import environment, render_html, write_report
@@ -34,7 +35,6 @@ from fleet_sim.report.report import (
     ScenarioSection,
     Table,
     fmt,
-    num,
     question,
     recommendations,
     section_idle_waiting,
@@ -379,8 +379,8 @@ def test_a_sweep_report_says_what_it_varies_and_answers_in_words(demand_sweep: P
     answer = text[text.index("What the sweep shows"):text.index("Scenario and layout")]
     assert answer.startswith("What the sweep shows Raising demand rate per hour from 30 to 60 "
                              "(mean over the levels of dispatch policy) ")
-    assert (f"raises throughput by {num(mean)} orders/h ({num(mean - half)} to "
-            f"{num(mean + half)} orders/h)") in answer
+    assert (f"raises throughput by {number_text(mean)} orders/h ({number_text(mean - half)} to "
+            f"{number_text(mean + half)} orders/h)") in answer
     assert "Dispatch policy fcfs instead of nearest_idle (mean over the levels of demand rate " \
         "per hour)" in answer
     assert answer.count("(paired over 3 replications, 95 % intervals).") == 2

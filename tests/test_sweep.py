@@ -345,6 +345,7 @@ def test_a_sweep_ends_with_a_kpi_table_that_flags_gridlock_and_open_orders(
     circulates, four lock solid. Without targets the table shows throughput and p95 lead time
     (names and units from the KPI catalogue), mean and 95 % interval as the summary gives
     them; the four-AGV row says GRIDLOCK and the orders left open."""
+    from fleet_sim.analysis.paired import number_text
     from fleet_sim.analysis.stats import mean_ci
 
     ring = Path(__file__).parent / "data" / "gridlock_ring.yaml"
@@ -370,7 +371,7 @@ def test_a_sweep_ends_with_a_kpi_table_that_flags_gridlock_and_open_orders(
     small = summary[summary["fleet.size"] == 1]
     thr = mean_ci(small["throughput_per_hour"].to_numpy(dtype=float))
     assert one.split()[:2] == ["1", "2"]
-    assert f"{thr.mean:.3g} ± {thr.half_width:.3g}" in one
+    assert f"{number_text(thr.mean)} ± {number_text(thr.half_width)}" in one
     assert "GRIDLOCK" not in one
     open_one = small["orders_open_at_end"].mean()
     assert (f"{open_one:.1f} orders open at the end (mean)" in one) == (open_one > 0)

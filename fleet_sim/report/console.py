@@ -92,15 +92,6 @@ TABLE_KPIS = ("throughput_per_hour", "lead_time_p95_s")
 """The KPIs of the table that ends a sweep when the experiment has no targets."""
 
 
-def _number(value: float) -> str:
-    if value != value:  # NaN
-        return "n/a"
-    size = abs(value)
-    if size >= 1000:
-        return f"{value:,.0f}"
-    return f"{value:.3g}" if size >= 1 else f"{value:.2g}"
-
-
 def kpi_table(summary: Any, factor_names: Sequence[str], target_kpis: Sequence[str]) -> list[str]:
     """The lines of a short table, one row per design point: the mean and 95 % interval of the
     targets' KPIs (without targets: throughput and p95 lead time), named with their units from
@@ -108,6 +99,7 @@ def kpi_table(summary: Any, factor_names: Sequence[str], target_kpis: Sequence[s
     import pandas as pd
 
     from fleet_sim.analysis.kpis import gridlocked, kpi_label
+    from fleet_sim.analysis.paired import number_text
     from fleet_sim.analysis.stats import mean_ci
     from fleet_sim.config.experiment import level_text
 
@@ -125,8 +117,8 @@ def kpi_table(summary: Any, factor_names: Sequence[str], target_kpis: Sequence[s
         cells = [level_text(v) for v in values] + [str(len(ok))]
         for kpi in kpis:
             ci = mean_ci(pd.to_numeric(ok[kpi], errors="coerce").to_numpy(dtype=float))
-            cells.append("n/a" if ci.n == 0 else _number(ci.mean) if ci.n == 1 else
-                         f"{_number(ci.mean)} ± {_number(ci.half_width)}")
+            cells.append("n/a" if ci.n == 0 else number_text(ci.mean) if ci.n == 1 else
+                         f"{number_text(ci.mean)} ± {number_text(ci.half_width)}")
         notes = []
         locked = sum(gridlocked(row) for row in ok.to_dict("records"))
         if locked:

@@ -81,6 +81,7 @@ import pandas as pd
 import yaml
 
 from fleet_sim.analysis.kpis import BY_REASON, kpi_better, kpi_label, kpi_short, kpi_unit
+from fleet_sim.analysis.paired import number_text, signed_text
 from fleet_sim.analysis.replay import LEAD_LABELS, LEAD_PARTS, lead_times, load_run, state_spells
 from fleet_sim.analysis.stats import (
     PairDifference,
@@ -465,28 +466,6 @@ MAX_STATEMENTS = 8
 """Sentences on a sweep's first screen; the rest are in the Statistics section."""
 
 
-def num(value: float) -> str:
-    """A number in a sentence: whole numbers plain, else three significant figures or so."""
-    if value is None or math.isnan(value):
-        return "n/a"
-    value = round(float(value), 6)
-    size = abs(value)
-    if value.is_integer() and size < 1e6:
-        return f"{int(value)}"
-    if size >= 100:
-        return f"{value:,.0f}"
-    if size >= 10:
-        return f"{value:.1f}"
-    if size >= 1:
-        return f"{value:.2f}"
-    return f"{value:.2g}"
-
-
-def signed(value: float) -> str:
-    text = num(value)
-    return text if text.startswith("-") or text == "n/a" else "+" + text
-
-
 def unit_after(kpi: str, difference: bool = False) -> str:
     """The unit after a number; a difference of percentages is in percentage points."""
     unit = kpi_unit(kpi)
@@ -524,11 +503,11 @@ def change_sentence(factor: str, from_level: Any, to_level: Any, numeric: bool,
         if diff.excludes_zero:
             verb, mean, low, high = ("cuts", -ci.mean, -ci.high, -ci.low) if ci.mean < 0 \
                 else ("raises", ci.mean, ci.low, ci.high)
-            effects.append(f"{verb} {kpi_short(diff.kpi)} by {num(mean)}{u} ({num(low)} to "
-                           f"{num(high)}{u})")
+            effects.append(f"{verb} {kpi_short(diff.kpi)} by {number_text(mean)}{u} "
+                           f"({number_text(low)} to {number_text(high)}{u})")
         else:
-            none.append(f"{kpi_short(diff.kpi)} {signed(ci.mean)}{u} ({signed(ci.low)} to "
-                        f"{signed(ci.high)}{u})")
+            none.append(f"{kpi_short(diff.kpi)} {signed_text(ci.mean)}{u} "
+                        f"({signed_text(ci.low)} to {signed_text(ci.high)}{u})")
     if usable and all(d.interval.mean == 0 and d.interval.sd == 0 for d in usable):
         text = (f"{subject} gives the same {_and([kpi_short(d.kpi) for d in usable])} in "
                 "every replication")
@@ -989,8 +968,8 @@ def section_statistics(data: ReportData, stats: pd.DataFrame) -> StatisticsSecti
                 str(r["factor"]), f"{level_text(r['from_level'])} \u2192 "
                 f"{level_text(r['to_level'])}", fixed or "-", kpi_label(r["kpi"]),
                 str(r["pairs"]), f"{fmt(r['from_mean'])} \u2192 {fmt(r['to_mean'])}",
-                f"{signed(r['mean_diff'])}{u} ({signed(r['ci_low'])} to "
-                f"{signed(r['ci_high'])})", difference_words(r["kpi"], r["ci_low"],
+                f"{signed_text(r['mean_diff'])}{u} ({signed_text(r['ci_low'])} to "
+                f"{signed_text(r['ci_high'])})", difference_words(r["kpi"], r["ci_low"],
                                                              r["ci_high"])])
         sec.differences = Table(["factor", "change", "other factors", "KPI", "pairs",
                                  "means", "paired difference (95 % CI)", "reading"], drows,
@@ -1170,7 +1149,7 @@ def target_words(target: Target) -> str:
     name, _, unit = kpi_label(target.kpi).partition(" [")
     unit = unit.removesuffix("]")
     relation = "at least" if target.higher_is_better else "at most"
-    return f"{name} {relation} {num(target.bound)}" + (f" {unit}" if unit else "")
+    return f"{name} {relation} {number_text(target.bound)}" + (f" {unit}" if unit else "")
 
 
 def question(data: ReportData) -> str:
