@@ -409,6 +409,26 @@ def test_the_sweeps_query_hint_groups_by_its_own_factors(demand_sweep: Path,
     assert len(re.findall(r"\u2502\s+(30|60)\s+\u2502", out)) == 4  # one row per design point
 
 
+def test_a_study_that_ran_only_some_combinations_of_levels_is_reported(
+        demand_sweep: Path, tmp_path: Path) -> None:
+    """A sizing search runs each demand level at its own fleet sizes, so not every
+    combination of levels has runs (`make run` crashed on that: NaN replications). Here the
+    sweep with one combination's runs taken away: the report is written and its statistics
+    table lists the three combinations that ran, with their replications."""
+    out = tmp_path / "out"
+    shutil.copytree(demand_sweep, out)
+    for run in (out / "runs").glob("*dispatch.policy=fcfs*"):
+        if "demand.rate_per_hour=60" in run.name:
+            shutil.rmtree(run)
+    (out / "summary.parquet").unlink()
+    (out / "stats.parquet").unlink()
+    html_path, _ = write_report(out, pdf=False)
+    html = html_path.read_text(encoding="utf-8")
+    table = html[html.index('class="stats"'):]
+    table = table[:table.index("</table>")]
+    assert table.count("<tr>") - 1 == 3, table
+
+
 def test_a_sweep_report_in_a_headless_browser(demand_sweep: Path, tmp_path: Path) -> None:
     html = (demand_sweep / "report.html").read_text(encoding="utf-8")
     check, _ = in_browser(html, tmp_path)

@@ -947,7 +947,10 @@ def section_statistics(data: ReportData, stats: pd.DataFrame) -> StatisticsSecti
     if wide is not None:
         for index, row in wide.iterrows():
             idx = index if isinstance(index, tuple) else (index,)
-            n = int(max(row[("n", k)] for k in kpis)) if kpis else 0
+            counts = [row[("n", k)] for k in kpis if pd.notna(row[("n", k)])]
+            if kpis and not counts:
+                continue  # a combination of levels the study never ran (a sizing search)
+            n = int(max(counts)) if counts else 0
             cells = [level_text(v) for v in idx] + [str(n)]
             for k in kpis:
                 mean, half = row[("mean", k)], row[("half_width", k)]
