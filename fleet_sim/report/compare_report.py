@@ -14,7 +14,7 @@ Decisions, where the issue is silent:
   writes "Making aisle 3 one-way"), else "Variant <name>". A KPI whose interval excludes zero
   is said with a verb by the sign of the difference ("cuts p95 lead time by 180 s (41 to
   320 s)", "raises ..."); the rest are "nothing we can detect" with their intervals; a
-  comparison still undecided at the replication limit says so.
+  comparison still undecided at the replication limit says so, before what it does not change.
 * Numbers are compare.json's (the intervals at the Bonferroni-adjusted level); the KPIs side
   by side show each variant's own 95 % interval (stats.parquet), which is not the comparison:
   the caption says so.
@@ -104,19 +104,23 @@ def variant_sentence(subject: str, rows: Sequence[Mapping[str, Any]]) -> str:
     effects = [r for r in rows if r["verdict"] in ("better", "worse", "higher", "lower")]
     others = [r for r in rows if r not in effects and r["difference"] is not None]
     missing = [r for r in rows if r["difference"] is None]
-    undecided = any(r["verdict"] == "undecided" for r in others)
-    tail = " (undecided at the replication limit: more replications could still tell)" \
-        if undecided else ""
-    if not effects:
+    open_ = [r for r in others if r["verdict"] == "undecided"]
+    none = [r for r in others if r not in open_]
+    parts: list[str] = []
+    if effects:
+        parts.append(_and([_clause_effect(r) for r in effects]))
+    if open_:
+        parts.append("is not decided at the replication limit on " + "; ".join(
+            _clause_none(r) for r in open_) + " (more replications could still tell)")
+    if none:
+        parts.append("no difference we can detect in " + "; ".join(_clause_none(r)
+                                                                    for r in none))
+    if not effects and not open_:
         text = f"{subject} changes nothing we can detect"
-        if others:
-            text += ": " + "; ".join(_clause_none(r) for r in others)
-        text += tail
+        if none:
+            text += ": " + "; ".join(_clause_none(r) for r in none)
     else:
-        text = f"{subject} " + _and([_clause_effect(r) for r in effects])
-        if others:
-            text += "; no difference we can detect in " + "; ".join(
-                _clause_none(r) for r in others) + tail
+        text = f"{subject} " + "; ".join(parts)
     if missing:
         text += "; no value to compare for " + ", ".join(kpi_short(r["kpi"]) for r in missing)
     return text + "."
