@@ -138,3 +138,33 @@ def pty_link() -> Iterator[Callable[[Device], PtyLink]]:
     yield make
     for link in links:
         link.close()
+
+
+def in_browser(html: str, tmp_path: Path, check: str) -> tuple[dict[str, Any], str]:
+    """The page opened in headless Chromium with the script `check` added before </body>
+    (it writes JSON into <pre id="img-check"> once the page has loaded): that JSON, and the
+    DOM. Skipped without Chromium, except in CI (.ci/run installs it)."""
+    import html as html_lib
+    import json
+    import re
+    import shutil
+    import subprocess
+
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    if browser is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium is missing (.ci/run installs it)")
+        pytest.skip("chromium is not installed (apt-get install chromium)")
+    page = tmp_path / "report.html"
+    page.write_text(html.replace("</body>", check), encoding="utf-8")
+    result = subprocess.run(
+        [browser, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000",
+         "--dump-dom", page.as_uri()],
+        capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert result.returncode == 0, result.stderr[-2000:]
+    dom = result.stdout
+    found = re.search(r'<pre id="img-check">(.*?)</pre>', dom, re.S)
+    assert found, dom[-2000:]
+    return json.loads(html_lib.unescape(found.group(1))), dom

@@ -4,12 +4,9 @@ headless browser."""
 
 from __future__ import annotations
 
-import html as html_lib
 import json
 import math
 import os
-import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -33,7 +30,7 @@ from fleet_sim.cli import main
 from fleet_sim.config.experiment import load_experiment
 from fleet_sim.study.compare import compare
 from fleet_sim.study.runner import LocalPool
-from tests.conftest import write_yaml
+from tests.conftest import in_browser, write_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = str(ROOT / "experiments" / "tiny_loop.yaml")
@@ -337,21 +334,8 @@ window.addEventListener('load', () => {
 def test_comparison_report_in_a_headless_browser(compared: Path, tmp_path: Path) -> None:
     assert main(["report", str(compared)]) == 0
     assert (compared / "report.pdf").read_bytes()[:5] == b"%PDF-"
-    browser = shutil.which("chromium") or shutil.which("chromium-browser")
-    assert browser is not None, "chromium is needed for this test (/usr/bin/chromium)"
     html = (compared / "report.html").read_text(encoding="utf-8")
-    page = tmp_path / "report.html"
-    page.write_text(html.replace("</body>", CHECK), encoding="utf-8")
-    result = subprocess.run(
-        [browser, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000",
-         "--dump-dom", page.as_uri()],
-        capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
-    assert result.returncode == 0, result.stderr[-2000:]
-    found = re.search(r'<pre id="img-check">(.*?)</pre>', result.stdout, re.S)
-    assert found, result.stdout[-2000:]
-    check = json.loads(html_lib.unescape(found.group(1)))
+    check, _ = in_browser(html, tmp_path, CHECK)
     assert check["title"] == "What-if comparison: cmp"
     answer = check["answer"]
     assert answer[0].startswith("A speed limit set to the one it has changes nothing we can "

@@ -5,7 +5,6 @@ PDF is written."""
 from __future__ import annotations
 
 import json
-import os
 import re
 import shlex
 import shutil
@@ -43,6 +42,7 @@ from fleet_sim.study.sizing import size_fleet
 from fleet_sim.study.sweep import sweep
 
 from .conftest import LAYOUTS, ROOT, write_yaml
+from .conftest import in_browser as browser_check
 
 EVIL = '<script>alert("x")</script><img src=x onerror=alert(1)> & "quotes"'
 FIGURES = {"layout", "kpis", "states-0", "blocked", "heatmap", "incidents", "leads"}
@@ -281,32 +281,9 @@ def test_the_report_shows_a_run_in_detail(results: Path) -> None:
         kpis["lead_time_mean_s"], rel=1e-3)
 
 
-def chromium() -> str | None:
-    return shutil.which("chromium") or shutil.which("chromium-browser")
-
-
 def in_browser(html: str, tmp_path: Path) -> tuple[dict[str, Any], str]:
-    """The page opened in headless Chromium: what CHECK found once it loaded, and the DOM."""
-    browser = chromium()
-    if browser is None:
-        if os.environ.get("CI"):
-            pytest.fail("chromium is missing (.ci/run installs it)")
-        pytest.skip("chromium is not installed (apt-get install chromium)")
-    page = tmp_path / "report.html"
-    page.write_text(html.replace("</body>", CHECK), encoding="utf-8")
-    result = subprocess.run(
-        [browser, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000",
-         "--dump-dom", page.as_uri()],
-        capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
-    assert result.returncode == 0, result.stderr[-2000:]
-    dom = result.stdout
-    found = re.search(r'<pre id="img-check">(.*?)</pre>', dom, re.S)
-    assert found, dom[-2000:]
-    import html as html_lib
-
-    return json.loads(html_lib.unescape(found.group(1))), dom
+    """The page in headless Chromium with this file's CHECK (conftest.in_browser)."""
+    return browser_check(html, tmp_path, CHECK)
 
 
 def test_report_in_a_headless_browser(results: Path, tmp_path: Path) -> None:

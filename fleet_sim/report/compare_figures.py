@@ -17,6 +17,7 @@ from matplotlib.figure import Figure
 
 from fleet_sim.analysis.kpis import kpi_label
 from fleet_sim.config.layout import Layout
+from fleet_sim.report.layout_plot import finish_floor_plan
 
 VERDICT_COLOURS = {"better": "#188038", "worse": "#d93025", "higher": "#1a73e8",
                    "lower": "#1a73e8", "no_difference": "#5f6368", "undecided": "#f9ab00"}
@@ -110,12 +111,7 @@ def wait_difference(layout: Layout, baseline: Layout, diff_per_node: Mapping[str
     else:
         ax.text(0.5, 0.5, "AGVs waited exactly where and as long as in the baseline",
                 transform=ax.transAxes, ha="center")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    return fig
+    return finish_floor_plan(fig, ax, title)
 
 
 def close(fig: Any) -> None:

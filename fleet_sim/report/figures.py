@@ -21,6 +21,7 @@ from fleet_sim.analysis.kpis import kpi_label
 from fleet_sim.config.experiment import Target
 from fleet_sim.config.layout import Layout
 from fleet_sim.model.states import VehicleState
+from fleet_sim.report.layout_plot import finish_floor_plan
 
 STATE_COLOURS = {
     "booting": "#9aa0a6", "idle": "#dadce0", "moving": "#1a73e8", "loading": "#34a853",
@@ -135,12 +136,7 @@ def heat_map(layout: Layout, waits: pd.DataFrame, title: str) -> Figure:
         fig.colorbar(sc, ax=ax, shrink=0.8, label="AGV waiting [s per hour]")
     else:
         ax.text(0.5, 0.5, "no AGV waited anywhere", transform=ax.transAxes, ha="center")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    return fig
+    return finish_floor_plan(fig, ax, title)
 
 
 def incidents(counts: pd.DataFrame, x: str) -> Figure:

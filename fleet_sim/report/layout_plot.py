@@ -20,6 +20,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
 from fleet_sim.config.layout import Layout, TrafficZone
@@ -241,6 +242,12 @@ def variant_figure(layout: Layout, baseline: Layout, diff: LayoutDiff, title: st
     if diff.empty:
         ax.text(0.5, 0.02, "no change to the layout (the variant changes settings only)",
                 transform=ax.transAxes, ha="center", fontsize=8, color="#5f6368")
+    return finish_floor_plan(fig, ax, title)
+
+
+def finish_floor_plan(fig: Figure, ax: Any, title: str) -> Figure:
+    """A figure of the floor (layout, congestion, a variant's changes) finished alike: metres
+    on both axes at the same scale, the title, a tight layout."""
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
