@@ -39,7 +39,7 @@ import pandas as pd
 from fleet_sim.analysis.kpis import CATALOGUE, NOTE_FIELDS, RUN_FIELDS
 from fleet_sim.config.writing import atomic_path
 from fleet_sim.errors import FleetSimError, InputError, require_extra
-from fleet_sim.study.results import read_summary
+from fleet_sim.study.results import read_summary, runs_table_sql
 
 EXCEL_MAX_ROWS = 1_048_575
 """Data rows per sheet (Excel's 1,048,576 rows, less the header)."""
@@ -139,14 +139,11 @@ def _tables(source: Path, typed: bool = False) -> _Source:
         level_columns = "".join(f', {LEVELS}."{_ident(f)}"' for f in levels.columns[1:])
         runs = source / "runs"
         for name in RUN_TABLES:
-            if any(runs.glob(f"*/{name}.parquet")):
-                pattern = _sql(runs / "*" / f"{name}.parquet")
+            query = runs_table_sql(runs, name, row_numbers=True)
+            if query is not None:
                 tables[name] = (
                     f"SELECT t.run_id{level_columns}, t.* EXCLUDE (run_id, file_row_number) "
-                    f"FROM (SELECT regexp_extract(filename, '([^/]+)/{name}.parquet$', 1) "
-                    f"AS run_id, * EXCLUDE (filename) FROM read_parquet('{pattern}', "
-                    "filename = true, file_row_number = true, union_by_name = true, "
-                    f"hive_partitioning = false)) t LEFT JOIN {LEVELS} "
+                    f"FROM ({query}) t LEFT JOIN {LEVELS} "
                     f"ON {LEVELS}.run_id = t.run_id ORDER BY t.run_id, t.file_row_number")
         return _Source(tables, {LEVELS: levels})
     raise InputError(str(source), "folder", str(source),

@@ -100,7 +100,7 @@ from fleet_sim.errors import InputError
 from fleet_sim.model.not_dispatched import NotDispatched
 from fleet_sim.model.states import VehicleState
 from fleet_sim.report import figures as figs
-from fleet_sim.study.results import read_summary
+from fleet_sim.study.results import read_summary, runs_table_sql
 from fleet_sim.study.runner import read_plan, study_running
 
 INCIDENT_EVENTS = ("deadlock_detected", "deadlock_unresolved", "reroute", "circulate", "backoff")
@@ -916,17 +916,14 @@ def section_incidents(data: ReportData, recommended: dict[str, int | None]) -> I
 def _incident_counts(data: ReportData) -> pd.DataFrame | None:
     import duckdb
 
-    runs = (data.out_dir / "runs").resolve()
-    if not any(runs.glob("*/events.parquet")):
+    events = runs_table_sql(data.out_dir / "runs", "events")
+    if events is None:
         return None
-    pattern = str(runs / "*" / "events.parquet").replace("'", "''")
     kinds = ", ".join(f"'{k}'" for k in INCIDENT_EVENTS)
     con = duckdb.connect()
     try:
-        frame = con.execute(
-            "SELECT regexp_extract(filename, '([^/]+)/events.parquet$', 1) AS run_id, event, "
-            f"count(*) AS n FROM read_parquet('{pattern}', filename = true) "
-            f"WHERE event IN ({kinds}) GROUP BY ALL").df()
+        frame = con.execute(f"SELECT run_id, event, count(*) AS n FROM ({events}) "
+                            f"WHERE event IN ({kinds}) GROUP BY ALL").df()
     finally:
         con.close()
     if frame.empty:

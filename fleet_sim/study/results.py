@@ -26,7 +26,7 @@ import contextlib
 import errno
 import json
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -55,11 +55,36 @@ def tables_written(experiment: Experiment, out_dir: Path) -> Iterator[None]:
 # ---- tables --------------------------------------------------------------------------------
 
 
+RunStatus = tuple[str, str | None, float | None]
+"""A run folder's status (ok, damaged, failed, crashed, incomplete), its error text (None for
+a run not yet finished) and, for a failed run, the wall time error.json records."""
+
+
+def run_status(run_dir: Path) -> RunStatus:
+    """The status of one run folder: a finished run only if it checks out (`run_problem`,
+    which reads its files once)."""
+    if (run_dir / "kpis.json").exists() or (run_dir / MANIFEST).exists():
+        problem = run_problem(run_dir)
+        if problem is None:
+            return OK, "", None
+        return DAMAGED, f"{problem}; run the study again to make this run again", None
+    if (run_dir / "error.json").exists():
+        try:
+            error = json.loads((run_dir / "error.json").read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError):
+            return FAILED, "error.json cannot be read", None
+        return str(error.get("status", FAILED)), str(error.get("error", "")), \
+            error.get("wall_s")
+    return "incomplete", None, None
+
+
 def collect_summary(out_dir: Path, factor_names: Sequence[str],
-                    variant_column: bool = False) -> pd.DataFrame:
+                    variant_column: bool = False,
+                    statuses: Mapping[str, RunStatus] | None = None) -> pd.DataFrame:
     """One row per run folder: status, (variant,) factors, replication, seed, KPIs, runtime,
     error. `variant`: the run's variant (BASE_VARIANT for the base scenario's runs), when
-    `variant_column` or any run belongs to a named variant."""
+    `variant_column` or any run belongs to a named variant. `statuses`: each folder's
+    `run_status`, where the caller has them already (else they are found here)."""
     rows: list[dict[str, Any]] = []
     runs_dir = out_dir / "runs"
     for run_dir in sorted(p for p in runs_dir.iterdir() if p.is_dir()) if runs_dir.exists() \
@@ -74,15 +99,11 @@ def collect_summary(out_dir: Path, factor_names: Sequence[str],
             row["variant"] = spec.get("variant") or BASE_VARIANT
         for name in factor_names:
             row[name] = spec["factors"].get(name)
-        kpi_file, error_file = run_dir / "kpis.json", run_dir / "error.json"
-        problem = run_problem(run_dir) if kpi_file.exists() or (run_dir / MANIFEST).exists() \
-            else None
-        if problem is not None:
-            row["status"] = DAMAGED
-            row["error"] = f"{problem}; run the study again to make this run again"
-        elif kpi_file.exists():
-            row["status"] = OK
-            figures = json.loads(kpi_file.read_text(encoding="utf-8"))
+        status, error, wall_s = statuses[run_dir.name] if statuses is not None \
+            and run_dir.name in statuses else run_status(run_dir)
+        row["status"] = status
+        if status == OK:
+            figures = json.loads((run_dir / "kpis.json").read_text(encoding="utf-8"))
             for key, value in figures.items():
                 if isinstance(value, dict):  # errors_by_code -> errors_by_code.E_101, ...
                     row.update({f"{key}.{k}": v for k, v in value.items()})
@@ -90,12 +111,10 @@ def collect_summary(out_dir: Path, factor_names: Sequence[str],
                     row[key] = "\n".join(str(v) for v in value)
                 elif key not in row:
                     row[key] = value
-            row["error"] = ""
-        elif error_file.exists():
-            error = json.loads(error_file.read_text(encoding="utf-8"))
-            row["status"] = error.get("status", FAILED)
-            row["error"] = error.get("error", "")
-            row["wall_s"] = error.get("wall_s")
+        if error is not None:
+            row["error"] = error
+        if wall_s is not None:
+            row["wall_s"] = wall_s
         rows.append(row)
     frame = pd.DataFrame(rows)
     if "variant" in frame.columns:  # the base scenario's runs keep the spec.json they had
@@ -116,38 +135,28 @@ def collect_summary(out_dir: Path, factor_names: Sequence[str],
     return frame
 
 
-def run_statuses(out_dir: Path) -> dict[str, str]:
-    """Per run folder (with spec.json): its status as collect_summary gives it."""
-    statuses: dict[str, str] = {}
+def run_statuses(out_dir: Path) -> dict[str, RunStatus]:
+    """Per run folder (with spec.json): its `run_status`."""
     runs_dir = out_dir / "runs"
-    for run_dir in runs_dir.iterdir() if runs_dir.exists() else []:
-        if not (run_dir / "spec.json").exists():
-            continue
-        status = "incomplete"
-        if (run_dir / "kpis.json").exists() or (run_dir / MANIFEST).exists():
-            status = OK if run_problem(run_dir) is None else DAMAGED
-        elif (run_dir / "error.json").exists():
-            try:
-                error = json.loads((run_dir / "error.json").read_text(encoding="utf-8"))
-                status = str(error.get("status", FAILED))
-            except (OSError, json.JSONDecodeError):
-                status = FAILED
-        statuses[run_dir.name] = status
-    return statuses
+    return {run_dir.name: run_status(run_dir)
+            for run_dir in (runs_dir.iterdir() if runs_dir.exists() else [])
+            if (run_dir / "spec.json").exists()}
 
 
 def read_summary(out_dir: Path, factor_names: Sequence[str]) -> tuple[pd.DataFrame, bool]:
     """The results folder's summary and whether it had to be rebuilt: summary.parquet if its
     runs and their statuses are those of the run folders, else one collected from them."""
     summary_file = out_dir / "summary.parquet"
+    statuses = run_statuses(out_dir)
     if summary_file.exists():
         summary = pd.read_parquet(summary_file)
         if {"run_id", "status"} <= set(summary.columns):
             recorded = dict(zip(summary["run_id"].astype(str), summary["status"].astype(str),
                                 strict=True))
-            if len(recorded) == len(summary) and recorded == run_statuses(out_dir):
+            if len(recorded) == len(summary) \
+                    and recorded == {run: s[0] for run, s in statuses.items()}:
                 return summary, False
-    return collect_summary(out_dir, factor_names), True
+    return collect_summary(out_dir, factor_names, statuses=statuses), True
 
 
 def write_tables(experiment: Experiment, out_dir: Path) -> pd.DataFrame:
@@ -185,13 +194,9 @@ def write_duckdb(out_dir: Path) -> Path:
             if source.exists():
                 con.execute(f"CREATE TABLE {table} AS SELECT * FROM read_parquet('{_sql(source)}')")
         for view in ("orders", "events", "node_waits"):
-            if any(runs.glob(f"*/{view}.parquet")):
-                pattern = _sql(runs / "*" / f"{view}.parquet")
-                con.execute(
-                    f"CREATE VIEW {view} AS SELECT regexp_extract(filename, "
-                    f"'([^/]+)/{view}.parquet$', 1) AS run_id, * EXCLUDE (filename) "
-                    f"FROM read_parquet('{pattern}', filename = true, union_by_name = true, "
-                    "hive_partitioning = false)")  # run folders are not partitions
+            query = runs_table_sql(runs, view)
+            if query is not None:
+                con.execute(f"CREATE VIEW {view} AS {query}")
         # everything into the database file itself: the write-ahead log is deleted on close,
         # and a disk too full for the checkpoint must fail here, not leave an empty database
         con.execute("CHECKPOINT")
@@ -225,6 +230,21 @@ def _as_os_error(exc: Exception, path: Path) -> OSError:
             return OSError(code, os.strerror(code), str(path))
     return OSError(errno.EIO, f"DuckDB could not write the database ({text.splitlines()[0]})",
                    str(path))
+
+
+def runs_table_sql(runs_dir: Path, name: str, row_numbers: bool = False) -> str | None:
+    """DuckDB SQL for table `name` of every run under `runs_dir`, with its `run_id` first
+    (and `file_row_number`, the row's place in its file, with `row_numbers`); None when no run
+    has it. The one reader of the runs' tables side by side (sweep.duckdb's views, export,
+    the report): a run folder is named `factor=level__r00`, which DuckDB would otherwise
+    read as a Hive partition and add as a column holding 'level__r00'."""
+    if not any(runs_dir.glob(f"*/{name}.parquet")):
+        return None
+    pattern = _sql(runs_dir.resolve() / "*" / f"{name}.parquet")
+    numbers = ", file_row_number = true" if row_numbers else ""
+    return (f"SELECT regexp_extract(filename, '([^/]+)/{name}.parquet$', 1) AS run_id, "
+            f"* EXCLUDE (filename) FROM read_parquet('{pattern}', filename = true{numbers}, "
+            "union_by_name = true, hive_partitioning = false)")
 
 
 def _sql(path: Path) -> str:

@@ -744,9 +744,9 @@ def prepare(experiment: Experiment, out_dir: Path) -> None:
                                      allow_unicode=True))
 
 
-def finished(spec: RunSpec, runs_dir: Path) -> bool:
-    """True if the run finished and checks out (`run_problem`); an error if the folder holds
-    a different run."""
+def finished(spec: RunSpec, runs_dir: Path) -> tuple[bool, str | None]:
+    """Whether the run finished and checks out, and, for one that looks finished but does not
+    (`run_problem`), what is wrong with it; an error if the folder holds a different run."""
     run_dir = runs_dir / spec.run_id
     spec_file = run_dir / "spec.json"
     if spec_file.exists():
@@ -762,20 +762,10 @@ def finished(spec: RunSpec, runs_dir: Path) -> bool:
                         f"{run_dir}: this run was made with another {key} "
                         f"({recorded.get(key)!r}, now {wanted.get(key)!r}): the results folder "
                         "holds another experiment; use --out for a new folder or delete it")
-    looks_finished = (run_dir / MANIFEST).exists() or (run_dir / "kpis.json").exists()
-    return looks_finished and run_problem(run_dir) is None
-
-
-def damaged_runs(specs: Iterable[RunSpec], runs_dir: Path) -> dict[str, str]:
-    """Runs of `specs` that look finished but do not check out: run id -> what is wrong."""
-    found: dict[str, str] = {}
-    for spec in specs:
-        run_dir = runs_dir / spec.run_id
-        if (run_dir / MANIFEST).exists() or (run_dir / "kpis.json").exists():
-            problem = run_problem(run_dir)
-            if problem is not None:
-                found[spec.run_id] = problem
-    return found
+    if not ((run_dir / MANIFEST).exists() or (run_dir / "kpis.json").exists()):
+        return False, None
+    problem = run_problem(run_dir)
+    return problem is None, problem
 
 
 def execute(specs: Iterable[RunSpec], out_dir: Path, workers: int = 0,
@@ -788,8 +778,9 @@ def execute(specs: Iterable[RunSpec], out_dir: Path, workers: int = 0,
     runs_dir = out_dir / "runs"
     runs_dir.mkdir(parents=True, exist_ok=True)
     specs = list(specs)
-    damaged = damaged_runs(specs, runs_dir)
-    todo = [s for s in specs if not finished(s, runs_dir)]
+    checked = {s.run_id: finished(s, runs_dir) for s in specs}
+    damaged = {run: problem for run, (_, problem) in checked.items() if problem is not None}
+    todo = [s for s in specs if not checked[s.run_id][0]]
     todo.sort(key=lambda s: -_cost(s))
     workers = workers or os.cpu_count() or 1
     already = len(specs) - len(todo)
