@@ -346,3 +346,19 @@ def test_comparison_report_in_a_headless_browser(compared: Path, tmp_path: Path)
     assert all(i["ok"] and i["w"] > 200 for i in check["images"]), check["images"]
     # KPI names and units from the catalogue, never raw keys, in the tables
     assert "mean lead time [s]" in html and ">lead_time_mean_s<" not in html
+
+
+def test_a_variant_undecided_at_the_limit_is_not_said_to_change_nothing() -> None:
+    from fleet_sim.report.compare_report import variant_sentence
+
+    none = {"kpi": "throughput_per_hour", "verdict": "none", "difference": 0.01,
+            "ci_low": -0.2, "ci_high": 0.2}
+    undecided = {"kpi": "lead_time_p95_s", "verdict": "undecided", "difference": -31.6,
+                 "ci_low": -112.0, "ci_high": 48.4}
+    text = variant_sentence("Opportunity charging", [none, undecided])
+    assert "nothing we can detect" not in text
+    assert text.startswith("Opportunity charging is not decided at the replication limit on "
+                           "p95 lead time -31.6 s (-112 to +48.4 s)")
+    assert "no difference we can detect in throughput" in text
+    assert variant_sentence("A fifth charger", [none]).startswith(
+        "A fifth charger changes nothing we can detect: throughput")

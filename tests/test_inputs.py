@@ -278,3 +278,16 @@ def test_an_unknown_key_gets_did_you_mean(tmp_path: Path, kind: str, edit: Any,
     with pytest.raises(InputError) as info:
         load[kind](path)
     assert str(info.value).startswith(f"{path}: {message}"), str(info.value)
+
+
+def test_did_you_mean_offers_only_a_close_key() -> None:
+    """A key the word begins or that begins it, or difflib's ratio >= 0.65; nothing for a
+    word that merely shares a suffix (`sd_s` is not `mode_s`)."""
+    from agv_model.inputs import closest
+
+    assert closest("from_node", ["from", "to", "length_m"]) == "from"
+    assert closest("rate", ["rate_per_hour", "kind"]) == "rate_per_hour"
+    assert closest("sise", ["size", "vehicle"]) == "size"
+    assert closest("sd_s", ["dist", "low_s", "mode_s", "high_s"]) is None
+    assert closest("top_speed_kmh", ["max_speed_mmps", "turn_speed_mmps"]) is None
+    assert closest("colour", ["size", "vehicle", "vehicles"]) is None
