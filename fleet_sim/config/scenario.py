@@ -320,6 +320,12 @@ class DispatchConfig(StrictModel):
 
 
 class TrafficConfig(StrictModel):
+    policy: Literal["reactive", "avoiding"] = "reactive"
+    """How traffic control keeps the fleet from locking solid. `reactive` (default): locks are
+    granted when free, wait-for cycles are found and broken (one AGV reroutes or backs off).
+    `avoiding`: a node, corridor or zone is granted only when the grant cannot close a cycle of
+    waits (a Banker's-type check on every AGV's declared plan, which ends in parking;
+    fleet_sim.sim.traffic.avoidance, docs/background/engine.md)."""
     deadlock_check_s: Positive = 10.0
     """How often an AGV that is still blocked looks again for a wait-for cycle."""
     replan_after_s: Positive = 30.0

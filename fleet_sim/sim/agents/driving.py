@@ -248,6 +248,9 @@ class Driver:
         """Drive to `goal` and stop there, holding it. When `stop_early()` turns true, stop at
         the first node where the AGV can instead."""
         traffic = self.traffic
+        if traffic.plans is not None:
+            yield from self._drive_safely(goal, stop_early)
+            return
         self.goal = goal
         path = traffic.route(self.node, goal, self.id)
         i = 0
@@ -277,6 +280,63 @@ class Driver:
         traffic.drop_pending(self.id)
         if self.ahead or self.speed_mps > 1e-9:
             raise SimulationError(f"AGV {self.id} ended a drive at {self.node} still moving")
+
+    def _drive_safely(self, goal: str, stop_early: Callable[[], bool] | None) -> Proc:
+        """`drive` under `traffic.policy: avoiding`: along the plan declared with traffic (the
+        route to `goal`, then on to parking). While traffic refuses the plan (the state would
+        not be safe with it), the AGV drives on along the plan it has, stopping at each node to
+        ask again; it never gives up a wait and never takes an escape."""
+        traffic = self.traffic
+        self.goal = goal
+        on_plan = traffic.declare(self, goal)
+        while self.node != self.goal:
+            if not self.ahead:
+                if not on_plan:
+                    on_plan = traffic.declare(self, goal)
+                nxt = traffic.plan_step(self.id, 1)
+                if nxt is None:  # at the end of the old plan: a parking access
+                    yield from self._through_parking(goal)
+                    on_plan = True
+                    continue
+                self.next_node = nxt
+                claim = yield from traffic.allocate(
+                    self, Hop(self.node, nxt, traffic.plan_step(self.id, 2)))
+                assert claim is not None
+                self.ahead.append(Held(nxt, claim, self.env.now))
+            nxt = self.ahead[0].node
+            self.next_node = nxt
+            v_end_max = 0.0
+            if on_plan and nxt != self.goal \
+                    and traffic.layout.markers.get(nxt) not in STOP_MARKERS:
+                w = traffic.plan_step(self.id, 2)
+                if w is not None and self._look_ahead(
+                        Hop(nxt, w, traffic.plan_step(self.id, 3))):
+                    v_end_max = self.routes.pass_speed_mps(self.node, nxt, w)
+            yield from self._hop(nxt, v_end_max)
+            if stop_early is not None and stop_early():
+                self.goal = self.ahead[-1].node if self.ahead else self.node
+        self.next_node = None
+        traffic.drop_pending(self.id)
+        if self.ahead or self.speed_mps > 1e-9:
+            raise SimulationError(f"AGV {self.id} ended a drive at {self.node} still moving")
+
+    def _through_parking(self, goal: str) -> Proc:
+        """Avoiding, at the parking access where its plan ends, the way on refused: drive
+        into the parking area (letting go of everything), take the way on as the plan (off the
+        track it holds nothing another AGV waits for, so that closes no cycle) and come back
+        out once traffic grants the access."""
+        place = self.traffic.parking_at(self.node)
+        if place is None:
+            raise SimulationError(f"AGV {self.id}: its plan ends at {self.node}, which is no "
+                                  "parking access")
+        self.note("through_parking", f"{place.id} on the way to {goal}")
+        self.next_node = None
+        yield self.env.timeout(self.clear_m / self.profile.turn_speed_mps)
+        self.enter_parking(place)
+        accepted = self.traffic.declare(self, goal)
+        assert accepted
+        yield from self.reenter_track(place.nodes[0])
+        self.parked_in = None
 
     def _look_ahead(self, hop: Hop) -> bool:
         """Take the hop now if traffic grants all of it at once; never wait."""

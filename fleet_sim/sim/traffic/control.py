@@ -53,13 +53,13 @@ at its last look has nothing new to find.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Generator, Iterator, Mapping, Sequence
+from collections.abc import Callable, Generator, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, cast
 
 import simpy
 
-from fleet_sim.config.layout import BACKWARD, FORWARD, Corridor, Layout, TrafficZone
+from fleet_sim.config.layout import BACKWARD, FORWARD, Corridor, Layout, Place, TrafficZone
 from fleet_sim.config.scenario import TrafficConfig
 from fleet_sim.errors import SimulationError
 from fleet_sim.model.kinematics import Motion, MotionBackend
@@ -74,6 +74,7 @@ from fleet_sim.sim.traffic.allocation import (
     NodeModule,
     SameDirectionModule,
 )
+from fleet_sim.sim.traffic.avoidance import Plans
 from fleet_sim.sim.traffic.deadlock import (
     DeadlockPolicy,
     DeadlockVictim,
@@ -217,6 +218,13 @@ class Traffic:
             or (m.name == "mutex" and layout.mutex_zones_at)
             or (m.name == "same_direction" and layout.direction_zones_at))
         """The modules this layout has resources for (the others never need anything)."""
+        self.plans: Plans | None = Plans(self) if self.config.policy == "avoiding" else None
+        """`traffic.policy: avoiding`: every AGV's plan and the safety checks (None:
+        reactive)."""
+        self._wakes: dict[Lock, simpy.Event] = {}
+        """Avoiding: lock -> the event that wakes the AGVs waiting for it to be let go of."""
+        self._wake_all: simpy.Event | None = None
+        """Avoiding: the event that wakes the AGVs held back by the safety check."""
 
     @property
     def zone_ids(self) -> tuple[str, ...]:
@@ -283,6 +291,8 @@ class Traffic:
                                   f"it (holder: {lock.holder})")
         lock.release(claim)
         self._forget(client_id, lock, claim)
+        if self.plans is not None:
+            self._woken(lock)
 
     def withdraw(self, client_id: int, claim: Claim) -> None:
         """Stop waiting for a claim not yet granted."""
@@ -601,11 +611,19 @@ class Traffic:
 
     def try_allocate(self, client_id: int, hop: Hop) -> Claim | None:
         """Grant the whole hop now (its node, the corridors and zones it enters) if every
-        module may allocate its part, else nothing; never waits. Returns the node's claim."""
+        module may allocate its part (and, avoiding deadlocks, if the grant keeps the state
+        safe), else nothing; never waits. Returns the node's claim."""
         needs = self._needs(client_id, hop)
         for m, need in needs:
             if not m.may_allocate(client_id, need):
                 return None
+        if self.plans is not None and not self.plans.may_grant(
+                client_id, [(need.lock, need.direction) for _, need in needs]):
+            return None
+        return self._grant_now(client_id, needs)
+
+    def _grant_now(self, client_id: int, needs: list[tuple[AllocationModule, Need]]) -> Claim:
+        """Grant every part of a hop at once (each may be allocated)."""
         now = self.env.now
         node_claim: Claim | None = None
         for m, need in needs:  # granted at once (never scheduled): their order is unseen
@@ -617,6 +635,18 @@ class Traffic:
             elif kind == "mutex":
                 self.request(client_id, need.lock)
                 self._zone_since[client_id][need.zone_id] = now
+            elif need.turn:  # avoiding: alone in the aisle, it turns round
+                zone_id = need.zone_id
+                held = self._zones[client_id][zone_id]
+                claim = self.request(client_id, need.lock, direction=need.direction)
+                self._record_zone(client_id, zone_id, held,
+                                  self._zone_since[client_id].get(zone_id, now))
+                self.turned(client_id, claim)
+                self._zone_since[client_id][zone_id] = now
+                self._clients[client_id].note(
+                    "zone_turn", f"{zone_id} {DIRECTION_NAMES[need.direction]}")
+                assert need.entry is not None
+                self._note_entry(client_id, zone_id, need.entry)
             else:
                 assert need.entry is not None
                 self.request(client_id, need.lock, direction=need.direction)
@@ -631,6 +661,8 @@ class Traffic:
         waiting for each. Returns the node's claim once all are held; None if the client gave
         up waiting (deadlock victim, or blocked long with another way at hand), what it took
         for the hop given back (see fleet_sim.sim.traffic.allocation)."""
+        if self.plans is not None:
+            return (yield from self._allocate_safely(client, hop))
         client_id = client.id
         needs = self._needs(client_id, hop)
         taken: list[Claim] = []
@@ -661,6 +693,145 @@ class Traffic:
                     return None
                 return claim
         raise SimulationError(f"AGV {client_id}: a hop to {hop.node} without its node")
+
+    # ---- avoiding deadlocks (traffic.policy: avoiding, fleet_sim.sim.traffic.avoidance) -------
+    def declare(self, client: TrafficClient, goal: str) -> bool:
+        """Make the route from where the client stands to `goal`, and on to the nearest
+        parking access, its plan if the state stays safe with it; False: refused, the old plan
+        stays in force."""
+        plans = self.plans
+        assert plans is not None
+        client_id = client.id
+        path = self.route(client.node, goal, client_id)
+        path += plans.exit_route(self.routes_of(client_id), goal)[1:]
+        if not plans.may_declare(client_id, path):
+            return False
+        plans.declare(client_id, path)
+        self._wake_held_back()
+        return True
+
+    def parking_at(self, node: str) -> Place | None:
+        """The parking area whose access is `node`, if any."""
+        for place in self.layout.parking:
+            if place.nodes[0] == node:
+                return place
+        return None
+
+    def plan_step(self, client_id: int, ahead: int) -> str | None:
+        """Avoiding: the node `ahead` hops further along the client's plan, if any."""
+        assert self.plans is not None
+        return self.plans.step(client_id, ahead)
+
+    def _woken(self, lock: Lock) -> None:
+        """`lock` was let go of: wake who waits for it, and who the safety check held back."""
+        event = self._wakes.pop(lock, None)
+        if event is not None:
+            event.succeed()
+        self._wake_held_back()
+
+    def _wake_held_back(self) -> None:
+        event = self._wake_all
+        if event is not None:
+            self._wake_all = None
+            event.succeed()
+
+    def _wake_on(self, lock: Lock | None) -> simpy.Event:
+        if lock is None:
+            if self._wake_all is None:
+                self._wake_all = self.env.event()
+            return self._wake_all
+        event = self._wakes.get(lock)
+        if event is None:
+            event = self._wakes[lock] = self.env.event()
+        return event
+
+    def _allocate_safely(self, client: TrafficClient, hop: Hop,
+                         needs_of: Callable[[], list[tuple[AllocationModule, Need]]] | None
+                         = None) -> Generator[simpy.Event, Any, Claim | None]:
+        """Avoiding: wait until every part of the hop is free and the grant keeps the state
+        safe, then take it all at once. The wait is recorded like any lock wait (for the one
+        not free, or, held back by the check, for the hop's node); a wait-for cycle, which the
+        check should make impossible, is still looked for and recorded. `needs_of`: what the
+        hop needs, if not the modules' answer (back onto the track)."""
+        plans = self.plans
+        assert plans is not None
+        env = self.env
+        client_id = client.id
+        start: float | None = None
+        zone_wait: str | None = None
+        try:
+            while True:
+                needs = self._needs(client_id, hop) if needs_of is None else needs_of()
+                blocker: Lock | None = None
+                for m, need in needs:
+                    if not (m.may_allocate(client_id, need) or need.turn and all(
+                            cast(Claim, c).client_id == client_id for c in need.lock.users)):
+                        blocker = need.lock
+                        break
+                if blocker is None and plans.may_grant(
+                        client_id, [(need.lock, need.direction) for _, need in needs]):
+                    return self._grant_now(client_id, needs)
+                shown = blocker if blocker is not None else self.node_locks[hop.node]
+                if start is None:
+                    start = env.now
+                    if isinstance(shown.key, ZoneLock):
+                        zone_wait = shown.key.zone_id
+                    self.recorder.wait_began(client_id, start, zone_wait)
+                    if self.recorder.record_moves:
+                        holder = shown.holder
+                        self._open_waits[client_id] = (start, str(shown.key),
+                                                       -1 if holder is None else holder)
+                if self.waiting.get(client_id) is not shown:
+                    if client_id in self.waiting:
+                        self.stop_waiting(client_id)
+                    self.start_waiting(client_id, shown)
+                    self._record_cycle(client)
+                yield self._wake_on(blocker) | env.timeout(self.config.deadlock_check_s)
+        finally:
+            if start is not None:
+                self.stop_waiting(client_id)
+                self.recorder.blocked(start, env.now, client_id)
+                self._close_wait(client)
+                if zone_wait is not None and start < env.now:
+                    self.recorder.zone_waited(zone_wait, start, env.now)
+
+    def _record_cycle(self, client: TrafficClient) -> None:
+        """Avoiding: record a wait-for cycle through the client, if one closed (none should)."""
+        if client.id not in self._suspects:
+            return
+        cycle = find_cycle(client.id, self.waiting)
+        if cycle is None or not self._cycles.is_new(cycle, self.waiting):
+            return
+        self.recorder.deadlocks += 1
+        names = " ".join(str(m) for m in cycle)
+        locks = " ".join(str(self.waiting[m].key) for m in cycle)
+        client.note("deadlock_detected", f"agvs {names} waiting for {locks}")
+
+    def _reenter_safely(self, client: TrafficClient,
+                        access: str) -> Generator[simpy.Event, Any, Claim]:
+        """Avoiding: back onto the track at `access` with the plan of driving off again there
+        (it holds nothing, so that plan closes no cycle), once the access and its corridor and
+        zones are free and the grant keeps the state safe."""
+        plans = self.plans
+        assert plans is not None
+        client_id = client.id
+        path = plans.path.get(client_id)
+        if path is None or path[0] != access or plans.at[client_id] != 0:
+            plans.declare(client_id, plans.exit_route(self.routes_of(client_id), access))
+        modules = {m.name: m for m in self.modules}
+
+        def needs_of() -> list[tuple[AllocationModule, Need]]:
+            out: list[tuple[AllocationModule, Need]] = []
+            corridor = self.layout.corridor_at(access)
+            if corridor is not None:
+                out.append((modules["corridor"], Need(self.corridor_locks[corridor.id])))
+            out += [(modules["mutex"], Need(self.zone_locks[z.id])) for z in self.zones_at(access)]
+            out.append((modules["node"], Need(self.node_locks[access])))
+            return out
+
+        claim = yield from self._allocate_safely(client, Hop(access, access), needs_of)
+        assert claim is not None
+        return claim
 
     def _free_all(self, client_id: int, claims: list[Claim]) -> None:
         for claim in claims:
@@ -787,6 +958,8 @@ class Traffic:
         claim = self.request(client_id, self.node_locks[node])
         if not claim.triggered:
             raise SimulationError(f"AGV {client_id} starts on node {node}, already occupied")
+        if self.plans is not None:
+            self.plans.declare(client_id, self.plans.exit_route(self.routes_of(client_id), node))
         return claim
 
     def reenter(self, client: TrafficClient,
@@ -795,6 +968,8 @@ class Traffic:
         wait was broken (the client chosen to break a wait-for cycle), what it took given
         back."""
         client_id = client.id
+        if self.plans is not None:
+            return (yield from self._reenter_safely(client, access))
         corridor = self.layout.corridor_at(access)
         taken: list[Claim] = []
         if corridor is not None:
@@ -824,6 +999,9 @@ class Traffic:
         for cid in list(self._corridors[client_id]):
             self._release_corridor(client_id, cid)
         self.release_left_zones(client_id)
+        if self.plans is not None:
+            self.plans.clear(client_id)
+            self._wake_held_back()
 
     def check_hop(self, client_id: int, u: str, v: str) -> None:
         """The client is about to drive u -> v: it must hold the corridor it drives in."""
@@ -835,6 +1013,8 @@ class Traffic:
     def hopped(self, client_id: int, u: str, v: str, body: Sequence[str]) -> None:
         """The client drove u -> v; `body`: the nodes it still holds, oldest first (v last).
         Let go of the corridors and zones it has left."""
+        if self.plans is not None:
+            self.plans.advance(client_id, v)
         corridor = self.layout.corridor_of(u, v)
         if corridor is not None:
             self.entered_corridor(client_id, corridor.id)
