@@ -764,8 +764,8 @@ class Traffic:
                 needs = self._needs(client_id, hop) if needs_of is None else needs_of()
                 blocker: Lock | None = None
                 for m, need in needs:
-                    if not (m.may_allocate(client_id, need) or need.turn and all(
-                            cast(Claim, c).client_id == client_id for c in need.lock.users)):
+                    if not (m.may_allocate(client_id, need) or (need.turn and all(
+                            cast(Claim, c).client_id == client_id for c in need.lock.users))):
                         blocker = need.lock
                         break
                 if blocker is None and plans.may_grant(
