@@ -6,7 +6,8 @@ capacity. Each run is `--hours` long after a 0.5 h warm-up (throughput counts af
 seed per fleet size (the same orders at every size). The limit per layout is the fleet size at
 which throughput peaked without the rule in earlier runs of this script (the loop's working
 load); `--routing` adds a column with congestion-aware routes (`traffic.congestion_cost_s`) on
-top of admission.
+top of admission; `--avoiding` a column with the deadlock-avoiding traffic policy
+(`traffic.policy: avoiding`, no admission) and the gridlocks each policy locked into.
 
     .venv/bin/python bench/admission.py [--hours 3] [--layouts warehouse ...] [--routing]
 """
@@ -44,6 +45,7 @@ CASES = (
     Case("warehouse", (10, 20, 40, 70, 100, 150), 300.0, 20),
     Case("warehouse_wifi", (10, 20, 40, 70, 100, 150), 300.0, 20),
     Case("distribution_centre", (20, 40, 80, 150, 250), 600.0, 40),
+    Case("fulfilment_centre", (50, 100, 200, 300, 500), 3000.0, 300),
 )
 
 
@@ -60,7 +62,12 @@ def run(case: Case, agvs: int, hours: float, overrides: dict[str, Any]) -> dict[
     wall = time.perf_counter() - start
     figures = run_kpis(out)
     return {"throughput": figures["throughput_per_hour"], "deadlocks": out.recorder.deadlocks,
-            "wall": wall}
+            "wall": wall, "gridlock": figures["gridlock_at_h"]}
+
+
+def gridlock_cell(figures: dict[str, Any]) -> str:
+    at_h = figures["gridlock"]
+    return "-" if at_h is None else f"at {at_h:.1f} h"
 
 
 def main() -> None:
@@ -68,6 +75,10 @@ def main() -> None:
     parser.add_argument("--hours", type=float, default=3.0,
                         help="measured hours after the warm-up (default 3)")
     parser.add_argument("--layouts", nargs="+", default=[c.layout for c in CASES])
+    parser.add_argument("--fleets", type=int, nargs="+",
+                        help="these fleet sizes instead of each layout's own")
+    parser.add_argument("--avoiding", action="store_true",
+                        help="also the deadlock-avoiding policy (traffic.policy: avoiding)")
     parser.add_argument("--routing", action="store_true",
                         help="also admission + congestion-aware routes (congestion_cost_s 10)")
     args = parser.parse_args()
@@ -80,24 +91,31 @@ def main() -> None:
         print(f"{case.layout}: demand {case.rate_per_hour:g} orders/h, admission limit "
               f"{case.max_active} AGVs on the track")
         print()
-        header = ["AGVs", "no rule: delivered/h", "deadlocks", "with rule: delivered/h",
-                  "deadlocks"]
+        header = ["AGVs", "no rule: delivered/h", "deadlocks", "gridlock",
+                  "with rule: delivered/h", "deadlocks"]
         if args.routing:
             header += ["rule + congestion routes: delivered/h", "deadlocks"]
+        if args.avoiding:
+            header += ["avoiding: delivered/h", "deadlocks", "gridlock", "wall s"]
         header += ["wall s (no rule / rule)"]
         print("| " + " | ".join(header) + " |")
         print("|" + "|".join("---:" for _ in header) + "|")
-        for agvs in case.fleets:
+        for agvs in args.fleets or case.fleets:
             free = run(case, agvs, args.hours, {})
             ruled = run(case, agvs, args.hours, {"dispatch.max_active_agvs": case.max_active}) \
                 if agvs > case.max_active else free  # below the limit the rule never binds
             cells = [f"{agvs}", f"{free['throughput']:.1f}", f"{free['deadlocks']:.0f}",
-                     f"{ruled['throughput']:.1f}", f"{ruled['deadlocks']:.0f}"]
+                     gridlock_cell(free), f"{ruled['throughput']:.1f}",
+                     f"{ruled['deadlocks']:.0f}"]
             if args.routing:
                 routed = run(case, agvs, args.hours,
                              {"dispatch.max_active_agvs": min(case.max_active, agvs),
                               "traffic.congestion_cost_s": 10.0})
                 cells += [f"{routed['throughput']:.1f}", f"{routed['deadlocks']:.0f}"]
+            if args.avoiding:
+                safe = run(case, agvs, args.hours, {"traffic.policy": "avoiding"})
+                cells += [f"{safe['throughput']:.1f}", f"{safe['deadlocks']:.0f}",
+                          gridlock_cell(safe), f"{safe['wall']:.1f}"]
             cells += [f"{free['wall']:.1f} / {ruled['wall']:.1f}"]
             print("| " + " | ".join(cells) + " |", flush=True)
     print()

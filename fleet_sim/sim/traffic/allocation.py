@@ -23,9 +23,10 @@ Decisions (the issue is silent):
   finds another way, `Traffic.give_up`): exactly the rollback the driver did before.
 * A look-ahead grant takes nothing it would have to wait for, so it schedules no SimPy event
   (fleet_sim.sim.traffic.locks.Claim.grant_at_once).
-* A traffic policy that avoids deadlocks (issue 21) would answer "may it allocate?" for the
-  hop as a whole, beside these modules; none is built yet (traffic is reactive: cycles are found
-  and broken, fleet_sim.sim.traffic.deadlock).
+* The deadlock-avoiding policy (`traffic.policy: avoiding`, fleet_sim.sim.traffic.avoidance)
+  answers "may it allocate?" for the hop as a whole, beside these modules: every part free and
+  the grant keeping every AGV's plan finishable; the reactive policy finds and breaks cycles
+  (fleet_sim.sim.traffic.deadlock).
 """
 
 from __future__ import annotations
