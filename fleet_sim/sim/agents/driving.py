@@ -144,6 +144,10 @@ class Driver:
         assert process is not None
         process.interrupt(cause)
 
+    def past_m(self) -> dict[str, float]:
+        """Node -> how far the AGV has driven past it, for the nodes behind it it holds."""
+        return {h.node: h.behind_m for h in self.held}
+
     @property
     def in_parking(self) -> bool:
         """In a parking area, off the track."""

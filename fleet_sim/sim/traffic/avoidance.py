@@ -51,18 +51,28 @@ Decisions (the issue and RSS-AGV-001 are silent):
 
 from __future__ import annotations
 
+import heapq
+import itertools
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import networkx as nx
+
 from fleet_sim.errors import SimulationError
-from fleet_sim.sim.traffic.locks import Claim, Lock
+from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock, ZoneLock
+from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectionGate
 
 if TYPE_CHECKING:
     from fleet_sim.sim.traffic.control import Traffic
     from fleet_sim.sim.traffic.routing import Routes
 
 POLICIES = ("reactive", "avoiding")
+
+Move = tuple[int, int, int]
+"""One move of a witness: (client, plan number, the index in the plan of the node reached;
+one past its end: driving off into parking)."""
 
 Step = tuple[tuple[Lock, int], ...]
 """What reaching one node of a plan takes: (lock, direction) pairs: the node, the corridor and
@@ -88,12 +98,24 @@ class Plans:
         """Resource -> the clients whose remaining plan needs it."""
         self._exits: dict[tuple[int, str], list[str]] = {}
         """(routes, node) -> the route from node to the nearest parking access."""
+        self.granted: dict[int, int] = {}
+        """Client id -> the index in its plan of the furthest node it was granted."""
+        self.plan_id: dict[int, int] = {}
+        """Client id -> the number of its plan (each declaration a new one)."""
+        self._plans_made = 0
+        self.witness: list[Move] | None = None
+        """None while the claim graph is acyclic; else an order of moves, one node at a time,
+        that takes every AGV on the track off it (found by the last walk, `_Walk`)."""
+        self._next = 0
+        """The first move of `witness` not yet made."""
         self.checks = 0
         """Claim-graph walks (grants and plans that someone else's plan could conflict
         with)."""
         self.walks = 0
-        """Plans driven forward (stage 2), and the AGVs moved in them."""
-        self.walked_agvs = 0
+        """Plans driven forward (`_Walk`), and the moves they made."""
+        self.walked_moves = 0
+        self.witness_grants = 0
+        """Grants that were the witness's next move."""
         self.refused_grants = 0
         self.refused_plans = 0
 
@@ -129,9 +151,9 @@ class Plans:
                         step.append((lock, 0))
                 if layout.direction_zones_at:
                     along = layout.direction_zone_of(u, v)
-                    if along is not None:
+                    if along is not None:  # both ways: it turns round at b (alone inside)
                         lock = traffic.zone_locks[along[0].id]
-                        if all(lk is not lock for lk, _ in step):
+                        if (lock, along[1]) not in step:
                             step.append((lock, along[1]))
             for zone in layout.mutex_zones_at.get(b, ()):
                 step.append((traffic.zone_locks[zone.id], 0))
@@ -149,6 +171,9 @@ class Plans:
         needs = self._remaining(steps, 0)
         self.path[client_id] = list(path)
         self.at[client_id] = 0
+        self._plans_made += 1
+        self.plan_id[client_id] = self._plans_made
+        self.granted[client_id] = 0
         self._steps[client_id] = steps
         self.needs[client_id] = needs
         for lock in needs:
@@ -160,6 +185,7 @@ class Plans:
         if needs is None:
             return
         del self.path[client_id], self.at[client_id], self._steps[client_id]
+        del self.plan_id[client_id], self.granted[client_id]
         for lock in needs:
             self.users_of[lock].discard(client_id)
 
@@ -182,6 +208,17 @@ class Plans:
                 del needs[lock]
                 self.users_of[lock].discard(client_id)
 
+    def took(self, client_id: int, node: str) -> None:
+        """The client was granted `node`, one or two nodes ahead on its plan."""
+        path = self.path.get(client_id)
+        if path is None:
+            return
+        k = self.at[client_id]
+        for d in (1, 2):
+            if k + d < len(path) and path[k + d] == node:
+                self.granted[client_id] = max(self.granted[client_id], k + d)
+                return
+
     def step(self, client_id: int, ahead: int) -> str | None:
         """The node `ahead` hops further along the client's plan, if the plan goes that far."""
         path = self.path.get(client_id)
@@ -194,19 +231,24 @@ class Plans:
     def may_declare(self, client_id: int, path: Sequence[str]) -> bool:
         """Would the state stay safe with `path` as the client's plan?"""
         steps = self.steps(path)
-        needs = self._remaining(steps, 0)
-        holders = {h for lock in needs for h in _holders(lock) if h != client_id}
-        if not holders:
+        if self.witness is None:
+            needs = self._remaining(steps, 0)
+            holders = {h for lock in needs for h in _holders(lock) if h != client_id}
+            if not holders:
+                return True
+            self.checks += 1
+            if not self._reaches(holders, lambda h: h == client_id, skip=client_id):
+                return True
+        elif not any(self.traffic.held_locks(client_id)):
+            return True  # off the track: in nobody's way, and in no move of the witness
+        if self._walk(client_id, (list(path), steps), ()):
             return True
-        self.checks += 1
-        if self._reaches(holders, lambda h: h == client_id, skip=client_id):
-            self.refused_plans += 1
-            return False
-        return True
+        self.refused_plans += 1
+        return False
 
-    def may_grant(self, client_id: int, locks: Sequence[tuple[Lock, int]]) -> bool:
+    def may_grant(self, client_id: int, locks: Sequence[tuple[Lock, int]], node: str) -> bool:
         """Would the state stay safe if the client took `locks` ((lock, direction), free, on
-        its plan)?"""
+        its plan) to drive to `node`?"""
         users_of = self.users_of
         targets: set[int] = set()
         for lock, _ in locks:
@@ -216,11 +258,89 @@ class Plans:
         targets.discard(client_id)
         if not targets:
             return True
-        self.checks += 1
-        if self._reaches((client_id,), targets.__contains__):
-            self.refused_grants += 1
+        if self.witness is None:
+            self.checks += 1
+            if not self._reaches((client_id,), targets.__contains__):
+                return True
+        elif self._is_next(client_id, node):
+            self._next += 1
+            self.witness_grants += 1
+            return True
+        if self._walk(client_id, None, locks):
+            return True
+        self.refused_grants += 1
+        return False
+
+    def _is_next(self, client_id: int, node: str) -> bool:
+        """Is driving to `node` the client's move that comes next in the witness?"""
+        witness = self.witness
+        assert witness is not None
+        while self._next < len(witness):
+            x, plan, k = witness[self._next]
+            if self.plan_id.get(x) != plan or self.at[x] >= k:
+                self._next += 1  # made already (or its AGV left the track)
+                continue
+            path = self.path[x]
+            if k == len(path):  # driving off at the end of its plan: no grant, wait for it
+                return False
+            if self.granted[x] >= k:
+                self._next += 1  # granted already
+                continue
+            return x == client_id and path[k] == node
+        return False
+
+    def _walk(self, client_id: int, new_plan: tuple[list[str], list[Step]] | None,
+              granted: Sequence[tuple[Lock, int]]) -> bool:
+        """Drive every AGV on the track forward along its plan, one node at a time, with the
+        client's new plan or the locks it is granted: if all get off the track, the order
+        of moves becomes the witness."""
+        walk = _Walk(self.traffic)
+        held_locks = self.traffic.held_locks
+        for x in sorted(self.path):
+            if x == client_id:
+                path, steps = new_plan if new_plan is not None \
+                    else (self.path[x], self._steps[x])
+                walk.add(x, self.plan_id[x] if new_plan is None else -1, path, steps,
+                         0 if new_plan is not None else self.at[x], granted)
+            elif any(held_locks(x)):
+                walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self.at[x], ())
+        self.walks += 1
+        done = walk.run()
+        self.walked_moves += len(walk.moves)
+        if not done:
             return False
+        if new_plan is not None:  # the client's moves are of the plan it is about to declare
+            plan = self._plans_made + 1
+            walk.moves = [(x, plan if p == -1 else p, k) for x, p, k in walk.moves]
+        self.witness = walk.moves
+        self._next = 0
         return True
+
+    def proof(self) -> str | None:
+        """Why the state is safe, checked from scratch (for tests and bug hunts): "acyclic"
+        (the claim graph has no cycle), "witness" (the witness's moves, those granted but not
+        driven yet first, take every AGV on the track off it), or None: not shown safe."""
+        traffic = self.traffic
+        if self.witness is None:
+            graph: nx.DiGraph = nx.DiGraph()
+            for x, needs in self.needs.items():
+                graph.add_edges_from((x, y) for lock in needs for y in _holders(lock) if y != x)
+            return "acyclic" if nx.is_directed_acyclic_graph(graph) else None
+        walk = _Walk(traffic)
+        for x in sorted(self.path):
+            if any(traffic.held_locks(x)):
+                walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self.at[x], ())
+        for x, plan, k in self.witness:
+            if self.plan_id.get(x) != plan or x not in walk.plans or walk.at[x] >= k:
+                continue
+            if walk.at[x] != k - 1:
+                return None
+            walk.step(x)
+            if x in walk.plans and walk.at[x] != k:
+                return None  # its move is blocked
+        walk.queue = sorted(walk.plans)  # AGVs that came onto the track since, granted
+        walk.waiting = {}  # only what nobody else's plan needs: after the witness, alone
+        return "witness" if walk.run() else None
 
     def _reaches(self, start: Iterable[int], hit: Callable[[int], bool],
                  skip: int | None = None) -> bool:
@@ -243,6 +363,181 @@ class Plans:
                         seen.add(h)
                         stack.append(h)
         return False
+
+
+@dataclass(slots=True)
+class _Body:
+    """In the walk: a node an AGV holds behind it, and how far it has driven past it."""
+
+    lock: Lock
+    past_m: float = 0.0
+
+
+class _Walk:
+    """Every AGV on the track driven forward along its plan, one node at a time, the lowest
+    id that can move first (Plans._walk); each move takes what the hop takes, and lets go of
+    what the body has cleared and the corridors and zones it has left, as the driver and
+    traffic do."""
+
+    def __init__(self, traffic: Traffic) -> None:
+        self.traffic = traffic
+        self.holders: dict[Lock, list[int]] = {}
+        self.ways: dict[Lock, int] = {}
+        self.plans: dict[int, tuple[list[str], list[Step]]] = {}
+        self.at: dict[int, int] = {}
+        self.body: dict[int, list[_Body]] = {}
+        """Member -> the nodes its body covers, oldest first (the one it stands on last)."""
+        self.ahead: dict[int, list[Lock]] = {}
+        """Member -> nodes it holds ahead on its plan (the look-ahead)."""
+        self.others: dict[int, list[Lock]] = {}
+        """Member -> the corridors and zones it holds."""
+        self.clear_m: dict[int, float] = {}
+        self.waiting: dict[Lock, list[int]] = {}
+        self.queue: list[int] = []
+        """Members that may move (the lowest id moves first, one step at a time)."""
+        self.plan_of: dict[int, int] = {}
+        self.moves: list[Move] = []
+        """The moves made, in order."""
+
+    def held_by(self, lock: Lock) -> list[int]:
+        h = self.holders.get(lock)
+        if h is None:
+            h = self.holders[lock] = list(_holders(lock))
+            if isinstance(lock, DirectionGate):
+                self.ways[lock] = lock.direction
+        return h
+
+    def take(self, x: int, lock: Lock, way: int) -> None:
+        h = self.held_by(lock)
+        if x in h:
+            if isinstance(lock, DirectionGate) and way:
+                self.ways[lock] = way  # alone inside, it turns round (free_for)
+            return
+        h.append(x)
+        if isinstance(lock, DirectionGate) and len(h) == 1:
+            self.ways[lock] = way or 1
+
+    def let_go(self, x: int, lock: Lock) -> None:
+        self.held_by(lock).remove(x)
+        woken = self.waiting.pop(lock, None)
+        if woken:
+            for y in woken:
+                self._ready(y)
+
+    def free_for(self, x: int, lock: Lock, way: int) -> bool:
+        h = self.held_by(lock)
+        if x in h:  # the other way round a same-direction aisle only alone in it
+            return not (isinstance(lock, DirectionGate) and way
+                        and self.ways.get(lock) != way and len(h) > 1)
+        if len(h) >= lock.capacity:
+            return False
+        if isinstance(lock, DirectionGate) and h:
+            return way == ANY_DIRECTION or self.ways.get(lock) == way
+        return True
+
+    def add(self, x: int, plan: int, path: list[str], steps: list[Step], k: int,
+            granted: Sequence[tuple[Lock, int]]) -> None:
+        traffic = self.traffic
+        node_locks = traffic.node_locks
+        self.plans[x] = (path, steps)
+        self.plan_of[x] = plan
+        self.at[x] = k
+        self.clear_m[x] = traffic.clearance_m(x)
+        nodes, others = traffic.held_locks(x)
+        for lock, way in granted:
+            self.take(x, lock, way)
+            mine = nodes if isinstance(lock.key, NodeLock) else others
+            if lock not in mine:  # a turn: the zone it holds the other way
+                mine.append(lock)
+        here = node_locks[path[k]]
+        on_plan = {node_locks[n] for n in path[k + 1:k + 3]}
+        past = traffic.past_m(x)
+        behind = sorted((lk for lk in nodes if lk is not here),
+                        key=lambda lk: (-past.get(str(lk.key), 0.0), str(lk.key)))
+        self.ahead[x] = [lk for lk in behind if lk in on_plan]
+        self.body[x] = [_Body(lk, past.get(str(lk.key), 0.0))
+                        for lk in behind if lk not in on_plan]
+        if here in nodes:
+            self.body[x].append(_Body(here, past.get(path[k], 0.0)))
+        self.others[x] = others
+        self._ready(x)
+
+    def _ready(self, x: int) -> None:
+        heapq.heappush(self.queue, x)
+
+    def run(self) -> bool:
+        """Move the members on until none can: True if every one drove off the track."""
+        queue = self.queue
+        while queue:
+            x = heapq.heappop(queue)
+            if x in self.plans and self.step(x):
+                self._ready(x)
+        return not self.plans
+
+    def step(self, x: int) -> bool:
+        """Move `x` one node on if it can (False: it waits, or it drove off the track)."""
+        path, steps = self.plans[x]
+        k = self.at[x]
+        last = len(path) - 1
+        body = self.body[x]
+        ahead = self.ahead[x]
+        others = self.others[x]
+        if k < last:
+            step = steps[k + 1]
+            blocked = next((lk for lk, way in step if not self.free_for(x, lk, way)), None)
+            if blocked is not None:
+                self.waiting.setdefault(blocked, []).append(x)
+                return False
+            for lock, way in step:
+                new = x not in self.held_by(lock)
+                self.take(x, lock, way)
+                if new and not isinstance(lock.key, NodeLock):
+                    others.append(lock)
+            k += 1
+            self.at[x] = k
+            self.moves.append((x, self.plan_of[x], k))
+            here = self.traffic.node_locks[path[k]]
+            if here in ahead:
+                ahead.remove(here)
+            length = self.traffic.routes.edge[path[k - 1], path[k]]["length_m"]
+            for part in body:
+                part.past_m += length
+            body.append(_Body(here))
+            while len(body) > 1 and body[0].past_m >= self.clear_m[x] - 1e-9:
+                self.let_go(x, body.pop(0).lock)
+            if others:
+                nodes = [str(p.lock.key) for p in body] + [str(lk.key) for lk in ahead]
+                self._leave(x, nodes, (path[k], path[k + 1]) if k < last else None)
+        if k == last:  # off into parking: everything let go
+            self.moves.append((x, self.plan_of[x], last + 1))
+            for lock in [p.lock for p in body] + ahead + others:
+                self.let_go(x, lock)
+            del self.plans[x]
+            return False
+        return True
+
+    def _leave(self, x: int, nodes: list[str], next_hop: tuple[str, str] | None) -> None:
+        """Let go of the corridors and zones `x` has left (holding none of their nodes and
+        not about to drive in)."""
+        layout = self.traffic.layout
+        held = self.others[x]
+        for lock in list(held):
+            key = lock.key
+            if isinstance(key, CorridorLock):
+                corridor = layout.corridors[key.corridor_id]
+                keep = any(n in corridor.members for n in nodes) \
+                    or any(hop in corridor.segments for hop in itertools.pairwise(nodes)) \
+                    or (next_hop is not None and next_hop in corridor.segments)
+            else:
+                assert isinstance(key, ZoneLock)
+                zone = layout.traffic_zone_by_id[key.zone_id]
+                along = layout.direction_zone_of(*next_hop) \
+                    if next_hop is not None and zone.kind == "same_direction" else None
+                keep = any(n in zone.nodes for n in nodes) \
+                    or (along is not None and along[0].id == zone.id)
+            if not keep:
+                held.remove(lock)
+                self.let_go(x, lock)
 
 
 def _holders(lock: Lock) -> Iterable[int]:

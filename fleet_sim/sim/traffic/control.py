@@ -139,6 +139,16 @@ class TrafficClient(Protocol):
     def on_deadlock_victim(self, cause: DeadlockVictim) -> None:
         """The AGV was chosen to break a wait-for cycle: stop waiting and take `cause.escape`."""
 
+    @property
+    def clear_m(self) -> float:
+        """How far past a node the AGV drives before it lets go of it (its length plus the
+        minimum gap)."""
+        ...
+
+    def past_m(self) -> dict[str, float]:
+        """Node -> how far the AGV has driven past it, for the nodes behind it it holds."""
+        ...
+
 
 class Traffic:
     """The reservation table: node and corridor locks, keyed by client."""
@@ -224,6 +234,9 @@ class Traffic:
         self._wakes: dict[Lock, simpy.Event] = {}
         """Avoiding: lock -> the event that wakes the AGVs waiting for it to be let go of."""
         self._wake_all: simpy.Event | None = None
+        self._held_back: set[int] = set()
+        """Avoiding: the AGVs on the track the safety check holds back; while there are any,
+        no AGV comes back onto the track (it would only add to the queue)."""
         """Avoiding: the event that wakes the AGVs held back by the safety check."""
 
     @property
@@ -282,6 +295,23 @@ class Traffic:
             self._corridors[client_id][key.corridor_id] = (claim, entry)
         self.version += 1
         return claim
+
+    def held_locks(self, client_id: int) -> tuple[list[Lock], list[Lock]]:
+        """The node locks and the corridor and zone locks the client holds (granted)."""
+        nodes = [cast(Lock, c.resource) for c in self._nodes[client_id] if c.triggered]
+        others = [cast(Lock, c.resource) for c, _ in self._corridors[client_id].values()
+                  if c.triggered]
+        others += [cast(Lock, c.resource) for c in self._zones[client_id].values()
+                   if c.triggered]
+        return nodes, others
+
+    def past_m(self, client_id: int) -> dict[str, float]:
+        """How far the client has driven past each node behind it (`TrafficClient.past_m`)."""
+        return self._clients[client_id].past_m()
+
+    def clearance_m(self, client_id: int) -> float:
+        """How far past a node the client lets go of it (`TrafficClient.clear_m`)."""
+        return self._clients[client_id].clear_m
 
     def free(self, client_id: int, claim: Claim) -> None:
         """Give back a lock the client holds."""
@@ -618,7 +648,7 @@ class Traffic:
             if not m.may_allocate(client_id, need):
                 return None
         if self.plans is not None and not self.plans.may_grant(
-                client_id, [(need.lock, need.direction) for _, need in needs]):
+                client_id, [(need.lock, need.direction) for _, need in needs], hop.node):
             return None
         return self._grant_now(client_id, needs)
 
@@ -653,6 +683,8 @@ class Traffic:
                 self._zone_since[client_id][need.zone_id] = now
                 self._note_entry(client_id, need.zone_id, need.entry)
         assert node_claim is not None
+        if self.plans is not None:
+            self.plans.took(client_id, node_claim.node)
         return node_claim
 
     def allocate(self, client: TrafficClient,
@@ -703,7 +735,7 @@ class Traffic:
         assert plans is not None
         client_id = client.id
         path = self.route(client.node, goal, client_id)
-        path += plans.exit_route(self.routes_of(client_id), goal)[1:]
+        path = path + plans.exit_route(self.routes_of(client_id), goal)[1:]  # routes are cached
         if not plans.may_declare(client_id, path):
             return False
         plans.declare(client_id, path)
@@ -768,9 +800,16 @@ class Traffic:
                             cast(Claim, c).client_id == client_id for c in need.lock.users))):
                         blocker = need.lock
                         break
-                if blocker is None and plans.may_grant(
-                        client_id, [(need.lock, need.direction) for _, need in needs]):
-                    return self._grant_now(client_id, needs)
+                if blocker is None and (needs_of is None or not self._held_back) \
+                        and plans.may_grant(
+                            client_id, [(need.lock, need.direction) for _, need in needs],
+                            hop.node):
+                    self._held_back.discard(client_id)
+                    granted = self._grant_now(client_id, needs)
+                    self._wake_held_back()
+                    return granted
+                if blocker is None and needs_of is None:
+                    self._held_back.add(client_id)
                 shown = blocker if blocker is not None else self.node_locks[hop.node]
                 if start is None:
                     start = env.now
@@ -786,8 +825,11 @@ class Traffic:
                         self.stop_waiting(client_id)
                     self.start_waiting(client_id, shown)
                     self._record_cycle(client)
-                yield self._wake_on(blocker) | env.timeout(self.config.deadlock_check_s)
+                yield self._wake_on(blocker)
         finally:
+            if client_id in self._held_back:
+                self._held_back.discard(client_id)
+                self._wake_held_back()
             if start is not None:
                 self.stop_waiting(client_id)
                 self.recorder.blocked(start, env.now, client_id)
