@@ -333,6 +333,8 @@ class Plans:
         for x, plan, k in self.witness:
             if self.plan_id.get(x) != plan or x not in walk.plans or walk.at[x] >= k:
                 continue
+            while walk.at[x] < min(k - 1, self.granted[x]) and walk.step(x):
+                pass  # nodes it was granted outside the witness (nobody else needs them)
             if walk.at[x] != k - 1:
                 return None
             walk.step(x)
