@@ -280,10 +280,7 @@ class Driver:
             i += 1
             if stop_early is not None and stop_early():
                 self.goal = self.ahead[-1].node if self.ahead else self.node
-        self.next_node = None
-        traffic.drop_pending(self.id)
-        if self.ahead or self.speed_mps > 1e-9:
-            raise SimulationError(f"AGV {self.id} ended a drive at {self.node} still moving")
+        self._end_drive()
 
     def _drive_safely(self, goal: str, stop_early: Callable[[], bool] | None) -> Proc:
         """`drive` under `traffic.policy: avoiding`: along the plan declared with traffic (the
@@ -319,8 +316,12 @@ class Driver:
             yield from self._hop(nxt, v_end_max)
             if stop_early is not None and stop_early():
                 self.goal = self.ahead[-1].node if self.ahead else self.node
+        self._end_drive()
+
+    def _end_drive(self) -> None:
+        """At the end of a drive: give back what was reserved beyond it; it stands still."""
         self.next_node = None
-        traffic.drop_pending(self.id)
+        self.traffic.drop_pending(self.id)
         if self.ahead or self.speed_mps > 1e-9:
             raise SimulationError(f"AGV {self.id} ended a drive at {self.node} still moving")
 

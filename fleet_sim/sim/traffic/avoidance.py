@@ -68,8 +68,6 @@ if TYPE_CHECKING:
     from fleet_sim.sim.traffic.control import Traffic
     from fleet_sim.sim.traffic.routing import Routes
 
-POLICIES = ("reactive", "avoiding")
-
 Move = tuple[int, int, int]
 """One move of a witness: (client, plan number, the index in the plan of the node reached;
 one past its end: driving off into parking)."""
@@ -108,14 +106,6 @@ class Plans:
         that takes every AGV on the track off it (found by the last walk, `_Walk`)."""
         self._next = 0
         """The first move of `witness` not yet made."""
-        self.checks = 0
-        """Claim-graph walks (grants and plans that someone else's plan could conflict
-        with)."""
-        self.walks = 0
-        """Plans driven forward (`_Walk`), and the moves they made."""
-        self.walked_moves = 0
-        self.witness_grants = 0
-        """Grants that were the witness's next move."""
         self.refused_grants = 0
         self.refused_plans = 0
 
@@ -236,7 +226,6 @@ class Plans:
             holders = {h for lock in needs for h in _holders(lock) if h != client_id}
             if not holders:
                 return True
-            self.checks += 1
             if not self._reaches(holders, lambda h: h == client_id, skip=client_id):
                 return True
         elif not any(self.traffic.held_locks(client_id)):
@@ -259,12 +248,10 @@ class Plans:
         if not targets:
             return True
         if self.witness is None:
-            self.checks += 1
             if not self._reaches((client_id,), targets.__contains__):
                 return True
         elif self._is_next(client_id, node):
             self._next += 1
-            self.witness_grants += 1
             return True
         if self._walk(client_id, None, locks):
             return True
@@ -304,9 +291,7 @@ class Plans:
                          0 if new_plan is not None else self.at[x], granted)
             elif any(held_locks(x)):
                 walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self.at[x], ())
-        self.walks += 1
         done = walk.run()
-        self.walked_moves += len(walk.moves)
         if not done:
             return False
         if new_plan is not None:  # the client's moves are of the plan it is about to declare
