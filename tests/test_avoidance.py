@@ -1,9 +1,10 @@
-"""Deadlock avoidance by construction (`traffic.policy: avoiding`, issue 21): the claim graph
-(fleet_sim.sim.traffic.avoidance) stays acyclic after every grant and every plan over whole
-runs with incidents, so no wait-for cycle ever forms; where the reactive policy records
-deadlocks the avoiding one records none and keeps delivering; the fleet never locks solid, up
-to the parking capacity of every bundled layout; a fleet far beyond what the loop carries
-keeps delivering (layouts always have a parking area, where every plan ends)."""
+"""Deadlock avoidance by construction (`traffic.policy: avoiding`, issue 21). The check alone
+(every AGV admitted onto the track, `dispatch.max_active_agvs` = the fleet): every state after
+every grant and every plan over whole runs with incidents is shown safe, so no wait-for cycle
+ever forms; where the reactive policy records deadlocks the avoiding one records none and keeps
+delivering; the fleet never locks solid, up to the parking capacity of every bundled layout.
+The policy as a planner gets it (admission `auto`, the layout's critical fleet): throughput
+never falls more than 5 % below the best smaller fleet's as the fleet grows."""
 
 from __future__ import annotations
 
@@ -39,7 +40,8 @@ def test_every_state_is_shown_safe_after_every_grant_and_plan_with_incidents(
     charging: the claim graph is acyclic, or the witness, replayed from the state as it is,
     takes every AGV off the track. Both kinds of proof occur."""
     scenario, layout = scenario_for("warehouse_wifi", 30, 2.0, 240, "avoiding",
-                                    base="warehouse_incidents.yaml")
+                                    base="warehouse_incidents.yaml",
+                                    **{"dispatch.max_active_agvs": 30})
     model = build_model(scenario, layout, (), False, False, None, 10_000)
     traffic = model.traffic
     checked = {"grants": 0, "plans": 0}
@@ -82,7 +84,8 @@ def test_where_reactive_traffic_deadlocks_avoiding_traffic_never_does() -> None:
     the avoiding one never closes one, and still delivers orders every hour."""
     figures = {}
     for policy in ("reactive", "avoiding"):
-        scenario, layout = scenario_for("warehouse", 40, 2.5, 300, policy)
+        scenario, layout = scenario_for("warehouse", 40, 2.5, 300, policy,
+                                        **{"dispatch.max_active_agvs": 40})
         run = simulate(scenario, layout)
         figures[policy] = run_kpis(run)
         if policy == "avoiding":
@@ -110,7 +113,8 @@ def test_no_deadlock_and_no_gridlock_up_to_the_parking_capacity_with_incidents(
     experiments/warehouse_incidents.yaml on (obstacles, link losses, faults, line losses,
     failed transfers, charging): no deadlock detected, no gridlock, orders delivered."""
     for agvs in fleets:
-        extra: dict[str, Any] = {"incidents.blocks": [], "incidents.link_losses": []}
+        extra: dict[str, Any] = {"incidents.blocks": [], "incidents.link_losses": [],
+                                 "dispatch.max_active_agvs": agvs}
         scenario, lay = scenario_for(layout, agvs, 1.0, rate, "avoiding",
                                      base="warehouse_incidents.yaml", **extra)
         run = simulate(scenario, lay)
@@ -120,21 +124,31 @@ def test_no_deadlock_and_no_gridlock_up_to_the_parking_capacity_with_incidents(
         assert figures["orders_completed"] > 0, (layout, agvs)
 
 
-def test_a_fleet_far_beyond_the_loops_capacity_keeps_delivering() -> None:
-    """100 AGVs on the warehouse, five times what its loop carries: reactive traffic nearly
-    stops (about 30 orders/h, hundreds of deadlocks broken); the avoiding policy delivers
-    half as much again or more, every hour. (It does not hold its best: 178 orders/h at 20 AGVs,
-    bench/admission.py; docs/background/engine.md.)"""
-    delivered = {}
-    for policy in ("reactive", "avoiding"):
-        scenario, layout = scenario_for("warehouse", 100, 2.0, 300, policy)
-        run = simulate(scenario, layout)
-        delivered[policy] = run_kpis(run)["throughput_per_hour"]
-        if policy == "avoiding":
-            times = [o.delivered_s for o in run.recorder.orders if o.delivered_s is not None]
-            for hour in range(1, 2):
-                assert sum(1 for t in times if hour * 3600 <= t < (hour + 1) * 3600) >= 15
-    assert delivered["avoiding"] > 1.5 * delivered["reactive"], delivered
+@pytest.mark.parametrize(("layout", "fleets", "limit", "bottleneck"), [
+    ("warehouse", (10, 20, 30, 60, 100), 20, "corridor "),
+    ("warehouse_same_direction", (10, 22, 60), 22, "zone "),
+], ids=["warehouse", "warehouse_same_direction"])
+def test_throughput_never_collapses_as_the_fleet_grows(
+        layout: str, fleets: tuple[int, ...], limit: int, bottleneck: str) -> None:
+    """Demand beyond what the layout carries; the fleet grows well past its critical fleet
+    (admission `auto`: a two-way aisle is the bottleneck): at every size the delivered orders
+    per hour are within 5 % of the best smaller fleet's, and no deadlock is ever detected.
+    Without the limit the same check lets the warehouse fall from 178 to 112 orders/h at 40
+    AGVs. (The distribution centre, whose runs vary by more than 5 % from one start to another,
+    is measured with replications: bench/admission.py --avoiding --seeds 3.)"""
+    rate = 300.0
+    best = 0.0
+    for agvs in fleets:
+        scenario, lay = scenario_for(layout, agvs, 1.5, rate, "avoiding")
+        run = simulate(scenario, lay)
+        assert run.admission is not None and run.admission[0] == limit
+        assert run.admission[1].resource.startswith(bottleneck)
+        figures = run_kpis(run)
+        assert figures["deadlocks_detected"] == 0, (layout, agvs)
+        delivered = figures["throughput_per_hour"]
+        assert delivered >= 0.95 * best, (layout, agvs, delivered, best)
+        best = max(best, delivered)
+    assert best > 0
 
 
 def test_runs_with_the_avoiding_policy_are_byte_for_byte_repeatable() -> None:

@@ -1,15 +1,18 @@
 """The analytic estimate on the tiny loop, where travel is known by hand (see test_engine: half
 the loop takes 32.6267 s from standstill to standstill), and demand rates from a profile or a
-trace worked out by hand."""
+trace worked out by hand; the bottleneck and critical fleet (admission `auto`) by hand on the
+tiny loop, and what they are on the bundled sites."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
-from fleet_sim.analysis.estimate import analytic_estimate, demand_rates
 from fleet_sim.config.layout import Layout
-from fleet_sim.config.scenario import load_scenario
+from fleet_sim.config.scenario import load_layout_for, load_scenario
 from fleet_sim.config.trace import TraceOrder
+from fleet_sim.sim.estimate import analytic_estimate, bottleneck, demand_rates
 
 from .conftest import ROOT, make_scenario
 from .test_engine import HALF_LOOP_S
@@ -52,3 +55,38 @@ def test_demand_rates_follow_the_time_of_day_profile() -> None:
     scenario = make_scenario(duration_h=4, warmup_h=1, start_h=8.0,
                              demand={"rate_per_hour": 60, "profile": profile})
     assert demand_rates(scenario) == pytest.approx((100.0, 120.0))
+
+
+def test_the_bottleneck_is_the_station_that_holds_an_agv_longest(tiny_layout: Layout) -> None:
+    """Tiny loop, one way round, 4 m between tags at 1 m/s, AGVs 1 m long with 0.5 m gaps: the
+    drop-off D is held 30 s of handling plus the hop into it until the body has cleared it
+    ((4 + 1.5) / 1 s) per order; the pickup P 20 + 5.5 s. The critical fleet is the cycle over
+    D's 35.5 s, rounded up: 4 AGVs."""
+    scenario = load_scenario(ROOT / "experiments" / "tiny_loop.yaml", {})
+    neck = bottleneck(scenario, tiny_layout)
+    assert neck.resource == "node D"
+    assert neck.busy_s_per_order == pytest.approx(30 + (4 + 1.5) / 1.0, abs=1e-9)
+    assert neck.cycle_s == pytest.approx(115.2533, abs=1e-4)
+    assert neck.critical_fleet == 4  # 115.25 / 35.5 = 3.25
+    assert neck.orders_per_hour == pytest.approx(3600 / 35.5)
+    slower = load_scenario(ROOT / "experiments" / "tiny_loop.yaml",
+                           {"fleet.vehicle.min_gap_m": 2.5})
+    assert bottleneck(slower, tiny_layout).busy_s_per_order == pytest.approx(37.5)
+
+
+def test_a_corridor_one_agv_at_a_time_is_the_warehouse_bottleneck() -> None:
+    """The warehouse's stations sit in two-way aisles (corridors, one AGV at a time): the
+    busiest is a corridor, and it, not any node, sets the critical fleet; the all one-way
+    fulfilment centre has no corridor, and its critical fleet is hundreds of AGVs."""
+    found = {}
+    for name in ("warehouse_shift", "fulfilment_shift"):
+        path = ROOT / "experiments" / f"{name}.yaml"
+        scenario = load_scenario(path, {})
+        found[name] = bottleneck(scenario, load_layout_for(scenario, path))
+    warehouse = found["warehouse_shift"]
+    assert warehouse.resource.startswith("corridor ")
+    assert warehouse.critical_fleet == math.ceil(warehouse.cycle_s / warehouse.busy_s_per_order
+                                                 - 1e-6)
+    assert 15 <= warehouse.critical_fleet <= 25
+    assert found["fulfilment_shift"].resource.startswith("node ")
+    assert found["fulfilment_shift"].critical_fleet > 300

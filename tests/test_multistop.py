@@ -11,13 +11,13 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fleet_sim.analysis.estimate import Estimate, analytic_estimate
 from fleet_sim.analysis.tables import ORDER_COLUMNS, STOPS_COLUMN, events_table, orders_table
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.scenario import check_against_layout, parse_scenario, resolved
 from fleet_sim.config.trace import TraceOrder, load_trace
 from fleet_sim.errors import InputError
 from fleet_sim.sim.engine import simulate
+from fleet_sim.sim.estimate import Estimate, analytic_estimate
 
 from .conftest import DROP_S, HALF_LOOP_S, K_TO_P_S, LAYOUTS, PICK_S, make_scenario
 from .test_demand import arrivals

@@ -435,7 +435,10 @@ def _write_run_files(run: RunOutput, out_dir: Path, figures: dict[str, Any]) -> 
     write_text_atomic(out_dir / "config.resolved.yaml",
                       yaml.safe_dump(resolved(run.scenario), sort_keys=False,
                                      allow_unicode=True))
-    info = {"wall_s": round(run.wall_s, 3), "sim_events": run.sim_events,
+    info: dict[str, Any] = {"wall_s": round(run.wall_s, 3), "sim_events": run.sim_events,
             "sim_hours_per_wall_s": round(run.scenario.duration_h / max(run.wall_s, 1e-9), 3)}
+    if run.admission is not None:  # admission `auto`: the limit and what it was derived from
+        info["max_active_agvs"], neck = run.admission
+        info["admission_basis"] = neck.describe()
     write_text_atomic(out_dir / "run_info.json", json.dumps(info, indent=2) + "\n")
     write_text_atomic(out_dir / "kpis.json", json.dumps(figures, indent=2) + "\n")

@@ -49,10 +49,10 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Any, Final, Literal, NamedTuple
+from typing import Annotated, Any, Final, Literal, NamedTuple
 
 import networkx as nx
-from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
+from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from agv_model.inputs import (
     HourOfDay,
@@ -313,10 +313,25 @@ class DispatchConfig(StrictModel):
     its pickup. fcfs: each order, oldest first, to the AGV that has been idle longest."""
     park_idle: bool = True
     """Send AGVs with nothing to do to the nearest parking area with room."""
-    max_active_agvs: int | None = Field(default=None, ge=1, le=MAX_FLEET_SIZE)
+    max_active_agvs: Annotated[int, Field(ge=1, le=MAX_FLEET_SIZE)] | Literal["auto"] | None \
+        = None
     """Admission: at most this many AGVs on the track at once (driving, handling, charging,
-    or standing outside parking); the others wait in parking until one parks. None: no limit
-    (RSS-AGV-001 has no such rule). See fleet_sim.sim.agents.fleet_manager."""
+    or standing outside parking); the others wait in parking until one parks. `auto`: the
+    layout's critical fleet, the AGVs that keep its busiest corridor, zone or node busy at
+    free-flow speed under the order flows (fleet_sim.sim.estimate.bottleneck). None (not
+    given): no limit under `traffic.policy: reactive` (RSS-AGV-001 has no such rule), `auto`
+    under `avoiding`. See fleet_sim.sim.agents.fleet_manager."""
+
+    @field_validator("max_active_agvs", mode="before")
+    @classmethod
+    def _limit_or_auto(cls, value: Any) -> Any:
+        """One message for both forms: a whole number in range, or `auto`."""
+        if value is None or value == "auto" or (
+                isinstance(value, int) and not isinstance(value, bool)
+                and 1 <= value <= MAX_FLEET_SIZE):
+            return value
+        raise Problem("", value, f"an integer in [1, {MAX_FLEET_SIZE}], or auto (the layout's "
+                      "critical fleet)")
 
 
 class TrafficConfig(StrictModel):
@@ -325,7 +340,9 @@ class TrafficConfig(StrictModel):
     granted when free, wait-for cycles are found and broken (one AGV reroutes or backs off).
     `avoiding`: a node, corridor or zone is granted only when the grant cannot close a cycle of
     waits (a Banker's-type check on every AGV's declared plan, which ends in parking;
-    fleet_sim.sim.traffic.avoidance, docs/background/engine.md)."""
+    fleet_sim.sim.traffic.avoidance, docs/background/engine.md), and, unless
+    dispatch.max_active_agvs says otherwise, at most the layout's critical fleet is admitted
+    onto the track (`auto`)."""
     deadlock_check_s: Positive = 10.0
     """How often an AGV that is still blocked looks again for a wait-for cycle."""
     replan_after_s: Positive = 30.0
@@ -525,7 +542,7 @@ class Scenario(StrictModel):
             raise Problem("warmup_h", self.warmup_h,
                           f"a warm-up >= 0 h and shorter than duration_h ({self.duration_h})")
         cap = self.dispatch.max_active_agvs
-        if cap is not None and self.fleet.start_nodes and cap < self.fleet.size:
+        if isinstance(cap, int) and self.fleet.start_nodes and cap < self.fleet.size:
             raise Problem("dispatch.max_active_agvs", cap,
                           f"at least fleet.size ({self.fleet.size}) when the AGVs start on "
                           "the track (fleet.start_nodes); leave start_nodes out to start them "

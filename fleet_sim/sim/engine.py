@@ -18,6 +18,9 @@ the run has reached its end (fleet_sim.model.records). A run that raises leaves 
 its owner decides what a half-written sink becomes. At the end, before the sink is closed, the
 recorder closes the spells still open (lock and charger waits: `Recorder.end_of_run`). A
 watcher process (fleet_sim.sim.gridlock) tells when the fleet locks solid.
+
+Admission `auto` (dispatch.max_active_agvs, the default under `traffic.policy: avoiding`) is
+resolved here, once per run, to the layout's critical fleet (`admission_limit`).
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.agents.vehicle import Vehicle
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.demand import Demand
+from fleet_sim.sim.estimate import Bottleneck, bottleneck
 from fleet_sim.sim.gridlock import watch
 from fleet_sim.sim.incidents import start_incidents
 from fleet_sim.sim.traffic.control import RouteCosts, Traffic
@@ -57,6 +61,8 @@ class Model:
     demand: Demand
     recorder: Recorder
     motion_backend: MotionBackend | None = None
+    admission: tuple[int, Bottleneck] | None = None
+    """Admission `auto`: the limit in force and the bottleneck it was derived from."""
 
     def close(self) -> None:
         """Release what the run holds outside Python (the SUMO simulation, if any)."""
@@ -72,6 +78,8 @@ class RunOutput:
     vehicles: list[Vehicle]
     sim_events: int
     wall_s: float
+    admission: tuple[int, Bottleneck] | None = None
+    """Admission `auto`: the limit in force and the bottleneck it was derived from."""
 
 
 def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
@@ -94,7 +102,10 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     arrivals, handling, backoff, incident, link = np.random.SeedSequence(scenario.seed).spawn(5)
     commands = CommandPath(env, scenario.fleet.command_profile, scenario.fleet.status_poll_s,
                            np.random.default_rng(link), recorder)
-    fleet = FleetManager(env, layout, traffic, scenario.dispatch, recorder, commands)
+    limit, neck = admission_limit(scenario, layout, trace)
+    dispatch = scenario.dispatch if limit == scenario.dispatch.max_active_agvs \
+        else scenario.dispatch.model_copy(update={"max_active_agvs": limit})
+    fleet = FleetManager(env, layout, traffic, dispatch, recorder, commands)
     vehicle_seeds = backoff.spawn(scenario.fleet.size)
     incident_seeds = incident.spawn(2 * scenario.fleet.size)
     profiles = scenario.fleet.agv_profiles
@@ -117,7 +128,25 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
         v.start()
     demand.start()
     env.process(watch(env, traffic, vehicles, recorder, scenario.traffic.gridlock_after_s))
-    return Model(env, traffic, fleet, vehicles, demand, recorder, traffic.motion_backend)
+    return Model(env, traffic, fleet, vehicles, demand, recorder, traffic.motion_backend,
+                 None if neck is None or limit is None else (limit, neck))
+
+
+def admission_limit(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = ()
+                    ) -> tuple[int | None, Bottleneck | None]:
+    """The most AGVs admitted onto the track (None: no limit) and, for `auto`, the bottleneck
+    it is derived from: the critical fleet, and never fewer than the fleet when the AGVs start
+    on the track (fleet.start_nodes: every one holds an admission from the start)."""
+    cap = scenario.dispatch.max_active_agvs
+    if cap is None and scenario.traffic.policy == "avoiding":
+        cap = "auto"
+    if cap != "auto":
+        return cap, None
+    neck = bottleneck(scenario, layout, trace)
+    limit = neck.critical_fleet
+    if scenario.fleet.start_nodes:
+        limit = max(limit, scenario.fleet.size)
+    return limit, neck
 
 
 def _set_types(scenario: Scenario, traffic: Traffic, fleet: FleetManager) -> None:
@@ -171,4 +200,4 @@ def simulate(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (
     model.recorder.finish()
     sim_events = next(model.env._eid)  # SimPy's count of scheduled events
     return RunOutput(scenario, layout, model.recorder, model.vehicles, sim_events,
-                     time.perf_counter() - wall_start)
+                     time.perf_counter() - wall_start, model.admission)

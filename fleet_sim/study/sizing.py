@@ -2,7 +2,7 @@
 
 Two answers side by side:
 
-* The analytic estimate (fleet_sim.analysis.estimate): travel and handling per order x demand /
+* The analytic estimate (fleet_sim.sim.estimate): travel and handling per order x demand /
   AGV time; no waiting, no traffic: a lower bound on the fleet, and the search starts there.
 * The search: evaluate a fleet size, step away from the start (1, 2, 4 ... AGVs) until one size
   meets every target and a smaller one does not, then bisect. A size still undecided at the
@@ -74,7 +74,6 @@ from typing import IO, Any
 
 import numpy as np
 
-from fleet_sim.analysis.estimate import Estimate, analytic_estimate
 from fleet_sim.analysis.kpis import target_value
 from fleet_sim.analysis.stats import (
     CONFIDENCE,
@@ -93,6 +92,7 @@ from fleet_sim.config.experiment import (
     point_text,
 )
 from fleet_sim.errors import FleetSimError, InputError
+from fleet_sim.sim.estimate import Estimate, analytic_estimate
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
 from fleet_sim.study.runner import (

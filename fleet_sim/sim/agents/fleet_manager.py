@@ -157,7 +157,10 @@ class FleetManager:
         self.charger_queue: deque[tuple[FleetAgv, simpy.Event]] = deque()
         self.charger_cancelled: set[simpy.Event] = set()
         """Charger requests given up while their charger's assign command was on its way."""
-        self.max_active = config.max_active_agvs
+        if config.max_active_agvs == "auto":
+            raise ValueError("dispatch.max_active_agvs 'auto' is resolved to a number before "
+                             "the fleet manager is built (fleet_sim.sim.engine.admission_limit)")
+        self.max_active: int | None = config.max_active_agvs
         """Admission: most AGVs on the track at once (None: no limit)."""
         self.admitted: set[int] = set()
         """AGVs holding an admission (on the track, or given work to leave parking for)."""
