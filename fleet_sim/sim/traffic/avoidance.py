@@ -253,6 +253,8 @@ class Plans:
         elif self._is_next(client_id, node):
             self._next += 1
             return True
+        elif self._moves_first(client_id, locks, node):
+            return True
         if self._walk(client_id, None, locks):
             return True
         self.refused_grants += 1
@@ -274,6 +276,31 @@ class Plans:
                 self._next += 1  # granted already
                 continue
             return x == client_id and path[k] == node
+        return False
+
+    def _moves_first(self, client_id: int, locks: Sequence[tuple[Lock, int]],
+                     node: str) -> bool:
+        """May the client's move to `node`, further on in the witness, be made now? Yes if no
+        move before it in the witness takes any of `locks`: made first, it holds nothing those
+        moves need (what it lets go of sooner only helps them), and from its old place on the
+        witness goes on as before. The move is put first and counted as made."""
+        witness = self.witness
+        assert witness is not None
+        taken = {lock for lock, _ in locks}
+        at, granted, plan_id, paths = self.at, self.granted, self.plan_id, self.path
+        for j in range(self._next, len(witness)):
+            x, plan, k = witness[j]
+            if plan_id.get(x) != plan or at[x] >= k or granted[x] >= k:
+                continue  # made already, granted already, or its AGV left the track
+            path = paths[x]
+            if x == client_id:
+                if k == len(path) or path[k] != node:
+                    return False
+                witness.insert(self._next, witness.pop(j))
+                self._next += 1
+                return True
+            if k < len(path) and any(lock in taken for lock, _ in self._steps[x][k]):
+                return False
         return False
 
     def _walk(self, client_id: int, new_plan: tuple[list[str], list[Step]] | None,
@@ -315,11 +342,12 @@ class Plans:
         for x in sorted(self.path):
             if any(traffic.held_locks(x)):
                 walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self.at[x], ())
+        for x in sorted(walk.plans):  # the nodes granted and not driven yet: held, so driving
+            while x in walk.plans and walk.at[x] < self.granted[x] and walk.step(x):
+                pass  # to them takes nothing new and only lets go of what is left behind
         for x, plan, k in self.witness:
             if self.plan_id.get(x) != plan or x not in walk.plans or walk.at[x] >= k:
                 continue
-            while walk.at[x] < min(k - 1, self.granted[x]) and walk.step(x):
-                pass  # nodes it was granted outside the witness (nobody else needs them)
             if walk.at[x] != k - 1:
                 return None
             walk.step(x)
@@ -494,7 +522,7 @@ class _Walk:
                 self.let_go(x, body.pop(0).lock)
             if others:
                 nodes = [str(p.lock.key) for p in body] + [str(lk.key) for lk in ahead]
-                self._leave(x, nodes, (path[k], path[k + 1]) if k < last else None)
+                self._leave(x, nodes, list(itertools.pairwise(path[k:k + len(ahead) + 2])))
         if k == last:  # off into parking: everything let go
             self.moves.append((x, self.plan_of[x], last + 1))
             for lock in [p.lock for p in body] + ahead + others:
@@ -503,9 +531,11 @@ class _Walk:
             return False
         return True
 
-    def _leave(self, x: int, nodes: list[str], next_hop: tuple[str, str] | None) -> None:
-        """Let go of the corridors and zones `x` has left (holding none of their nodes and
-        not about to drive in)."""
+    def _leave(self, x: int, nodes: list[str], hops: list[tuple[str, str]]) -> None:
+        """Let go of the corridors and zones `x` has left: holding none of their nodes and
+        not about to drive in from a node it holds (`hops`: its plan's hops from where it
+        stands through the nodes it holds ahead, and one more), as traffic keeps a corridor
+        or aisle taken at its mouth while the AGV holds the mouth."""
         layout = self.traffic.layout
         held = self.others[x]
         for lock in list(held):
@@ -514,14 +544,17 @@ class _Walk:
                 corridor = layout.corridors[key.corridor_id]
                 keep = any(n in corridor.members for n in nodes) \
                     or any(hop in corridor.segments for hop in itertools.pairwise(nodes)) \
-                    or (next_hop is not None and next_hop in corridor.segments)
+                    or any(hop in corridor.segments for hop in hops)
             else:
                 assert isinstance(key, ZoneLock)
                 zone = layout.traffic_zone_by_id[key.zone_id]
-                along = layout.direction_zone_of(*next_hop) \
-                    if next_hop is not None and zone.kind == "same_direction" else None
-                keep = any(n in zone.nodes for n in nodes) \
-                    or (along is not None and along[0].id == zone.id)
+                keep = any(n in zone.nodes for n in nodes)
+                if not keep and zone.kind == "same_direction":
+                    for hop in hops:
+                        along = layout.direction_zone_of(*hop)
+                        if along is not None and along[0].id == zone.id:
+                            keep = True
+                            break
             if not keep:
                 held.remove(lock)
                 self.let_go(x, lock)
