@@ -83,7 +83,7 @@ from fleet_sim.sim.traffic.deadlock import (
     KnownCycles,
     find_cycle,
 )
-from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock, ZoneLock
+from fleet_sim.sim.traffic.locks import Claim, CorridorLock, FirstOf, Lock, NodeLock, ZoneLock
 from fleet_sim.sim.traffic.routing import Routes
 from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate, Gate
 
@@ -285,7 +285,7 @@ class Traffic:
                 self._zones[client_id][key.zone_id] = claim
             self.version += 1
             return claim
-        claim = Claim(lock, client_id)
+        claim = lock.claim(client_id)
         if isinstance(key, NodeLock):
             claim.node = key.node
             self._nodes[client_id].add(claim)
@@ -909,7 +909,7 @@ class Traffic:
                         self.withdraw(client_id, claim)
                         return False
                 try:
-                    yield claim | env.timeout(config.deadlock_check_s)
+                    yield FirstOf(env, claim, env.timeout(config.deadlock_check_s))
                 except simpy.Interrupt as interrupt:
                     if not isinstance(interrupt.cause, DeadlockVictim):
                         # a fault: let go and pass it on
