@@ -482,7 +482,8 @@ class Traffic:
         give_way = may_give_way and self.blocks_others(client.id)
         if not (give_way or may_replan):
             return None
-        escape = self.escape_for(client)
+        # only a reroute, or giving way a circle, is taken here: the others are not looked for
+        escape = self.escape_for(client, circulate=give_way, backoff=False)
         if escape is None or not (escape.kind == "reroute"
                                   or (give_way and escape.kind == "circulate")):
             return None
@@ -524,10 +525,13 @@ class Traffic:
         victim.on_deadlock_victim(DeadlockVictim(escape))
         return None
 
-    def escape_for(self, client: TrafficClient, must_free: Lock | None = None) -> Escape | None:
+    def escape_for(self, client: TrafficClient, must_free: Lock | None = None,
+                   circulate: bool = True, backoff: bool = True) -> Escape | None:
         """A way out for a blocked AGV that lets go of `must_free` (a lock it holds that another
         AGV waits for): give up a corridor it has reserved but not entered, take another route
-        whose first node is free, or back off to a free neighbour."""
+        whose first node is free, or back off to a free neighbour. `circulate`, `backoff`: False
+        when the caller would not take that kind (it is then not looked for; looking changes
+        nothing)."""
         client_id = client.id
         waited = self.waiting.get(client_id)
         node = client.node
@@ -563,10 +567,12 @@ class Traffic:
                     and self._free_to_enter(client_id, node, path[1]) \
                     and (inside is None or any(n not in inside.members for n in path[1:])):
                 return Escape("reroute", tuple(path))
-        if goal is not None and inside is None and (avoid_nodes or avoid_edges):
+        if circulate and goal is not None and inside is None and (avoid_nodes or avoid_edges):
             circle = self._circulate(client_id, node, goal, avoid_nodes, avoid_edges)
             if circle is not None:
                 return circle
+        if not backoff:
+            return None
         for nxt in sorted(self.graph.successors(node)):
             if nxt in avoid_nodes or (node, nxt) in avoid_edges or nxt == client.next_node:
                 continue
