@@ -7,14 +7,16 @@ the same order, with every lock holding and queueing the same claims at every st
 from __future__ import annotations
 
 import random
-from collections.abc import Generator
+from collections.abc import Generator, Mapping
 from typing import Any
 
 import pytest
 import simpy
 
+from fleet_sim.config.layout import BACKWARD, FORWARD
+from fleet_sim.sim.traffic.deadlock import find_cycle
 from fleet_sim.sim.traffic.locks import Claim, FirstOf, Lock, NodeLock, ZoneLock
-from fleet_sim.sim.traffic.zones import Gate
+from fleet_sim.sim.traffic.zones import DirectedClaim, DirectionGate, Gate
 
 
 def _script(seed: int, lean: bool) -> list[tuple[Any, ...]]:
@@ -95,3 +97,59 @@ def _script(seed: int, lean: bool) -> list[tuple[Any, ...]]:
 @pytest.mark.parametrize("seed", range(30))
 def test_lean_parts_behave_as_simpy(seed: int) -> None:
     assert _script(seed, lean=True) == _script(seed, lean=False)
+
+
+def _find_cycle_by_search(start: int, waiting: Mapping[int, Lock]) -> list[int] | None:
+    """`find_cycle` as it was: depth first over every lock's blockers (the reference)."""
+    lock = waiting.get(start)
+    if lock is None:
+        return None
+    chain = [start]
+    seen = {start}
+    stack = [iter(lock.blockers(start))]
+    while stack:
+        client = next(stack[-1], None)
+        if client is None:
+            stack.pop()
+            chain.pop()
+            continue
+        if client == start:
+            return chain
+        if client in seen:
+            continue
+        seen.add(client)
+        lock = waiting.get(client)
+        if lock is None:
+            continue
+        chain.append(client)
+        stack.append(iter(lock.blockers(client)))
+    return None
+
+
+@pytest.mark.parametrize("seed", range(200))
+def test_find_cycle_walks_chains_as_the_search_did(seed: int) -> None:
+    """Random wait-for graphs over node locks, a gate of two and same-direction zones (which
+    may name several blockers): the same cycle, or none, from every client."""
+    rng = random.Random(seed)
+    env = simpy.Environment()
+    locks: list[Lock] = [Lock(env, NodeLock(f"n{i}")) for i in range(6)]
+    locks.append(Gate(env, ZoneLock("z"), 2))
+    locks += [DirectionGate(env, ZoneLock(f"d{i}"), None) for i in range(2)]
+    clients = list(range(8))
+    for lock in locks:  # holders first
+        for cid in rng.sample(clients, rng.randrange(3)):
+            if isinstance(lock, DirectionGate):
+                DirectedClaim(lock, cid, rng.choice((FORWARD, BACKWARD)))
+            else:
+                Claim(lock, cid)
+    waiting: dict[int, Lock] = {}
+    for cid in clients:  # then each client waits for one lock, or for none
+        if rng.random() < 0.8:
+            lock = rng.choice(locks)
+            if isinstance(lock, DirectionGate):
+                DirectedClaim(lock, cid, rng.choice((FORWARD, BACKWARD)))
+            else:
+                Claim(lock, cid)
+            waiting[cid] = lock
+    for cid in clients:
+        assert find_cycle(cid, waiting) == _find_cycle_by_search(cid, waiting)

@@ -166,6 +166,8 @@ class Traffic:
         self.recorder = recorder
         self.policy: DeadlockPolicy = policy if policy is not None else GentlestEscapeFirst()
         self.node_locks = {n: Lock(env, NodeLock(n)) for n in self.graph.nodes}
+        self._next_nodes = {n: tuple(sorted(self.graph.successors(n))) for n in self.graph.nodes}
+        """Node -> the nodes a segment leads to from it, sorted (escapes look in that order)."""
         self.corridor_locks = {c.id: Lock(env, CorridorLock(c.id)) for c in layout.corridors}
         self.waiting: dict[int, Lock] = {}
         """Client id -> the lock it waits for."""
@@ -573,7 +575,7 @@ class Traffic:
                 return circle
         if not backoff:
             return None
-        for nxt in sorted(self.graph.successors(node)):
+        for nxt in self._next_nodes[node]:
             if nxt in avoid_nodes or (node, nxt) in avoid_edges or nxt == client.next_node:
                 continue
             if inside is not None and nxt in inside.members:
@@ -589,14 +591,14 @@ class Traffic:
         """Drive on two hops past what blocks the way (a busy corridor, a full siding) and come
         back round by the usual route: a loop's answer to waiting in everyone's way."""
         routes = self.routes_of(client_id)
-        for first in sorted(self.graph.successors(node)):
+        for first in self._next_nodes[node]:
             if first in avoid_nodes or (node, first) in avoid_edges:
                 continue
             if not routes.allows(node, first):
                 continue
             if not self._free_to_enter(client_id, node, first):
                 continue
-            for second in sorted(self.graph.successors(first)):
+            for second in self._next_nodes[first]:
                 if second in avoid_nodes or (first, second) in avoid_edges or second == node:
                     continue
                 if not routes.allows(first, second):
@@ -650,6 +652,15 @@ class Traffic:
         module may allocate its part (and, avoiding deadlocks, if the grant keeps the state
         safe), else nothing; never waits. Returns the node's claim."""
         needs = self._needs(client_id, hop)
+        if len(needs) == 1 and self.plans is None:  # the node alone (`_grant_now`, shortened)
+            lock = needs[0][1].lock
+            if lock.users or lock.put_queue:
+                return None
+            claim = lock.claim(client_id)
+            claim.node = hop.node
+            self._nodes[client_id].add(claim)
+            self.version += 1
+            return claim
         for m, need in needs:
             if not m.may_allocate(client_id, need):
                 return None
