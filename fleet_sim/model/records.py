@@ -463,10 +463,12 @@ class Recorder:
 
     def drove(self, start_s: float, end_s: float, length_m: float) -> None:
         self.distance_total_m += length_m
-        self.moved_s = max(self.moved_s, end_s)
+        if end_s > self.moved_s:
+            self.moved_s = end_s
         span = end_s - start_s
-        if span > 0:
-            self.distance_m += length_m * self.window(start_s, end_s) / span
+        if span > 0:  # `window`, written out (once a hop)
+            self.distance_m += length_m * max(0.0, min(end_s, self.end_s)
+                                              - max(start_s, self.warmup_s)) / span
         elif start_s >= self.warmup_s:
             self.distance_m += length_m
 

@@ -228,7 +228,8 @@ class Driver:
         """Off the tape (into a parking bay, or taken off by an operator): let go of all."""
         for held in self.held + self.ahead:
             self._release(held)
-        self.held, self.ahead = [], []
+        self.held = []
+        self.ahead.clear()  # the same list: a drive holds it
         self.traffic.let_go(self.id)
         self.prev, self.speed_mps = None, 0.0
         if self.traffic.motion_backend is not None:
@@ -259,29 +260,36 @@ class Driver:
             return
         self.goal = goal
         path = traffic.route(self.node, goal, self.id)
+        markers = traffic.layout.markers
+        pass_speed_mps = self.routes.pass_speed_mps
+        try_allocate = traffic.try_allocate
+        ahead = self.ahead
+        env = self.env
+        agv = self.id
         i = 0
         while self.node != self.goal:
             nxt = path[i + 1]
             self.next_node = nxt
-            if not self.ahead:
+            if not ahead:
                 after = path[i + 2] if i + 2 < len(path) else None
                 claim = yield from traffic.allocate(self, Hop(self.node, nxt, after))
                 if claim is None:
                     path = yield from self._get_out()
                     i = 0
                     continue
-                self.ahead.append(Held(nxt, claim, self.env.now))
+                ahead.append(Held(nxt, claim, env.now))
             v_end_max = 0.0
-            stop_marker = traffic.layout.markers.get(nxt) in STOP_MARKERS
-            if nxt != self.goal and i + 2 < len(path) and not stop_marker:
+            if nxt != self.goal and i + 2 < len(path) and markers.get(nxt) not in STOP_MARKERS:
                 w = path[i + 2]
-                x = path[i + 3] if i + 3 < len(path) else None
-                if self._look_ahead(Hop(nxt, w, x)):
-                    v_end_max = self.routes.pass_speed_mps(self.node, nxt, w)
+                # the look-ahead (`_look_ahead`, written out)
+                claim = try_allocate(agv, Hop(nxt, w, path[i + 3] if i + 3 < len(path) else None))
+                if claim is not None:
+                    ahead.append(Held(w, claim, env.now))
+                    v_end_max = pass_speed_mps(self.node, nxt, w)
             yield from self._hop(nxt, v_end_max)
             i += 1
             if stop_early is not None and stop_early():
-                self.goal = self.ahead[-1].node if self.ahead else self.node
+                self.goal = ahead[-1].node if ahead else self.node
         self._end_drive()
 
     def _drive_safely(self, goal: str, stop_early: Callable[[], bool] | None) -> Proc:
@@ -389,7 +397,7 @@ class Driver:
             assert isinstance(speed, float)
             v_end = speed
             self._leg = None
-        length: float = traffic.routes.edge[u, nxt]["length_m"]
+        length = traffic.routes.length_m[u, nxt]
         now = env.now
         recorder.drove(start, now, length)
         if recorder.record_occupancy:

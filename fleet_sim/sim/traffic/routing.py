@@ -88,6 +88,9 @@ class Routes:
         self.edge: dict[tuple[str, str], dict[str, Any]] = {
             (u, v): d for u, v, d in self.graph.edges(data=True)}
         """Segment u -> v's attributes (length_m, speed_limit_mps, rssi_dbm...)."""
+        self.length_m: dict[tuple[str, str], float] = {
+            key: data["length_m"] for key, data in self.edge.items()}
+        """Segment u -> v's length."""
         self._succ: dict[str, tuple[tuple[str, float], ...]] = {
             u: tuple((v, d["free_time_s"]) for v, d in self.graph.succ[u].items())
             for u in self.graph.nodes} if vehicle_type is None else {
