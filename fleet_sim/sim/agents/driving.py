@@ -31,6 +31,7 @@ from typing import Any, Protocol
 
 import numpy as np
 import simpy
+from simpy.events import Timeout
 
 from fleet_sim.config.layout import Place
 from fleet_sim.config.scenario import TrafficConfig
@@ -169,7 +170,7 @@ class Driver:
             if self._plan is not None:
                 self._drive_open = (u, v, self.env.now, time_s * self._moved)
             try:
-                yield self.env.timeout(time_s * (share - self._moved))
+                yield Timeout(self.env, time_s * (share - self._moved))
             finally:  # also when a fault interrupts the hop: the AGV stops where it is
                 if self._drive_open is not None:
                     self._close_drive()

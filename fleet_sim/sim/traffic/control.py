@@ -58,6 +58,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol, cast
 
 import simpy
+from simpy.events import Timeout
 
 from fleet_sim.config.layout import BACKWARD, FORWARD, Corridor, Layout, Place, TrafficZone
 from fleet_sim.config.scenario import TrafficConfig
@@ -230,6 +231,8 @@ class Traffic:
             or (m.name == "mutex" and layout.mutex_zones_at)
             or (m.name == "same_direction" and layout.direction_zones_at))
         """The modules this layout has resources for (the others never need anything)."""
+        self._modules_before_node: tuple[AllocationModule, ...] = tuple(
+            m for m in self._active_modules if m.name != "node")
         self.plans: Plans | None = Plans(self) if self.config.policy == "avoiding" else None
         """`traffic.policy: avoiding`: every AGV's plan and the safety checks (None:
         reactive)."""
@@ -651,16 +654,21 @@ class Traffic:
         """Grant the whole hop now (its node, the corridors and zones it enters) if every
         module may allocate its part (and, avoiding deadlocks, if the grant keeps the state
         safe), else nothing; never waits. Returns the node's claim."""
+        if self.plans is None:
+            for module in self._modules_before_node:
+                if module.needs(client_id, hop):
+                    break
+            else:  # the node alone (`_grant_now`, shortened)
+                node = hop.node
+                lock = self.node_locks[node]
+                if lock.users or lock.put_queue:
+                    return None
+                claim = lock.claim(client_id)
+                claim.node = node
+                self._nodes[client_id].add(claim)
+                self.version += 1
+                return claim
         needs = self._needs(client_id, hop)
-        if len(needs) == 1 and self.plans is None:  # the node alone (`_grant_now`, shortened)
-            lock = needs[0][1].lock
-            if lock.users or lock.put_queue:
-                return None
-            claim = lock.claim(client_id)
-            claim.node = hop.node
-            self._nodes[client_id].add(claim)
-            self.version += 1
-            return claim
         for m, need in needs:
             if not m.may_allocate(client_id, need):
                 return None
@@ -914,11 +922,13 @@ class Traffic:
             holder = lock.holder
             self._open_waits[client_id] = (start, str(lock.key), -1 if holder is None else holder)
         looked_at: tuple[int, bool, bool] | None = None
+        give_way_after_s = config.give_way_after_s
+        replan_after_s = config.replan_after_s
+        check_s = config.deadlock_check_s
         try:
             while True:
                 waited = env.now - start
-                now_seen = (self.version, waited >= config.give_way_after_s,
-                            waited >= config.replan_after_s)
+                now_seen = (self.version, waited >= give_way_after_s, waited >= replan_after_s)
                 if may_escape and now_seen != looked_at:  # nothing changed, nothing to look at
                     looked_at = now_seen
                     if self.resolve_deadlock(client) is not None \
@@ -926,7 +936,7 @@ class Traffic:
                         self.withdraw(client_id, claim)
                         return False
                 try:
-                    yield FirstOf(env, claim, env.timeout(config.deadlock_check_s))
+                    yield FirstOf(env, claim, Timeout(env, check_s))
                 except simpy.Interrupt as interrupt:
                     if not isinstance(interrupt.cause, DeadlockVictim):
                         # a fault: let go and pass it on
