@@ -1129,18 +1129,23 @@ class Traffic:
         corridors = self._corridors[client_id]
         if not corridors:
             return
-        spots = self._spots(client_id)
+        spots: set[str] | None = None  # made when needed (freeing corridors leaves it as is)
         for cid, (_, entry) in list(corridors.items()):
             corridor = self.layout.corridors[cid]
             if entry is not None:
+                if spots is None:
+                    spots = self._spots(client_id)
                 if entry not in spots:
                     self._release_corridor(client_id, cid)
                 continue
-            if any(n in corridor.members for n in body):
+            if not corridor.members.isdisjoint(body):
                 continue
-            if any((a, b) in corridor.segments for a, b in itertools.pairwise(body)):
-                continue
-            self._release_corridor(client_id, cid)
+            segments = corridor.segments
+            for hop in itertools.pairwise(body):
+                if hop in segments:
+                    break
+            else:
+                self._release_corridor(client_id, cid)
 
     def _drop_pending_corridors(self, client_id: int) -> None:
         for cid, (_, entry) in list(self._corridors[client_id].items()):
