@@ -88,6 +88,10 @@ from fleet_sim.sim.traffic.locks import Claim, CorridorLock, FirstOf, Lock, Node
 from fleet_sim.sim.traffic.routing import Routes
 from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate, Gate
 
+REROUTES_KEPT = 4096
+"""Detours `escape_for` remembers by the lock waited for (forgotten all at once when full)."""
+_UNKNOWN: Any = object()
+
 
 @dataclass(frozen=True)
 class RouteCosts:
@@ -169,6 +173,10 @@ class Traffic:
         self.node_locks = {n: Lock(env, NodeLock(n)) for n in self.graph.nodes}
         self._next_nodes = {n: tuple(sorted(self.graph.successors(n))) for n in self.graph.nodes}
         """Node -> the nodes a segment leads to from it, sorted (escapes look in that order)."""
+        self._reroutes: dict[tuple[Routes, str, str, Lock | None], list[str] | None] = {}
+        """(routes, node, goal, lock waited for) -> the detour off that lock (`escape_for`
+        asks it at every look of a blocked AGV; `Routes.route_avoiding` answers it from the
+        sets to keep off, which cost more to make and hash than this key)."""
         self.corridor_locks = {c.id: Lock(env, CorridorLock(c.id)) for c in layout.corridors}
         self.waiting: dict[int, Lock] = {}
         """Client id -> the lock it waits for."""
@@ -555,6 +563,7 @@ class Traffic:
                 return Escape("yield", (node,))  # holds the zone, not yet inside: give it up
         avoid_nodes: set[str] = set()
         avoid_edges = self.against(client_id) if self._against_hops else set()
+        plain = not avoid_edges  # what to keep off follows from the lock waited for alone
         if waited is not None:
             key = waited.key
             if isinstance(key, NodeLock):
@@ -567,7 +576,16 @@ class Traffic:
                 avoid_edges |= corridor.segments
         routes = self.routes_of(client_id)
         if goal is not None and (avoid_nodes or avoid_edges):
-            path = routes.route_avoiding(node, goal, avoid_nodes, avoid_edges)
+            if plain:  # the same question as route_avoiding's, asked by the lock waited for
+                known = (routes, node, goal, waited)
+                path = self._reroutes.get(known, _UNKNOWN)
+                if path is _UNKNOWN:
+                    path = routes.route_avoiding(node, goal, avoid_nodes, avoid_edges)
+                    if len(self._reroutes) >= REROUTES_KEPT:
+                        self._reroutes.clear()
+                    self._reroutes[known] = path
+            else:
+                path = routes.route_avoiding(node, goal, avoid_nodes, avoid_edges)
             if path is not None and len(path) > 1 \
                     and self._free_to_enter(client_id, node, path[1]) \
                     and (inside is None or any(n not in inside.members for n in path[1:])):
@@ -931,8 +949,11 @@ class Traffic:
                 now_seen = (self.version, waited >= give_way_after_s, waited >= replan_after_s)
                 if may_escape and now_seen != looked_at:  # nothing changed, nothing to look at
                     looked_at = now_seen
-                    if self.resolve_deadlock(client) is not None \
-                            or self.other_way(client, now_seen[1], now_seen[2]) is not None:
+                    # (resolve_deadlock looks only for a suspect, other_way only once the AGV
+                    # may give way or replan: the calls are left out otherwise)
+                    if (client_id in self._suspects and self.resolve_deadlock(client) is not None) \
+                            or ((now_seen[1] or now_seen[2])
+                                and self.other_way(client, now_seen[1], now_seen[2]) is not None):
                         self.withdraw(client_id, claim)
                         return False
                 try:
