@@ -19,13 +19,13 @@ from fleet_sim.sim.traffic.locks import Claim, FirstOf, Lock, NodeLock, ZoneLock
 from fleet_sim.sim.traffic.zones import DirectedClaim, DirectionGate, Gate
 
 
-def _script(seed: int, lean: bool) -> list[tuple[Any, ...]]:
+def _script(seed: int, lean: bool, env: simpy.Environment | None = None) -> list[tuple[Any, ...]]:
     """Clients taking and giving back a few locks (one a gate of two), every time a whole
     second so that many things happen in the same instant, some giving a lock back in the
     instant they got it or asking again before giving it back, some waiting with a timeout;
     each step logged with what every lock holds and queues then. `lean`: the locks' own parts,
-    else SimPy's."""
-    env = simpy.Environment()
+    else SimPy's. `env`: a SimPy environment by default."""
+    env = env if env is not None else simpy.Environment()
     rng = random.Random(seed)
     locks: list[Lock] = [Lock(env, NodeLock(f"n{i}")) for i in range(3)]
     locks.append(Gate(env, ZoneLock("z"), 2))

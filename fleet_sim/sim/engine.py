@@ -36,6 +36,7 @@ from fleet_sim.model.kinematics import Motion, MotionBackend
 from fleet_sim.model.records import BATCH_ROWS, Recorder, RecordSink
 from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.agents.vehicle import Vehicle
+from fleet_sim.sim.clock import Clock
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.demand import Demand
 from fleet_sim.sim.gridlock import watch
@@ -77,7 +78,7 @@ class RunOutput:
 def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
                 record_occupancy: bool = False, record_moves: bool = False,
                 sink: RecordSink | None = None, batch_rows: int = BATCH_ROWS) -> Model:
-    env = simpy.Environment()
+    env = Clock()
     profile = scenario.fleet.vehicle
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
                     profile.turn_speed_mps)
