@@ -103,6 +103,10 @@ class FleetManagerLink(Protocol):
     def release_charger(self, place: Place) -> None: ...
 
 
+SegmentFacts = tuple[bool, bool, float | None, float | None]
+"""What `Vehicle.travel` reads of a segment: a dead spot, a weak signal, the chance of an
+obstacle and of losing the line on it (None: no chance, no draw)."""
+
 NO_BATTERY = BatteryProfile(initial_soc_pct=100.0, drive_wh_per_m=0.0, drive_loaded_wh_per_m=0.0,
                             handling_w=0.0, idle_w=0.0)
 """The battery of an AGV without a battery model: full, and nothing drains it."""
@@ -120,8 +124,11 @@ class Vehicle:
     def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
                  fleet: FleetManagerLink, recorder: Recorder, scenario: Scenario,
                  rng: np.random.Generator, incident_rng: np.random.Generator,
-                 profile: VehicleProfile | None = None) -> None:
-        """`profile`: the AGV's vehicle (mixed fleets); default `scenario.fleet.vehicle`."""
+                 profile: VehicleProfile | None = None,
+                 segment_facts: dict[tuple[str, str], SegmentFacts] | None = None) -> None:
+        """`profile`: the AGV's vehicle (mixed fleets); default `scenario.fleet.vehicle`.
+        `segment_facts`: the fleet's shared `_facts_of` cache (the facts are the scenario's and
+        the layout's, the same for every AGV); default its own."""
         profile = profile if profile is not None else scenario.fleet.vehicle
         self.id = agv_id
         self.env = env
@@ -161,8 +168,7 @@ class Vehicle:
         self.charge_due = False
         self.marker_speed_mps: float | None = None
         self.parking_target: Place | None = None
-        self._segment_facts: dict[tuple[str, str], tuple[bool, bool, float | None,
-                                                          float | None]] = {}
+        self._segment_facts = segment_facts if segment_facts is not None else {}
         """Segment -> what `travel` needs of it (`_facts_of`), once per segment."""
         self._charger_asked_s: float | None = None
         """With moves recorded: when the AGV asked for the charger it waits for."""
@@ -648,7 +654,7 @@ class Vehicle:
             else:
                 self.fail_now("E_202")
 
-    def _facts_of(self, u: str, v: str) -> tuple[bool, bool, float | None, float | None]:
+    def _facts_of(self, u: str, v: str) -> SegmentFacts:
         """Segment u -> v as `travel` sees it: a dead spot, a weak signal, the chance of an
         obstacle on it and of losing the line on it (None: no chance, no draw)."""
         edge = self.traffic.routes.edge[u, v]

@@ -328,12 +328,16 @@ class Traffic:
 
     def free(self, client_id: int, claim: Claim) -> None:
         """Give back a lock the client holds."""
-        lock = cast(Lock, claim.resource)
+        lock: Lock = claim.resource  # type: ignore[assignment]  # a Claim's is a Lock
         if claim.client_id != client_id or claim not in lock.users:
             raise SimulationError(f"AGV {client_id} cannot free {lock.key}: it does not hold "
                                   f"it (holder: {lock.holder})")
         lock.release(claim)
-        self._forget(client_id, lock, claim)
+        if type(lock.key) is NodeLock:  # `_forget`, for a node
+            self._nodes[client_id].discard(claim)
+            self.version += 1
+        else:
+            self._forget(client_id, lock, claim)
         if self.plans is not None:
             self._woken(lock)
 
