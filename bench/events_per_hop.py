@@ -1,10 +1,11 @@
 """What the SimPy events of a run are spent on, per hop: the three 50-AGV warehouse shifts of
 bench/engine_scaling.py's ring comparison, and the bare SimPy ring beside them.
 
-Every event the environment schedules is counted by its kind (Timeout, Claim, Release,
-Condition...) and by the fleet_sim function that made it (the first caller outside SimPy:
+Every event the environment schedules is counted by its kind (Timeout, Claim, Released,
+FirstOf...) and by the fleet_sim function that made it (the first caller outside SimPy and the
+engine's lean SimPy parts in fleet_sim/sim/traffic/locks.py and fleet_sim/sim/clock.py:
 `move` is a hop's drive, `wait` a blocked AGV's periodic look for a deadlock or another way,
-`free` SimPy's Release event of a lock given back, `grant` a claim granted to an AGV that waited
+`free` the Released event of a lock given back, `grant` a claim granted to an AGV that waited
 for it, `_handle` the load and unload sub-states...). Events per hop and wall microseconds per
 hop are printed beside the bare ring's (3 events per hop: request, timeout, release), with the
 load average: compare figures within one run only.
@@ -33,6 +34,21 @@ from engine_scaling import SHIFTS, bare_ring, model_run  # noqa: E402
 
 from fleet_sim.model import records  # noqa: E402
 
+LEAN_PARTS = {"fleet_sim/sim/clock.py": None,
+              "fleet_sim/sim/traffic/locks.py": {"__init__", "_check", "release"}}
+"""The engine's own SimPy parts (file -> functions, None: all): their callers are counted,
+as SimPy's are (`grant`, in locks.py, is counted itself)."""
+
+
+def _simpy_part(code: Any) -> bool:
+    name: str = code.co_filename
+    if "simpy" in name:
+        return True
+    for path, functions in LEAN_PARTS.items():
+        if name.endswith(path):
+            return functions is None or code.co_name in functions
+    return False
+
 COUNTS: collections.Counter[tuple[str, str]] = collections.Counter()
 HOPS = [0]
 
@@ -41,7 +57,7 @@ def _counting_schedule(original: Any) -> Any:
     def schedule(self: Environment, event: simpy.Event, priority: int = 1,
                  delay: float = 0) -> None:
         frame = sys._getframe(1)
-        while frame is not None and "simpy" in frame.f_code.co_filename:
+        while frame is not None and _simpy_part(frame.f_code):
             frame = frame.f_back
         COUNTS[(type(event).__name__, frame.f_code.co_name if frame else "?")] += 1
         original(self, event, priority, delay)

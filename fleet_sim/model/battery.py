@@ -22,13 +22,14 @@ class StateOfCharge:
 
     def __init__(self, profile: BatteryProfile, now_s: float) -> None:
         self.profile = profile
+        self._pct_per_wh = profile.pct_per_wh()
         self._soc = profile.initial_soc_pct
         self._draw_w = profile.idle_w
         self._since_s = now_s
 
     def soc_pct(self, now_s: float) -> float:
         return self._soc - self._draw_w * (now_s - self._since_s) / 3600.0 \
-            * self.profile.pct_per_wh()
+            * self._pct_per_wh
 
     def settle(self, now_s: float) -> None:
         self._soc, self._since_s = self.soc_pct(now_s), now_s
@@ -41,7 +42,7 @@ class StateOfCharge:
     def drive(self, now_s: float, length_m: float, loaded: bool) -> None:
         self.settle(now_s)
         per_m = self.profile.drive_loaded_wh_per_m if loaded else self.profile.drive_wh_per_m
-        self._soc -= per_m * length_m * self.profile.pct_per_wh()
+        self._soc -= per_m * length_m * self._pct_per_wh
 
     def seconds_until(self, now_s: float, soc_pct: float) -> float:
         """Time until the continuous draw alone takes the SOC down to `soc_pct` (inf if never)."""
@@ -50,7 +51,7 @@ class StateOfCharge:
             return 0.0
         if self._draw_w <= 0:
             return math.inf
-        return (soc - soc_pct) / (self._draw_w / 3600.0 * self.profile.pct_per_wh())
+        return (soc - soc_pct) / (self._draw_w / 3600.0 * self._pct_per_wh)
 
     def set_soc(self, now_s: float, soc_pct: float) -> None:
         """After charging (or a manual recharge by an operator)."""

@@ -463,11 +463,15 @@ class Recorder:
 
     def drove(self, start_s: float, end_s: float, length_m: float) -> None:
         self.distance_total_m += length_m
-        self.moved_s = max(self.moved_s, end_s)
+        if end_s > self.moved_s:
+            self.moved_s = end_s
         span = end_s - start_s
-        if span > 0:
-            self.distance_m += length_m * self.window(start_s, end_s) / span
-        elif start_s >= self.warmup_s:
+        warmup_s = self.warmup_s
+        if span > 0:  # `window`, written out (once a hop; min and max as conditionals)
+            window = (self.end_s if self.end_s < end_s else end_s) \
+                - (warmup_s if warmup_s > start_s else start_s)
+            self.distance_m += length_m * (window if window > 0.0 else 0.0) / span
+        elif start_s >= warmup_s:
             self.distance_m += length_m
 
     def occupied(self, kind: str, key: str, agv: int, start_s: float, end_s: float) -> None:

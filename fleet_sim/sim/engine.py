@@ -38,7 +38,8 @@ from fleet_sim.config.trace import TraceOrder
 from fleet_sim.model.kinematics import Motion, MotionBackend
 from fleet_sim.model.records import BATCH_ROWS, Recorder, RecordSink
 from fleet_sim.sim.agents.fleet_manager import FleetManager
-from fleet_sim.sim.agents.vehicle import Vehicle
+from fleet_sim.sim.agents.vehicle import SegmentFacts, Vehicle
+from fleet_sim.sim.clock import Clock
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.demand import Demand
 from fleet_sim.sim.estimate import Bottleneck, bottleneck
@@ -85,7 +86,7 @@ class RunOutput:
 def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
                 record_occupancy: bool = False, record_moves: bool = False,
                 sink: RecordSink | None = None, batch_rows: int = BATCH_ROWS) -> Model:
-    env = simpy.Environment()
+    env = Clock()
     profile = scenario.fleet.vehicle
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
                     profile.turn_speed_mps)
@@ -112,10 +113,11 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     if scenario.fleet.vehicles or layout.restricts_types \
             or layout.speed_limited_types & set(scenario.fleet.agv_types):
         _set_types(scenario, traffic, fleet)
+    segment_facts: dict[tuple[str, str], SegmentFacts] = {}  # the same for every AGV
     vehicles = [
         Vehicle(i, env, traffic, fleet, recorder, scenario,
                 np.random.default_rng(vehicle_seeds[i]),
-                np.random.default_rng(incident_seeds[2 * i]), profiles[i])
+                np.random.default_rng(incident_seeds[2 * i]), profiles[i], segment_facts)
         for i in range(scenario.fleet.size)
     ]
     _place(vehicles, scenario, layout, fleet)

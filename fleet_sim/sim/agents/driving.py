@@ -31,6 +31,7 @@ from typing import Any, Protocol
 
 import numpy as np
 import simpy
+from simpy.events import Timeout
 
 from fleet_sim.config.layout import Place
 from fleet_sim.config.scenario import TrafficConfig
@@ -88,8 +89,9 @@ class DriverHost(Protocol):
         the closed-form driving time (0 with a motion backend, which times the hop itself)."""
         ...
 
-    def arrived(self, v: str, length_m: float) -> Proc:
-        """At `v` after a hop of `length_m` (battery use, markers)."""
+    def arrived(self, v: str, length_m: float) -> Proc | None:
+        """At `v` after a hop of `length_m` (battery use, markers): the stop to make there
+        (a spin or a pause marker), if any, to be driven to its end."""
         ...
 
 
@@ -168,9 +170,10 @@ class Driver:
             if self._plan is not None:
                 self._drive_open = (u, v, self.env.now, time_s * self._moved)
             try:
-                yield self.env.timeout(time_s * (share - self._moved))
+                yield Timeout(self.env, time_s * (share - self._moved))
             finally:  # also when a fault interrupts the hop: the AGV stops where it is
-                self._close_drive()
+                if self._drive_open is not None:
+                    self._close_drive()
         elif share >= 1.0:
             assert self._leg is not None
             yield self._leg
@@ -226,7 +229,8 @@ class Driver:
         """Off the tape (into a parking bay, or taken off by an operator): let go of all."""
         for held in self.held + self.ahead:
             self._release(held)
-        self.held, self.ahead = [], []
+        self.held = []
+        self.ahead.clear()  # the same list: a drive holds it
         self.traffic.let_go(self.id)
         self.prev, self.speed_mps = None, 0.0
         if self.traffic.motion_backend is not None:
@@ -257,29 +261,36 @@ class Driver:
             return
         self.goal = goal
         path = traffic.route(self.node, goal, self.id)
+        markers = traffic.layout.markers
+        pass_speed_mps = self.routes.pass_speed_mps
+        try_allocate = traffic.try_allocate
+        ahead = self.ahead
+        env = self.env
+        agv = self.id
         i = 0
         while self.node != self.goal:
             nxt = path[i + 1]
             self.next_node = nxt
-            if not self.ahead:
+            if not ahead:
                 after = path[i + 2] if i + 2 < len(path) else None
                 claim = yield from traffic.allocate(self, Hop(self.node, nxt, after))
                 if claim is None:
                     path = yield from self._get_out()
                     i = 0
                     continue
-                self.ahead.append(Held(nxt, claim, self.env.now))
+                ahead.append(Held(nxt, claim, env.now))
             v_end_max = 0.0
-            stop_marker = traffic.layout.markers.get(nxt) in STOP_MARKERS
-            if nxt != self.goal and i + 2 < len(path) and not stop_marker:
+            if nxt != self.goal and i + 2 < len(path) and markers.get(nxt) not in STOP_MARKERS:
                 w = path[i + 2]
-                x = path[i + 3] if i + 3 < len(path) else None
-                if self._look_ahead(Hop(nxt, w, x)):
-                    v_end_max = self.routes.pass_speed_mps(self.node, nxt, w)
+                # the look-ahead (`_look_ahead`, written out)
+                claim = try_allocate(agv, Hop(nxt, w, path[i + 3] if i + 3 < len(path) else None))
+                if claim is not None:
+                    ahead.append(Held(w, claim, env.now))
+                    v_end_max = pass_speed_mps(self.node, nxt, w)
             yield from self._hop(nxt, v_end_max)
             i += 1
             if stop_early is not None and stop_early():
-                self.goal = self.ahead[-1].node if self.ahead else self.node
+                self.goal = ahead[-1].node if ahead else self.node
         self._end_drive()
 
     def _drive_safely(self, goal: str, stop_early: Callable[[], bool] | None) -> Proc:
@@ -353,15 +364,17 @@ class Driver:
 
     def _hop(self, nxt: str, v_end_max: float) -> Proc:
         u = self.node
+        agv = self.id
         traffic = self.traffic
-        traffic.check_hop(self.id, u, nxt)
+        traffic.check_hop(agv, u, nxt)
         host = self.host
         cap = host.speed_cap_mps()
         backend = traffic.motion_backend
+        recorder = self.recorder
         self._moved = 0.0
         if backend is not None:  # the backend times the hop; the AGV passes through nxt
             after = self.ahead[1].node if v_end_max > 0 and len(self.ahead) > 1 else None
-            self._leg = backend.hop(self.id, self.prev, u, nxt, after, cap)
+            self._leg = backend.hop(agv, self.prev, u, nxt, after, cap)
             time_s = v_end = 0.0
         elif cap is None:
             time_s, v_end = self.routes.hop(self.prev, u, nxt, self.speed_mps, v_end_max)
@@ -372,9 +385,10 @@ class Driver:
             motion = self.routes.motion
             time_s, v_end = traverse(pieces, self.speed_mps, min(v_end_max, cap),
                                      motion.accel_mps2, motion.decel_mps2)
-        if self.recorder.record_moves and backend is None:
+        if recorder.record_moves and backend is None:
             self._plan = (self._pieces(u, nxt, cap), self.speed_mps, v_end, time_s)
-        start = self.env.now
+        env = self.env
+        start = env.now
         yield from host.travel(u, nxt, time_s)
         self._plan = None
         if self._leg is not None:
@@ -384,19 +398,24 @@ class Driver:
             assert isinstance(speed, float)
             v_end = speed
             self._leg = None
-        length = traffic.routes.edge[u, nxt]["length_m"]
-        self.recorder.drove(start, self.env.now, length)
-        if self.recorder.record_occupancy:
-            self.recorder.occupied("segment", f"{u}>{nxt}", self.id, start, self.env.now)
+        length = traffic.routes.length_m[u, nxt]
+        now = env.now
+        recorder.drove(start, now, length)
+        if recorder.record_occupancy:
+            recorder.occupied("segment", f"{u}>{nxt}", agv, start, now)
         self.prev, self.node, self.speed_mps = u, nxt, v_end
         arrived = self.ahead.pop(0)
-        for held in self.held:
-            held.behind_m += length
-        self.held.append(arrived)
-        while len(self.held) > 1 and self.held[0].behind_m >= self.clear_m - 1e-9:
-            self._release(self.held.pop(0))
-        traffic.hopped(self.id, u, nxt, [h.node for h in self.held])
-        yield from host.arrived(nxt, length)
+        held = self.held
+        for h in held:
+            h.behind_m += length
+        held.append(arrived)
+        clear = self.clear_m - 1e-9
+        while len(held) > 1 and held[0].behind_m >= clear:
+            self._release(held.pop(0))
+        traffic.hopped(agv, u, nxt, [h.node for h in held])
+        stop = host.arrived(nxt, length)
+        if stop is not None:
+            yield from stop
 
     def _get_out(self) -> Generator[simpy.Event, Any, list[str]]:
         """After giving up a wait: take the escape (another route, or one hop back), or wait a
@@ -454,4 +473,6 @@ class Driver:
     # ---- releasing ------------------------------------------------------------------------------
     def _release(self, held: Held) -> None:
         self.traffic.free(self.id, held.claim)
-        self.recorder.occupied("node", held.node, self.id, held.since_s, self.env.now)
+        recorder = self.recorder
+        if recorder.record_occupancy:
+            recorder.occupied("node", held.node, self.id, held.since_s, self.env.now)

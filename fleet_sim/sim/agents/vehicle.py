@@ -103,6 +103,10 @@ class FleetManagerLink(Protocol):
     def release_charger(self, place: Place) -> None: ...
 
 
+SegmentFacts = tuple[bool, bool, float | None, float | None]
+"""What `Vehicle.travel` reads of a segment: a dead spot, a weak signal, the chance of an
+obstacle and of losing the line on it (None: no chance, no draw)."""
+
 NO_BATTERY = BatteryProfile(initial_soc_pct=100.0, drive_wh_per_m=0.0, drive_loaded_wh_per_m=0.0,
                             handling_w=0.0, idle_w=0.0)
 """The battery of an AGV without a battery model: full, and nothing drains it."""
@@ -120,8 +124,11 @@ class Vehicle:
     def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
                  fleet: FleetManagerLink, recorder: Recorder, scenario: Scenario,
                  rng: np.random.Generator, incident_rng: np.random.Generator,
-                 profile: VehicleProfile | None = None) -> None:
-        """`profile`: the AGV's vehicle (mixed fleets); default `scenario.fleet.vehicle`."""
+                 profile: VehicleProfile | None = None,
+                 segment_facts: dict[tuple[str, str], SegmentFacts] | None = None) -> None:
+        """`profile`: the AGV's vehicle (mixed fleets); default `scenario.fleet.vehicle`.
+        `segment_facts`: the fleet's shared `_facts_of` cache (the facts are the scenario's and
+        the layout's, the same for every AGV); default its own."""
         profile = profile if profile is not None else scenario.fleet.vehicle
         self.id = agv_id
         self.env = env
@@ -161,6 +168,8 @@ class Vehicle:
         self.charge_due = False
         self.marker_speed_mps: float | None = None
         self.parking_target: Place | None = None
+        self._segment_facts = segment_facts if segment_facts is not None else {}
+        """Segment -> what `travel` needs of it (`_facts_of`), once per segment."""
         self._charger_asked_s: float | None = None
         """With moves recorded: when the AGV asked for the charger it waits for."""
 
@@ -610,39 +619,54 @@ class Vehicle:
 
     def travel(self, u: str, v: str, time_s: float) -> Proc:
         """DriverHost: drive the hop, with dead spots, blocks, obstacles and line losses."""
-        edge = self.traffic.routes.edge[u, v]
-        dead = edge["rssi_dbm"] < self.rules.link_min_rssi_dbm
+        facts = self._segment_facts.get((u, v))
+        if facts is None:
+            facts = self._segment_facts[u, v] = self._facts_of(u, v)
+        dead, weak, obstacle_p, line_p = facts
         if dead != self.in_dead_spot:
             self.in_dead_spot = dead
             self.recorder.comm_losses += dead
             self.note("dead_spot_in" if dead else "dead_spot_out", f"{u} -> {v}")
             self._link_changed()
-        if edge["rssi_dbm"] < self.rules.weak_rssi_dbm:
+        if weak:
             self.recorder.warning("E_002")
-        blocked_until = self.traffic.blocked_until(u, v, self.env.now)
-        if blocked_until is not None:
-            yield from self._obstacle(blocked_until - self.env.now, f"segment {u} -> {v} blocked")
-        length = edge["length_m"]
-        rate = edge["obstacle_rate_per_km"]
-        if rate is None:
-            rate = self.incidents.obstacle_rate_per_km
+        traffic = self.traffic
+        if traffic.blocks:
+            blocked_until = traffic.blocked_until(u, v, self.env.now)
+            if blocked_until is not None:
+                yield from self._obstacle(blocked_until - self.env.now,
+                                          f"segment {u} -> {v} blocked")
         rng = self.incident_rng
-        if rate > 0 and rng.random() < 1.0 - math.exp(-rate * length / 1000.0):
+        if obstacle_p is not None and rng.random() < obstacle_p:
             share = float(rng.random())
+            edge = traffic.routes.edge[u, v]
             duration = edge["obstacle_duration"] or self.incidents.obstacle_duration
             yield from self.driver.move(u, v, time_s, share)
             yield from self._obstacle(duration.sample(rng), f"on {u} -> {v}")
             yield from self.driver.move(u, v, time_s, 1.0)
         else:
             yield from self.driver.move(u, v, time_s, 1.0)
-        line_rate = self.incidents.line_loss_per_km
-        if line_rate > 0 and rng.random() < 1.0 - math.exp(-line_rate * length / 1000.0):
+        if line_p is not None and rng.random() < line_p:
             if rng.random() < self.incidents.line_found_prob:
                 self.recorder.warning("E_001")
                 self.note("line_lost", f"found again within {self.rules.line_keep_heading_m} m")
                 yield from self.driver.pause(self.incidents.line_search_s)
             else:
                 self.fail_now("E_202")
+
+    def _facts_of(self, u: str, v: str) -> SegmentFacts:
+        """Segment u -> v as `travel` sees it: a dead spot, a weak signal, the chance of an
+        obstacle on it and of losing the line on it (None: no chance, no draw)."""
+        edge = self.traffic.routes.edge[u, v]
+        length = edge["length_m"]
+        rate = edge["obstacle_rate_per_km"]
+        if rate is None:
+            rate = self.incidents.obstacle_rate_per_km
+        line_rate = self.incidents.line_loss_per_km
+        return (edge["rssi_dbm"] < self.rules.link_min_rssi_dbm,
+                edge["rssi_dbm"] < self.rules.weak_rssi_dbm,
+                1.0 - math.exp(-rate * length / 1000.0) if rate > 0 else None,
+                1.0 - math.exp(-line_rate * length / 1000.0) if line_rate > 0 else None)
 
     def _obstacle(self, seen_s: float, where: str) -> Proc:
         """An obstacle appears in front and stays within range for `seen_s` seconds.
@@ -700,20 +724,30 @@ class Vehicle:
         self._obstacle_clear_s = rules.obstacle_clear_s
         self.fire("Event_Obstacle_Cleared", f"paused {wait:.2f} s")
 
-    def arrived(self, v: str, length_m: float) -> Proc:
-        """DriverHost: battery use and markers at `v`."""
+    def arrived(self, v: str, length_m: float) -> Proc | None:
+        """DriverHost: battery use and markers at `v`; a spin or a pause marker is a stop,
+        returned to be driven (None: none)."""
         self.battery.drive(self.env.now, length_m, self.loaded)
         marker = self.traffic.layout.markers.get(v)
         if marker is not None:
+            if marker == "spin" or marker == "pause":
+                return self._stop_at_marker(v, marker)
             if marker in MARKER_SPEED_MPS:
                 self.marker_speed_mps = MARKER_SPEED_MPS[marker]
             elif marker == "location":
                 self._position_known = True
-            elif marker == "spin":
-                yield self.env.timeout(self.profile.spin_s)
-            elif marker == "pause":
-                yield self.env.timeout(self.rules.marker_pause_s)
             self.note(f"marker_{marker}", v)
+        if self.battery.soc_pct(self.env.now) < self.rules.bat_critical_pct:
+            self.fail_now("E_201")
+        return None
+
+    def _stop_at_marker(self, v: str, marker: str) -> Proc:
+        """A spin or a pause marker at `v`: the AGV stops there."""
+        if marker == "spin":
+            yield self.env.timeout(self.profile.spin_s)
+        else:
+            yield self.env.timeout(self.rules.marker_pause_s)
+        self.note(f"marker_{marker}", v)
         if self.soc_pct < self.rules.bat_critical_pct:
             self.fail_now("E_201")
 

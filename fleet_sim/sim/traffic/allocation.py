@@ -94,22 +94,30 @@ class CorridorModule:
 
     def __init__(self, traffic: Traffic) -> None:
         self.traffic = traffic
+        self._entered: dict[Hop, tuple[tuple[int, Need], ...]] = {}
+        """Hop -> the corridors it enters (each once, with the node it enters from), whoever
+        asks; `needs` leaves out those the client holds."""
 
     def needs(self, client_id: int, hop: Hop) -> Sequence[Need]:
+        entered = self._entered.get(hop)
+        if entered is None:
+            entered = self._entered[hop] = self._enters(hop)
+        if not entered:
+            return NO_NEEDS
+        held = self.traffic.corridors_of(client_id)
+        return [need for cid, need in entered if cid not in held]
+
+    def _enters(self, hop: Hop) -> tuple[tuple[int, Need], ...]:
         traffic = self.traffic
         corridor_of = traffic.layout.corridor_of
-        out: list[Need] | None = None
+        out: list[tuple[int, Need]] = []
         for a, b in ((hop.via, hop.node), (hop.node, hop.after)):
             corridor = corridor_of(a, b) if b is not None else None
-            if corridor is None or a in corridor.members \
-                    or corridor.id in traffic.corridors_of(client_id):
+            if corridor is None or a in corridor.members:
                 continue
-            lock = traffic.corridor_locks[corridor.id]
-            if out is None:
-                out = [Need(lock, a)]
-            elif all(n.lock is not lock for n in out):
-                out.append(Need(lock, a))
-        return NO_NEEDS if out is None else out
+            if all(cid != corridor.id for cid, _ in out):
+                out.append((corridor.id, Need(traffic.corridor_locks[corridor.id], a)))
+        return tuple(out)
 
     def may_allocate(self, client_id: int, need: Need) -> bool:
         return need.lock.is_free
@@ -176,9 +184,10 @@ class NodeModule:
 
     def __init__(self, traffic: Traffic) -> None:
         self.traffic = traffic
+        self._needs = {node: (Need(lock),) for node, lock in traffic.node_locks.items()}
 
     def needs(self, client_id: int, hop: Hop) -> Sequence[Need]:
-        return (Need(self.traffic.node_locks[hop.node]),)
+        return self._needs[hop.node]
 
     def may_allocate(self, client_id: int, need: Need) -> bool:
         return need.lock.is_free

@@ -58,6 +58,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol, cast
 
 import simpy
+from simpy.events import Timeout
 
 from fleet_sim.config.layout import BACKWARD, FORWARD, Corridor, Layout, Place, TrafficZone
 from fleet_sim.config.scenario import TrafficConfig
@@ -83,9 +84,13 @@ from fleet_sim.sim.traffic.deadlock import (
     KnownCycles,
     find_cycle,
 )
-from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock, ZoneLock
+from fleet_sim.sim.traffic.locks import Claim, CorridorLock, FirstOf, Lock, NodeLock, ZoneLock
 from fleet_sim.sim.traffic.routing import Routes
 from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate, Gate
+
+REROUTES_KEPT = 4096
+"""Detours `escape_for` remembers by the lock waited for (forgotten all at once when full)."""
+_UNKNOWN: Any = object()
 
 
 @dataclass(frozen=True)
@@ -166,6 +171,12 @@ class Traffic:
         self.recorder = recorder
         self.policy: DeadlockPolicy = policy if policy is not None else GentlestEscapeFirst()
         self.node_locks = {n: Lock(env, NodeLock(n)) for n in self.graph.nodes}
+        self._next_nodes = {n: tuple(sorted(self.graph.successors(n))) for n in self.graph.nodes}
+        """Node -> the nodes a segment leads to from it, sorted (escapes look in that order)."""
+        self._reroutes: dict[tuple[Routes, str, str, Lock | None], list[str] | None] = {}
+        """(routes, node, goal, lock waited for) -> the detour off that lock (`escape_for`
+        asks it at every look of a blocked AGV; `Routes.route_avoiding` answers it from the
+        sets to keep off, which cost more to make and hash than this key)."""
         self.corridor_locks = {c.id: Lock(env, CorridorLock(c.id)) for c in layout.corridors}
         self.waiting: dict[int, Lock] = {}
         """Client id -> the lock it waits for."""
@@ -228,6 +239,8 @@ class Traffic:
             or (m.name == "mutex" and layout.mutex_zones_at)
             or (m.name == "same_direction" and layout.direction_zones_at))
         """The modules this layout has resources for (the others never need anything)."""
+        self._modules_before_node: tuple[AllocationModule, ...] = tuple(
+            m for m in self._active_modules if m.name != "node")
         self.plans: Plans | None = Plans(self) if self.config.policy == "avoiding" else None
         """`traffic.policy: avoiding`: every AGV's plan and the safety checks (None:
         reactive)."""
@@ -285,7 +298,7 @@ class Traffic:
                 self._zones[client_id][key.zone_id] = claim
             self.version += 1
             return claim
-        claim = Claim(lock, client_id)
+        claim = lock.claim(client_id)
         if isinstance(key, NodeLock):
             claim.node = key.node
             self._nodes[client_id].add(claim)
@@ -315,12 +328,16 @@ class Traffic:
 
     def free(self, client_id: int, claim: Claim) -> None:
         """Give back a lock the client holds."""
-        lock = cast(Lock, claim.resource)
+        lock: Lock = claim.resource  # type: ignore[assignment]  # a Claim's is a Lock
         if claim.client_id != client_id or claim not in lock.users:
             raise SimulationError(f"AGV {client_id} cannot free {lock.key}: it does not hold "
                                   f"it (holder: {lock.holder})")
         lock.release(claim)
-        self._forget(client_id, lock, claim)
+        if type(lock.key) is NodeLock:  # `_forget`, for a node
+            self._nodes[client_id].discard(claim)
+            self.version += 1
+        else:
+            self._forget(client_id, lock, claim)
         if self.plans is not None:
             self._woken(lock)
 
@@ -482,7 +499,8 @@ class Traffic:
         give_way = may_give_way and self.blocks_others(client.id)
         if not (give_way or may_replan):
             return None
-        escape = self.escape_for(client)
+        # only a reroute, or giving way a circle, is taken here: the others are not looked for
+        escape = self.escape_for(client, circulate=give_way, backoff=False)
         if escape is None or not (escape.kind == "reroute"
                                   or (give_way and escape.kind == "circulate")):
             return None
@@ -524,10 +542,13 @@ class Traffic:
         victim.on_deadlock_victim(DeadlockVictim(escape))
         return None
 
-    def escape_for(self, client: TrafficClient, must_free: Lock | None = None) -> Escape | None:
+    def escape_for(self, client: TrafficClient, must_free: Lock | None = None,
+                   circulate: bool = True, backoff: bool = True) -> Escape | None:
         """A way out for a blocked AGV that lets go of `must_free` (a lock it holds that another
         AGV waits for): give up a corridor it has reserved but not entered, take another route
-        whose first node is free, or back off to a free neighbour."""
+        whose first node is free, or back off to a free neighbour. `circulate`, `backoff`: False
+        when the caller would not take that kind (it is then not looked for; looking changes
+        nothing)."""
         client_id = client.id
         waited = self.waiting.get(client_id)
         node = client.node
@@ -546,6 +567,7 @@ class Traffic:
                 return Escape("yield", (node,))  # holds the zone, not yet inside: give it up
         avoid_nodes: set[str] = set()
         avoid_edges = self.against(client_id) if self._against_hops else set()
+        plain = not avoid_edges  # what to keep off follows from the lock waited for alone
         if waited is not None:
             key = waited.key
             if isinstance(key, NodeLock):
@@ -558,16 +580,27 @@ class Traffic:
                 avoid_edges |= corridor.segments
         routes = self.routes_of(client_id)
         if goal is not None and (avoid_nodes or avoid_edges):
-            path = routes.route_avoiding(node, goal, avoid_nodes, avoid_edges)
+            if plain:  # the same question as route_avoiding's, asked by the lock waited for
+                known = (routes, node, goal, waited)
+                path = self._reroutes.get(known, _UNKNOWN)
+                if path is _UNKNOWN:
+                    path = routes.route_avoiding(node, goal, avoid_nodes, avoid_edges)
+                    if len(self._reroutes) >= REROUTES_KEPT:
+                        self._reroutes.clear()
+                    self._reroutes[known] = path
+            else:
+                path = routes.route_avoiding(node, goal, avoid_nodes, avoid_edges)
             if path is not None and len(path) > 1 \
                     and self._free_to_enter(client_id, node, path[1]) \
                     and (inside is None or any(n not in inside.members for n in path[1:])):
                 return Escape("reroute", tuple(path))
-        if goal is not None and inside is None and (avoid_nodes or avoid_edges):
+        if circulate and goal is not None and inside is None and (avoid_nodes or avoid_edges):
             circle = self._circulate(client_id, node, goal, avoid_nodes, avoid_edges)
             if circle is not None:
                 return circle
-        for nxt in sorted(self.graph.successors(node)):
+        if not backoff:
+            return None
+        for nxt in self._next_nodes[node]:
             if nxt in avoid_nodes or (node, nxt) in avoid_edges or nxt == client.next_node:
                 continue
             if inside is not None and nxt in inside.members:
@@ -583,14 +616,14 @@ class Traffic:
         """Drive on two hops past what blocks the way (a busy corridor, a full siding) and come
         back round by the usual route: a loop's answer to waiting in everyone's way."""
         routes = self.routes_of(client_id)
-        for first in sorted(self.graph.successors(node)):
+        for first in self._next_nodes[node]:
             if first in avoid_nodes or (node, first) in avoid_edges:
                 continue
             if not routes.allows(node, first):
                 continue
             if not self._free_to_enter(client_id, node, first):
                 continue
-            for second in sorted(self.graph.successors(first)):
+            for second in self._next_nodes[first]:
                 if second in avoid_nodes or (first, second) in avoid_edges or second == node:
                     continue
                 if not routes.allows(first, second):
@@ -643,6 +676,20 @@ class Traffic:
         """Grant the whole hop now (its node, the corridors and zones it enters) if every
         module may allocate its part (and, avoiding deadlocks, if the grant keeps the state
         safe), else nothing; never waits. Returns the node's claim."""
+        if self.plans is None:
+            for module in self._modules_before_node:
+                if module.needs(client_id, hop):
+                    break
+            else:  # the node alone (`_grant_now`, shortened)
+                node = hop.node
+                lock = self.node_locks[node]
+                if lock.users or lock.put_queue:
+                    return None
+                claim = lock.claim(client_id)
+                claim.node = node
+                self._nodes[client_id].add(claim)
+                self.version += 1
+                return claim
         needs = self._needs(client_id, hop)
         for m, need in needs:
             if not m.may_allocate(client_id, need):
@@ -897,19 +944,24 @@ class Traffic:
             holder = lock.holder
             self._open_waits[client_id] = (start, str(lock.key), -1 if holder is None else holder)
         looked_at: tuple[int, bool, bool] | None = None
+        give_way_after_s = config.give_way_after_s
+        replan_after_s = config.replan_after_s
+        check_s = config.deadlock_check_s
         try:
             while True:
                 waited = env.now - start
-                now_seen = (self.version, waited >= config.give_way_after_s,
-                            waited >= config.replan_after_s)
+                now_seen = (self.version, waited >= give_way_after_s, waited >= replan_after_s)
                 if may_escape and now_seen != looked_at:  # nothing changed, nothing to look at
                     looked_at = now_seen
-                    if self.resolve_deadlock(client) is not None \
-                            or self.other_way(client, now_seen[1], now_seen[2]) is not None:
+                    # (resolve_deadlock looks only for a suspect, other_way only once the AGV
+                    # may give way or replan: the calls are left out otherwise)
+                    if (client_id in self._suspects and self.resolve_deadlock(client) is not None) \
+                            or ((now_seen[1] or now_seen[2])
+                                and self.other_way(client, now_seen[1], now_seen[2]) is not None):
                         self.withdraw(client_id, claim)
                         return False
                 try:
-                    yield claim | env.timeout(config.deadlock_check_s)
+                    yield FirstOf(env, claim, Timeout(env, check_s))
                 except simpy.Interrupt as interrupt:
                     if not isinstance(interrupt.cause, DeadlockVictim):
                         # a fault: let go and pass it on
@@ -1102,18 +1154,23 @@ class Traffic:
         corridors = self._corridors[client_id]
         if not corridors:
             return
-        spots = self._spots(client_id)
+        spots: set[str] | None = None  # made when needed (freeing corridors leaves it as is)
         for cid, (_, entry) in list(corridors.items()):
             corridor = self.layout.corridors[cid]
             if entry is not None:
+                if spots is None:
+                    spots = self._spots(client_id)
                 if entry not in spots:
                     self._release_corridor(client_id, cid)
                 continue
-            if any(n in corridor.members for n in body):
+            if not corridor.members.isdisjoint(body):
                 continue
-            if any((a, b) in corridor.segments for a, b in itertools.pairwise(body)):
-                continue
-            self._release_corridor(client_id, cid)
+            segments = corridor.segments
+            for hop in itertools.pairwise(body):
+                if hop in segments:
+                    break
+            else:
+                self._release_corridor(client_id, cid)
 
     def _drop_pending_corridors(self, client_id: int) -> None:
         for cid, (_, entry) in list(self._corridors[client_id].items()):

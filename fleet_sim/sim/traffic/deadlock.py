@@ -17,7 +17,7 @@ Decisions where the spec is silent (RSS-AGV-001 has no traffic rules):
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal, Protocol
 
@@ -53,23 +53,46 @@ def find_cycle(start: int, waiting: Mapping[int, Lock]) -> list[int] | None:
         return None
     chain = [start]
     seen = {start}
-    stack = [iter(lock.blockers(start))]
+    client = start
+    # The common case first: while each lock names its holder alone (`Lock.blockers`), the
+    # search below walks one chain; walk it directly.
+    while type(lock).blockers is Lock.blockers:
+        users = lock.users
+        if not users:
+            return None
+        holder: int = users[0].client_id  # type: ignore[attr-defined]  # a Claim
+        if holder == client:
+            return None
+        if holder == start:
+            return chain
+        if holder in seen:
+            return None
+        seen.add(holder)
+        lock = waiting.get(holder)
+        if lock is None:
+            return None
+        chain.append(holder)
+        client = holder
+    # A lock that may name several (a same-direction zone): depth first from here, the
+    # locks walked above having no other blockers left.
+    stack: list[Iterator[int]] = [iter(()) for _ in chain[:-1]]
+    stack.append(iter(lock.blockers(client)))
     while stack:
-        client = next(stack[-1], None)
-        if client is None:
+        blocker = next(stack[-1], None)
+        if blocker is None:
             stack.pop()
             chain.pop()
             continue
-        if client == start:
+        if blocker == start:
             return chain
-        if client in seen:
+        if blocker in seen:
             continue  # on the chain (a cycle not through start: its members handle it) or done
-        seen.add(client)
-        lock = waiting.get(client)
+        seen.add(blocker)
+        lock = waiting.get(blocker)
         if lock is None:
             continue
-        chain.append(client)
-        stack.append(iter(lock.blockers(client)))
+        chain.append(blocker)
+        stack.append(iter(lock.blockers(blocker)))
     return None
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import cast
 
 import simpy
+from simpy.events import PENDING, Event
 from simpy.resources.resource import Request
 
 
@@ -84,12 +85,78 @@ def grant(lock: simpy.Resource, claim: Claim) -> None:
         claim.succeed()
 
 
+class Released(Event):
+    """SimPy's `Release` event, without what it does not need here: a lock is let go of at once
+    (the claim leaves its users when it is given back, as SimPy's `_do_get` does), and the event,
+    scheduled where SimPy schedules its `Release`, offers the lock to the claim waiting first
+    when it is processed (the same callback, `_trigger_put`). Nobody waits on it."""
+
+    def __init__(self, lock: Lock) -> None:
+        self.env = lock._env
+        self.callbacks = [lock._trigger_put]
+        self._ok = True
+        self._value = None
+        self.env.schedule(self)
+
+
+class FirstOf(Event):
+    """`a | b` for two pending events (SimPy's `Condition` with `any_events`), without its
+    bookkeeping: triggered (scheduled) when the first of them is processed, so it is processed
+    where the `Condition` would be; its value is None (nobody reads it)."""
+
+    def __init__(self, env: simpy.Environment, a: Event, b: Event) -> None:
+        self.env = env
+        self.callbacks = []
+        self._value = PENDING
+        self._a = a
+        self._b = b
+        check = self._check
+        a.callbacks.append(check)
+        b.callbacks.append(check)
+
+    def _check(self, event: Event) -> None:
+        if self._value is not PENDING:
+            return
+        self._ok = True
+        self._value = None
+        self.env.schedule(self)
+        other = self._b if event is self._a else self._a
+        callbacks = other.callbacks
+        if callbacks:  # the other one no longer needs to tell it (SimPy removes it too)
+            callbacks.remove(self._check)
+
+
 class Lock(simpy.Resource):
     """An exclusive lock on a node or a corridor: a SimPy resource of capacity one."""
 
     def __init__(self, env: simpy.Environment, key: LockKey) -> None:
         super().__init__(env, capacity=1)
         self.key = key
+
+    def claim(self, client_id: int) -> Claim:
+        """A claim of `client_id` on the lock: granted at once when the lock has room and nobody
+        waits (built directly in the state SimPy's request and `grant_at_once` leave it in),
+        else queued."""
+        if self.put_queue or len(self.users) >= self._capacity:
+            return Claim(self, client_id)
+        claim = Claim.__new__(Claim)
+        env = self._env
+        claim.env = env
+        claim.resource = self
+        claim.proc = env.active_process
+        claim.client_id = client_id
+        claim.asking = False
+        claim.usage_since = env._now
+        claim._ok = True
+        claim._value = None
+        claim.callbacks = None  # type: ignore[assignment]  # SimPy's mark of "processed"
+        self.users.append(claim)
+        return claim
+
+    def release(self, request: simpy.resources.resource.Request) -> Released:  # type: ignore[override]
+        """Let go of `request` (one of the users): see `Released`."""
+        self.users.remove(request)
+        return Released(self)
 
     def _do_put(self, event: Claim) -> None:  # type: ignore[override]  # only Claims here
         if len(self.users) < self.capacity:

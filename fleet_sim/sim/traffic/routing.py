@@ -38,7 +38,7 @@ import itertools
 import math
 from collections import OrderedDict
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import networkx as nx
 
@@ -50,6 +50,8 @@ Weight = str | Callable[[str, str, dict[str, Any]], float | None]
 ExtraCost = Callable[[str, str], float]
 """Seconds added to the route cost of segment u -> v (>= 0)."""
 NO_EDGES: frozenset[tuple[str, str]] = frozenset()
+_UNKNOWN = object()
+"""A detour not asked for yet (a cached detour may be None: there is none)."""
 DETOUR_CACHE_SIZE = 2048
 """Detours remembered per vehicle type: the most recently asked (a few KB each; a 27-day run
 asked 818 distinct ones, a year would ask more)."""
@@ -88,6 +90,9 @@ class Routes:
         self.edge: dict[tuple[str, str], dict[str, Any]] = {
             (u, v): d for u, v, d in self.graph.edges(data=True)}
         """Segment u -> v's attributes (length_m, speed_limit_mps, rssi_dbm...)."""
+        self.length_m: dict[tuple[str, str], float] = {
+            key: data["length_m"] for key, data in self.edge.items()}
+        """Segment u -> v's length."""
         self._succ: dict[str, tuple[tuple[str, float], ...]] = {
             u: tuple((v, d["free_time_s"]) for v, d in self.graph.succ[u].items())
             for u in self.graph.nodes} if vehicle_type is None else {
@@ -152,9 +157,10 @@ class Routes:
             return None
         key = (src, dest, frozenset(avoid), frozenset(avoid_edges or ()))
         detours = self._detours
-        if key in detours:
+        found = detours.get(key, _UNKNOWN)
+        if found is not _UNKNOWN:
             detours.move_to_end(key)
-            return detours[key]
+            return cast(list[str] | None, found)
         path = self._a_star(src, dest, key[2], key[3])
         detours[key] = path
         if len(detours) > DETOUR_CACHE_SIZE:
