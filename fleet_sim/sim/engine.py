@@ -39,7 +39,6 @@ from fleet_sim.model.kinematics import Motion, MotionBackend
 from fleet_sim.model.records import BATCH_ROWS, Recorder, RecordSink
 from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.agents.vehicle import SegmentFacts, Vehicle
-from fleet_sim.sim.clock import Clock
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.demand import Demand
 from fleet_sim.sim.estimate import Bottleneck, bottleneck
@@ -86,7 +85,7 @@ class RunOutput:
 def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
                 record_occupancy: bool = False, record_moves: bool = False,
                 sink: RecordSink | None = None, batch_rows: int = BATCH_ROWS) -> Model:
-    env = Clock()
+    env = simpy.Environment()
     profile = scenario.fleet.vehicle
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
                     profile.turn_speed_mps)
