@@ -257,3 +257,25 @@ def test_set_on_an_experiment_is_an_override_of_every_run(
         err = capsys.readouterr().err
         assert err.startswith(f"fleet-sim: error: {message}"), err
     assert not (tmp_path / "runs").exists()
+
+
+def test_admission_auto_keeps_the_critical_fleet_on_the_track_and_says_why(
+        tmp_path: Path) -> None:
+    """`--set dispatch.max_active_agvs=auto` with reactive traffic: the warehouse's critical
+    fleet (20, its busiest corridor) is the limit; run_info.json says so and why; no more than
+    20 of the 30 AGVs are ever admitted onto the track at once."""
+    from fleet_sim.cli import main
+
+    out = tmp_path / "run"
+    assert main(["run", "experiments/warehouse_shift.yaml", "--quiet", "--out", str(out),
+                 "--hours", "1", "--agvs", "30", "--set", "demand.rate_per_hour=300",
+                 "--set", "dispatch.max_active_agvs=auto"]) == 0
+    info = json.loads((out / "run_info.json").read_text())
+    assert info["max_active_agvs"] == 20
+    assert info["admission_basis"].startswith("corridor ")
+    events = pd.read_parquet(out / "events.parquet")
+    admitted = events.loc[events["event"] == "admitted", "detail"]
+    counts = admitted.str.extract(r"^(\d+) of (\d+) on the track$").astype(int)
+    assert len(counts) >= 20 and (counts[1] == 20).all() and counts[0].max() == 20
+    config = yaml.safe_load((out / "config.resolved.yaml").read_text())
+    assert config["dispatch"]["max_active_agvs"] == "auto"  # as written: derived per run

@@ -23,6 +23,10 @@ order (Habermann's sequence). Traffic keeps it acyclic:
   exactly when one of them reaches a (`may_declare`). A refused plan leaves the old one in
   force: the AGV drives on along it (to parking, at worst) and asks again at every node.
 * Advancing along a plan, letting go of a lock and driving off into parking only remove edges.
+* **A cyclic graph** may still be safe: `_Walk` drives every AGV forward one node at a time
+  and, if all get off the track, keeps the order of moves as the *witness*. A request that is
+  the witness's next move (`_is_next`), or a later move that no move before it takes anything
+  of (`_moves_first`), is granted without a new walk.
 
 Why this never locks solid: an acyclic graph has a sink, an AGV none of whose remaining
 resources another AGV holds; its next hop is free and granting it adds edges into the sink
