@@ -357,7 +357,7 @@ class Plans:
             walk.step(x)
             if x in walk.plans and walk.at[x] != k:
                 return None  # its move is blocked
-        walk.queue = sorted(walk.plans)  # AGVs that came onto the track since, granted
+        walk.queue = sorted((walk.time_s[x], x) for x in walk.plans)  # came on since, granted
         walk.waiting = {}  # only what nobody else's plan needs: after the witness, alone
         return "witness" if walk.run() else None
 
@@ -393,10 +393,10 @@ class _Body:
 
 
 class _Walk:
-    """Every AGV on the track driven forward along its plan, one node at a time, the lowest
-    id that can move first (Plans._walk); each move takes what the hop takes, and lets go of
-    what the body has cleared and the corridors and zones it has left, as the driver and
-    traffic do."""
+    """Every AGV on the track driven forward along its plan, one node at a time, the one that
+    can move and has driven least (free-flow seconds) first (Plans._walk); each move takes
+    what the hop takes, and lets go of what the body has cleared and the corridors and zones
+    it has left, as the driver and traffic do."""
 
     def __init__(self, traffic: Traffic) -> None:
         self.traffic = traffic
@@ -412,8 +412,12 @@ class _Walk:
         """Member -> the corridors and zones it holds."""
         self.clear_m: dict[int, float] = {}
         self.waiting: dict[Lock, list[int]] = {}
-        self.queue: list[int] = []
-        """Members that may move (the lowest id moves first, one step at a time)."""
+        self.queue: list[tuple[float, int]] = []
+        """Members that may move, by `time_s` (the one furthest behind moves first, one step at
+        a time; the lowest id among equals)."""
+        self.time_s: dict[int, float] = {}
+        """Member -> free-flow seconds its moves in the walk have taken: the walk moves the
+        AGVs in about the order they will drive, so that the witness foresees the requests."""
         self.plan_of: dict[int, int] = {}
         self.moves: list[Move] = []
         """The moves made, in order."""
@@ -461,6 +465,7 @@ class _Walk:
         self.plans[x] = (path, steps)
         self.plan_of[x] = plan
         self.at[x] = k
+        self.time_s[x] = 0.0
         self.clear_m[x] = traffic.clearance_m(x)
         nodes, others = traffic.held_locks(x)
         for lock, way in granted:
@@ -482,13 +487,13 @@ class _Walk:
         self._ready(x)
 
     def _ready(self, x: int) -> None:
-        heapq.heappush(self.queue, x)
+        heapq.heappush(self.queue, (self.time_s[x], x))
 
     def run(self) -> bool:
         """Move the members on until none can: True if every one drove off the track."""
         queue = self.queue
         while queue:
-            x = heapq.heappop(queue)
+            _, x = heapq.heappop(queue)
             if x in self.plans and self.step(x):
                 self._ready(x)
         return not self.plans
@@ -518,7 +523,9 @@ class _Walk:
             here = self.traffic.node_locks[path[k]]
             if here in ahead:
                 ahead.remove(here)
-            length = self.traffic.routes.edge[path[k - 1], path[k]]["length_m"]
+            edge = self.traffic.routes.edge[path[k - 1], path[k]]
+            length = edge["length_m"]
+            self.time_s[x] += edge["free_time_s"]
             for part in body:
                 part.past_m += length
             body.append(_Body(here))
