@@ -134,9 +134,10 @@ def test_throughput_never_collapses_as_the_fleet_grows(
     """Demand beyond what the layout carries; the fleet grows well past its critical fleet
     (admission `auto`: a two-way aisle is the bottleneck): at every size the delivered orders
     per hour are within 5 % of the best smaller fleet's, and no deadlock is ever detected.
-    Without the limit the same check lets the warehouse fall from 178 to 112 orders/h at 40
-    AGVs. (The distribution centre, whose runs vary by more than 5 % from one start to another,
-    is measured with replications: bench/admission.py --avoiding --seeds 3.)"""
+    Without the limit the check let the warehouse fall from 178 to 112 orders/h at 40 AGVs
+    (one seed, 2026-11-27, before the moves-first rule). The distribution centre, whose runs
+    vary by more than 5 % from one start to another, is measured with replications
+    (bench/admission.py --avoiding --seeds 3)."""
     rate = 300.0
     best = 0.0
     for agvs in fleets:
