@@ -104,7 +104,7 @@ CASES = [
     ("warehouse_wifi", (10, 40, 100), 300.0),
     ("distribution_centre", (40, 100), 600.0),
     ("fulfilment_centre", (60,), 1000.0),  # not up to its parking capacity (hundreds): the
-]  # check's cost grows with the fleet (200 AGVs: about 8 min a simulated hour), bench only
+]  # check's cost grows with the fleet (200 AGVs: about 10 min a simulated hour), bench only
 
 
 @pytest.mark.parametrize(("layout", "fleets", "rate"), CASES, ids=[c[0] for c in CASES])
