@@ -62,7 +62,6 @@ import heapq
 import itertools
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import networkx as nx
@@ -101,6 +100,8 @@ class Plans:
         """Client id -> the resources its plan still needs (ahead of where it stands)."""
         self.users_of: dict[Lock, set[int]] = {}
         """Resource -> the clients whose remaining plan needs it."""
+        self.hops: dict[tuple[str, str], tuple[float, float]] = {}
+        """(from, to) -> the hop's length and free-flow time (for the walks)."""
         self._exits: dict[tuple[int, str], list[str]] = {}
         """(routes, node) -> the route from node to the nearest parking access."""
         self.granted: dict[int, int] = {}
@@ -320,7 +321,7 @@ class Plans:
         walk.add(client_id, plan, path, steps, at, locks)
 
         def held() -> set[Lock]:
-            return {p.lock for p in walk.body[client_id]} | set(walk.ahead[client_id]) \
+            return {lock for lock, _ in walk.body[client_id]} | set(walk.ahead[client_id]) \
                 | set(walk.others[client_id])
 
         yield at, walk.moves, held()
@@ -476,14 +477,6 @@ class Plans:
         return False
 
 
-@dataclass(slots=True)
-class _Body:
-    """In the walk: a node an AGV holds behind it, and how far it has driven past it."""
-
-    lock: Lock
-    past_m: float = 0.0
-
-
 class _Walk:
     """Every AGV on the track driven forward along its plan, one node at a time, the one that
     can move and has driven least (free-flow seconds) first (Plans._walk); each move takes
@@ -496,8 +489,16 @@ class _Walk:
         self.ways: dict[Lock, int] = {}
         self.plans: dict[int, tuple[list[str], list[Step]]] = {}
         self.at: dict[int, int] = {}
-        self.body: dict[int, list[_Body]] = {}
-        """Member -> the nodes its body covers, oldest first (the one it stands on last)."""
+        self.body: dict[int, list[tuple[Lock, float]]] = {}
+        """Member -> the nodes its body covers, oldest first (the one it stands on last), each
+        with the member's `odometer_m` when it stood on it."""
+        self.odometer_m: dict[int, float] = {}
+        """Member -> metres driven in the walk (its body's start: minus how far it had driven
+        past each node)."""
+        plans = traffic.plans
+        self.hops: dict[tuple[str, str], tuple[float, float]] = {} if plans is None \
+            else plans.hops
+        """(from, to) -> the hop's length and free-flow time."""
         self.ahead: dict[int, list[Lock]] = {}
         """Member -> nodes it holds ahead on its plan (the look-ahead)."""
         self.others: dict[int, list[Lock]] = {}
@@ -571,10 +572,10 @@ class _Walk:
         behind = sorted((lk for lk in nodes if lk is not here),
                         key=lambda lk: (-past.get(str(lk.key), 0.0), str(lk.key)))
         self.ahead[x] = [lk for lk in behind if lk in on_plan]
-        self.body[x] = [_Body(lk, past.get(str(lk.key), 0.0))
-                        for lk in behind if lk not in on_plan]
+        self.odometer_m[x] = 0.0
+        self.body[x] = [(lk, -past.get(str(lk.key), 0.0)) for lk in behind if lk not in on_plan]
         if here in nodes:
-            self.body[x].append(_Body(here, past.get(path[k], 0.0)))
+            self.body[x].append((here, -past.get(path[k], 0.0)))
         self.others[x] = others
         self._ready(x)
 
@@ -600,35 +601,48 @@ class _Walk:
         others = self.others[x]
         if k < last:
             step = steps[k + 1]
-            blocked = next((lk for lk, way in step if not self.free_for(x, lk, way)), None)
-            if blocked is not None:
-                self.waiting.setdefault(blocked, []).append(x)
-                return False
-            for lock, way in step:
-                new = x not in self.held_by(lock)
-                self.take(x, lock, way)
-                if new and not isinstance(lock.key, NodeLock):
-                    others.append(lock)
+            here = step[0][0]  # the node's lock
+            if len(step) == 1:  # the node alone (most hops): capacity one
+                h = self.holders.get(here)
+                if h is None:
+                    h = self.held_by(here)
+                if not h:
+                    h.append(x)
+                elif x not in h:
+                    self.waiting.setdefault(here, []).append(x)
+                    return False
+            else:
+                blocked = next((lk for lk, way in step if not self.free_for(x, lk, way)), None)
+                if blocked is not None:
+                    self.waiting.setdefault(blocked, []).append(x)
+                    return False
+                for lock, way in step:
+                    new = x not in self.held_by(lock)
+                    self.take(x, lock, way)
+                    if new and not isinstance(lock.key, NodeLock):
+                        others.append(lock)
             k += 1
             self.at[x] = k
             self.moves.append((x, self.plan_of[x], k))
-            here = self.traffic.node_locks[path[k]]
-            if here in ahead:
+            if ahead and here in ahead:
                 ahead.remove(here)
-            edge = self.traffic.routes.edge[path[k - 1], path[k]]
-            length = edge["length_m"]
-            self.time_s[x] += edge["free_time_s"]
-            for part in body:
-                part.past_m += length
-            body.append(_Body(here))
-            while len(body) > 1 and body[0].past_m >= self.clear_m[x] - 1e-9:
-                self.let_go(x, body.pop(0).lock)
+            hop = (path[k - 1], path[k])
+            length_time = self.hops.get(hop)
+            if length_time is None:
+                edge = self.traffic.routes.edge[hop]
+                length_time = self.hops[hop] = (edge["length_m"], edge["free_time_s"])
+            self.time_s[x] += length_time[1]
+            odometer = self.odometer_m[x] = self.odometer_m[x] + length_time[0]
+            body.append((here, odometer))
+            clear = odometer - self.clear_m[x] + 1e-9  # cleared: stood on at or before it
+            while len(body) > 1 and body[0][1] <= clear:
+                self.let_go(x, body.pop(0)[0])
             if others:
-                nodes = [str(p.lock.key) for p in body] + [str(lk.key) for lk in ahead]
+                nodes = [str(lock.key) for lock, _ in body] + [str(lk.key) for lk in ahead]
                 self._leave(x, nodes, list(itertools.pairwise(path[k:k + len(ahead) + 2])))
         if k == last:  # off into parking: everything let go
             self.moves.append((x, self.plan_of[x], last + 1))
-            for lock in [p.lock for p in body] + ahead + others:
+            for lock in [lock for lock, _ in body] + ahead + others:
                 self.let_go(x, lock)
             del self.plans[x]
             return False
