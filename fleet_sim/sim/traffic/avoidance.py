@@ -27,9 +27,7 @@ order (Habermann's sequence). Traffic keeps it acyclic:
   and, if all get off the track, keeps the order of moves as the *witness*. A request that is
   the witness's next move (`_is_next`) is granted without a new walk; so is a later move when
   it, and as many of the AGV's next moves as needed, driven at once, leave the AGV holding
-  nothing that an earlier move of the witness takes (`_runs_first`); and a new plan when,
-  after a first stretch driven at once, the AGV holds nothing any other move still to come
-  takes (`_runs_last`: it drives the rest after them).
+  nothing that an earlier move of the witness takes (`_runs_first`).
 
 Why this never locks solid: an acyclic graph has a sink, an AGV none of whose remaining
 resources another AGV holds; its next hop is free and granting it adds edges into the sink
@@ -238,8 +236,6 @@ class Plans:
                 return True
         elif not any(self.traffic.held_locks(client_id)):
             return True  # off the track: in nobody's way, and in no move of the witness
-        elif self._runs_last(client_id, list(path), steps):
-            return True
         if self._walk(client_id, (list(path), steps), ()):
             return True
         self.refused_plans += 1
@@ -287,29 +283,6 @@ class Plans:
                 continue
             return x == client_id and path[k] == node
         return False
-
-    def _to_come(self, client_id: int) -> tuple[list[tuple[int, Move]], dict[Lock, int]]:
-        """The witness's moves still to come (of a plan in force, not made), with their
-        positions; and per resource, the position of the first of them by another AGV that
-        takes it (granted already or driving off: takes nothing)."""
-        witness = self.witness
-        assert witness is not None
-        at, granted, plan_id, paths, all_steps = (self.at, self.granted, self.plan_id,
-                                                  self.path, self._steps)
-        to_come: list[tuple[int, Move]] = []
-        first: dict[Lock, int] = {}
-        for j in range(self._next, len(witness)):
-            move = witness[j]
-            x, plan, k = move
-            if plan_id.get(x) != plan or at[x] >= k:
-                continue
-            to_come.append((j, move))
-            if x == client_id or granted[x] >= k or k == len(paths[x]):
-                continue
-            for lock, _ in all_steps[x][k]:
-                if lock not in first:
-                    first[lock] = j
-        return to_come, first
 
     def _alone(self, client_id: int, plan: int, path: list[str], steps: list[Step], at: int,
                locks: Sequence[tuple[Lock, int]]) -> Iterable[tuple[int, list[Move], set[Lock]]]:
@@ -381,22 +354,6 @@ class Plans:
                 for pos in reversed(mine):
                     del witness[pos]
                 witness[self._next:self._next] = moves
-                return True
-        return False
-
-    def _runs_last(self, client_id: int, path: list[str], steps: list[Step]) -> bool:
-        """May the client take `path` as its new plan and drive it (after a first stretch,
-        driven now with every other AGV standing still) after every other move of the
-        witness? Yes if no move of another AGV still to come takes anything it holds at the
-        end of that stretch (which may be empty: standing where it is). The witness keeps the
-        moves still to come, with the stretch first and the rest of the new plan last."""
-        to_come, first = self._to_come(client_id)
-        plan = self._plans_made + 1
-        for k, moves, held in self._alone(client_id, plan, path, steps, 0, ()):
-            if not any(lock in first for lock in held):
-                self.witness = list(moves) + [m for _, m in to_come if m[0] != client_id] \
-                    + [(client_id, plan, j) for j in range(k + 1, len(path) + 1)]
-                self._next = 0
                 return True
         return False
 
