@@ -25,9 +25,8 @@ order (Habermann's sequence). Traffic keeps it acyclic:
 * Advancing along a plan, letting go of a lock and driving off into parking only remove edges.
 * **A cyclic graph** may still be safe: `_Walk` drives every AGV forward one node at a time
   and, if all get off the track, keeps the order of moves as the *witness*. A request that is
-  the witness's next move (`_is_next`) is granted without a new walk; so is a later move when
-  it, and as many of the AGV's next moves as needed, driven at once, leave the AGV holding
-  nothing that an earlier move of the witness takes (`_runs_first`).
+  the witness's next move (`_is_next`), or a later move that no move before it takes anything
+  of (`_moves_first`), is granted without a new walk.
 
 Why this never locks solid: an acyclic graph has a sink, an AGV none of whose remaining
 resources another AGV holds; its next hop is free and granting it adds edges into the sink
@@ -259,7 +258,7 @@ class Plans:
         elif self._is_next(client_id, node):
             self._next += 1
             return True
-        elif self._runs_first(client_id, locks, node):
+        elif self._moves_first(client_id, locks, node):
             return True
         if self._walk(client_id, None, locks):
             return True
@@ -284,77 +283,29 @@ class Plans:
             return x == client_id and path[k] == node
         return False
 
-    def _alone(self, client_id: int, plan: int, path: list[str], steps: list[Step], at: int,
-               locks: Sequence[tuple[Lock, int]]) -> Iterable[tuple[int, list[Move], set[Lock]]]:
-        """The client driving `path` from index `at` (with `locks` granted) alone, every other
-        AGV standing where it is: before its first move and after each, the index it reached
-        (len(path): off the track), its moves so far and what it holds; to where it is blocked
-        or off the track."""
-        walk = _Walk(self.traffic)
-        walk.add(client_id, plan, path, steps, at, locks)
-
-        def held() -> set[Lock]:
-            return {lock for lock, _ in walk.body[client_id]} | set(walk.ahead[client_id]) \
-                | set(walk.others[client_id])
-
-        yield at, walk.moves, held()
-        moves = walk.moves
-        while True:
-            made = len(moves)
-            on = walk.step(client_id)
-            if len(moves) == made:
-                return  # blocked
-            k = moves[-1][2]
-            yield k, moves, set() if k == len(path) else held()
-            if not on:
-                return
-
-    def _runs_first(self, client_id: int, locks: Sequence[tuple[Lock, int]], node: str) -> bool:
-        """May the client's move to `node`, further on in the witness, be made now? Yes if it
-        and the client's next moves after it, driven now with every other AGV standing still,
-        leave it holding nothing that a move of another AGV before them in the witness takes:
-        made first, they are in nobody's way (what they let go of sooner only helps), and
-        from there the witness goes on as before (the client holds what it held there). One
-        move (the request alone) is the usual case. Those moves are put first, the request
-        counted as made."""
+    def _moves_first(self, client_id: int, locks: Sequence[tuple[Lock, int]],
+                     node: str) -> bool:
+        """May the client's move to `node`, further on in the witness, be made now? Yes if no
+        move before it in the witness takes any of `locks`: made first, it holds nothing those
+        moves need (what it lets go of sooner only helps them), and from its old place on the
+        witness goes on as before. The move is put first and counted as made."""
         witness = self.witness
         assert witness is not None
-        at, granted, plan_id, paths, all_steps = (self.at, self.granted, self.plan_id,
-                                                  self.path, self._steps)
-        path = paths[client_id]
-        done = granted[client_id]
-        if done + 1 >= len(path) or path[done + 1] != node:
-            return False
-        taken: set[Lock] = set()
-        """What moves of other AGVs still to come take, up to the scan."""
-        mine: list[int] = []
-        """The positions of the client's moves up to the scan."""
-        j = self._next
-        n = len(witness)
-        for k, moves, held in self._alone(client_id, plan_id[client_id], path,
-                                          all_steps[client_id], at[client_id], locks):
-            if k <= done:
-                continue
-            while j < n:  # on to the client's move k
-                x, plan, kx = witness[j]
-                j += 1
-                if plan_id.get(x) != plan or at[x] >= kx:
-                    continue
-                if x == client_id:
-                    if kx <= done:
-                        continue
-                    mine.append(j - 1)
-                    if kx == k:
-                        break
-                elif granted[x] < kx and kx != len(paths[x]):
-                    taken.update(lock for lock, _ in all_steps[x][kx])
-            else:
-                return False  # not in the witness: not a move it foresaw
-            if taken.isdisjoint(held):
-                for pos in reversed(mine):
-                    del witness[pos]
-                witness[self._next:self._next] = moves
+        taken = {lock for lock, _ in locks}
+        at, granted, plan_id, paths = self.at, self.granted, self.plan_id, self.path
+        for j in range(self._next, len(witness)):
+            x, plan, k = witness[j]
+            if plan_id.get(x) != plan or at[x] >= k or granted[x] >= k:
+                continue  # made already, granted already, or its AGV left the track
+            path = paths[x]
+            if x == client_id:
+                if k == len(path) or path[k] != node:
+                    return False
+                witness.insert(self._next, witness.pop(j))
+                self._next += 1
                 return True
+            if k < len(path) and any(lock in taken for lock, _ in self._steps[x][k]):
+                return False
         return False
 
     def _walk(self, client_id: int, new_plan: tuple[list[str], list[Step]] | None,
