@@ -97,8 +97,6 @@ class Plans:
         """Client id -> the resources its plan still needs (ahead of where it stands)."""
         self.users_of: dict[Lock, set[int]] = {}
         """Resource -> the clients whose remaining plan needs it."""
-        self.hops: dict[tuple[str, str], tuple[float, float]] = {}
-        """(from, to) -> the hop's length and free-flow time (for the walks)."""
         self._exits: dict[tuple[int, str], list[str]] = {}
         """(routes, node) -> the route from node to the nearest parking access."""
         self.granted: dict[int, int] = {}
@@ -403,10 +401,6 @@ class _Walk:
         self.odometer_m: dict[int, float] = {}
         """Member -> metres driven in the walk (its body's start: minus how far it had driven
         past each node)."""
-        plans = traffic.plans
-        self.hops: dict[tuple[str, str], tuple[float, float]] = {} if plans is None \
-            else plans.hops
-        """(from, to) -> the hop's length and free-flow time."""
         self.ahead: dict[int, list[Lock]] = {}
         """Member -> nodes it holds ahead on its plan (the look-ahead)."""
         self.others: dict[int, list[Lock]] = {}
@@ -510,7 +504,8 @@ class _Walk:
         if k < last:
             step = steps[k + 1]
             here = step[0][0]  # the node's lock
-            if len(step) == 1:  # the node alone (most hops): capacity one
+            if len(step) == 1:  # the node alone (most hops): `free_for` and `take` for a
+                # lock of capacity one, written out (the walk's hot path)
                 h = self.holders.get(here)
                 if h is None:
                     h = self.held_by(here)
@@ -534,13 +529,9 @@ class _Walk:
             self.moves.append((x, self.plan_of[x], k))
             if ahead and here in ahead:
                 ahead.remove(here)
-            hop = (path[k - 1], path[k])
-            length_time = self.hops.get(hop)
-            if length_time is None:
-                edge = self.traffic.routes.edge[hop]
-                length_time = self.hops[hop] = (edge["length_m"], edge["free_time_s"])
-            self.time_s[x] += length_time[1]
-            odometer = self.odometer_m[x] = self.odometer_m[x] + length_time[0]
+            edge = self.traffic.routes.edge[path[k - 1], path[k]]
+            self.time_s[x] += edge["free_time_s"]
+            odometer = self.odometer_m[x] = self.odometer_m[x] + edge["length_m"]
             body.append((here, odometer))
             clear = odometer - self.clear_m[x] + 1e-9  # cleared: stood on at or before it
             while len(body) > 1 and body[0][1] <= clear:
