@@ -183,7 +183,7 @@ def test_the_walk_lets_go_of_a_node_once_the_body_has_cleared_it() -> None:
         if len(path) - at < 6 or not nodes:
             continue
         walk = _Walk(traffic)
-        walk.add(x, plans.plan_id[x], path, plans._steps[x], at, ())
+        walk.add(x, plans.plan_id[x], path, plans._steps[x], plans._costs[x], at, ())
         clear_m = traffic.clearance_m(x)
         past0 = traffic.past_m(x)
         on_plan = set(path[at + 1:at + 3])

@@ -93,6 +93,8 @@ class Plans:
         """Client id -> the index in its plan of the node it stands on."""
         self._steps: dict[int, list[Step]] = {}
         """Client id -> per plan index k, what reaching path[k] takes."""
+        self._costs: dict[int, list[tuple[float, float]]] = {}
+        """Client id -> per plan index k, the hop into path[k]: (free-flow s, m) (`costs`)."""
         self.needs: dict[int, Counter[Lock]] = {}
         """Client id -> the resources its plan still needs (ahead of where it stands)."""
         self.users_of: dict[Lock, set[int]] = {}
@@ -153,6 +155,13 @@ class Plans:
             out.append(tuple(step))
         return out
 
+    def costs(self, path: Sequence[str]) -> list[tuple[float, float]]:
+        """Per index k of `path`: the free-flow seconds and metres of the hop into path[k]
+        ((0, 0) at the start), read once per plan rather than at every step of every walk."""
+        edge = self.traffic.routes.edge
+        return [(0.0, 0.0)] + [(e["free_time_s"], e["length_m"]) for e in
+                               (edge[hop] for hop in itertools.pairwise(path))]
+
     @staticmethod
     def _remaining(steps: Sequence[Step], at: int) -> Counter[Lock]:
         return Counter(lock for step in steps[at + 1:] for lock, _ in step)
@@ -168,6 +177,7 @@ class Plans:
         self.plan_id[client_id] = self._plans_made
         self.granted[client_id] = 0
         self._steps[client_id] = steps
+        self._costs[client_id] = self.costs(path)
         self.needs[client_id] = needs
         for lock in needs:
             self.users_of.setdefault(lock, set()).add(client_id)
@@ -178,6 +188,7 @@ class Plans:
         if needs is None:
             return
         del self.path[client_id], self.at[client_id], self._steps[client_id]
+        del self._costs[client_id]
         del self.plan_id[client_id], self.granted[client_id]
         for lock in needs:
             self.users_of[lock].discard(client_id)
@@ -233,7 +244,7 @@ class Plans:
                 return True
         elif not any(self.traffic.held_locks(client_id)):
             return True  # off the track: in nobody's way, and in no move of the witness
-        if self._walk(client_id, (list(path), steps), ()):
+        if self._walk(client_id, (list(path), steps, self.costs(path)), ()):
             return True
         self.refused_plans += 1
         return False
@@ -306,7 +317,8 @@ class Plans:
                 return False
         return False
 
-    def _walk(self, client_id: int, new_plan: tuple[list[str], list[Step]] | None,
+    def _walk(self, client_id: int,
+              new_plan: tuple[list[str], list[Step], list[tuple[float, float]]] | None,
               granted: Sequence[tuple[Lock, int]]) -> bool:
         """Drive every AGV on the track forward along its plan, one node at a time, with the
         client's new plan or the locks it is granted: if all get off the track, the order
@@ -315,12 +327,13 @@ class Plans:
         held_locks = self.traffic.held_locks
         for x in sorted(self.path):
             if x == client_id:
-                path, steps = new_plan if new_plan is not None \
-                    else (self.path[x], self._steps[x])
-                walk.add(x, self.plan_id[x] if new_plan is None else -1, path, steps,
+                path, steps, costs = new_plan if new_plan is not None \
+                    else (self.path[x], self._steps[x], self._costs[x])
+                walk.add(x, self.plan_id[x] if new_plan is None else -1, path, steps, costs,
                          0 if new_plan is not None else self.at[x], granted)
             elif any(held_locks(x)):
-                walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self.at[x], ())
+                walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self._costs[x],
+                         self.at[x], ())
         done = walk.run()
         if not done:
             return False
@@ -344,7 +357,8 @@ class Plans:
         walk = _Walk(traffic)
         for x in sorted(self.path):
             if any(traffic.held_locks(x)):
-                walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self.at[x], ())
+                walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self._costs[x],
+                         self.at[x], ())
         for x in sorted(walk.plans):  # the nodes granted and not driven yet: held, so driving
             while x in walk.plans and walk.at[x] < self.granted[x] and walk.step(x):
                 pass  # to them takes nothing new and only lets go of what is left behind
@@ -393,7 +407,8 @@ class _Walk:
         self.traffic = traffic
         self.holders: dict[Lock, list[int]] = {}
         self.ways: dict[Lock, int] = {}
-        self.plans: dict[int, tuple[list[str], list[Step]]] = {}
+        self.plans: dict[int, tuple[list[str], list[Step], list[tuple[float, float]]]] = {}
+        """Member -> its plan: nodes, what reaching each takes, the hop into each (s, m)."""
         self.at: dict[int, int] = {}
         self.body: dict[int, list[tuple[Lock, float]]] = {}
         """Member -> the nodes its body covers, oldest first (the one it stands on last), each
@@ -436,11 +451,15 @@ class _Walk:
             self.ways[lock] = way or 1
 
     def let_go(self, x: int, lock: Lock) -> None:
-        self.held_by(lock).remove(x)
-        woken = self.waiting.pop(lock, None)
-        if woken:
-            for y in woken:
-                self._ready(y)
+        h = self.holders.get(lock)
+        if h is None:
+            h = self.held_by(lock)
+        h.remove(x)
+        if self.waiting:
+            woken = self.waiting.pop(lock, None)
+            if woken:
+                for y in woken:
+                    self._ready(y)
 
     def free_for(self, x: int, lock: Lock, way: int) -> bool:
         h = self.held_by(lock)
@@ -453,11 +472,11 @@ class _Walk:
             return way == ANY_DIRECTION or self.ways.get(lock) == way
         return True
 
-    def add(self, x: int, plan: int, path: list[str], steps: list[Step], k: int,
-            granted: Sequence[tuple[Lock, int]]) -> None:
+    def add(self, x: int, plan: int, path: list[str], steps: list[Step],
+            costs: list[tuple[float, float]], k: int, granted: Sequence[tuple[Lock, int]]) -> None:
         traffic = self.traffic
         node_locks = traffic.node_locks
-        self.plans[x] = (path, steps)
+        self.plans[x] = (path, steps, costs)
         self.plan_of[x] = plan
         self.at[x] = k
         self.time_s[x] = 0.0
@@ -487,15 +506,26 @@ class _Walk:
     def run(self) -> bool:
         """Move the members on until none can: True if every one drove off the track."""
         queue = self.queue
-        while queue:
-            _, x = heapq.heappop(queue)
-            if x in self.plans and self.step(x):
-                self._ready(x)
-        return not self.plans
+        plans = self.plans
+        step = self.step
+        time_s = self.time_s
+        heappop = heapq.heappop
+        heappushpop = heapq.heappushpop  # a member is in the queue at most once, so pushing
+        # it back and popping the first is one pop of the same order, cheaper when it is first
+        if not queue:
+            return not plans
+        _, x = heappop(queue)
+        while True:
+            if x in plans and step(x):
+                _, x = heappushpop(queue, (time_s[x], x))
+            elif queue:
+                _, x = heappop(queue)
+            else:
+                return not plans
 
     def step(self, x: int) -> bool:
         """Move `x` one node on if it can (False: it waits, or it drove off the track)."""
-        path, steps = self.plans[x]
+        path, steps, costs = self.plans[x]
         k = self.at[x]
         last = len(path) - 1
         body = self.body[x]
@@ -529,9 +559,9 @@ class _Walk:
             self.moves.append((x, self.plan_of[x], k))
             if ahead and here in ahead:
                 ahead.remove(here)
-            edge = self.traffic.routes.edge[path[k - 1], path[k]]
-            self.time_s[x] += edge["free_time_s"]
-            odometer = self.odometer_m[x] = self.odometer_m[x] + edge["length_m"]
+            time_s, length_m = costs[k]
+            self.time_s[x] += time_s
+            odometer = self.odometer_m[x] = self.odometer_m[x] + length_m
             body.append((here, odometer))
             clear = odometer - self.clear_m[x] + 1e-9  # cleared: stood on at or before it
             while len(body) > 1 and body[0][1] <= clear:
