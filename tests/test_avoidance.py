@@ -8,6 +8,7 @@ never falls more than 5 % below the best smaller fleet's as the fleet grows."""
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import pytest
@@ -202,3 +203,48 @@ def test_the_walk_lets_go_of_a_node_once_the_body_has_cleared_it() -> None:
             assert held == expected, (x, k, held, expected)
             checked += len(held) > 1
     assert checked > 20
+
+
+def test_a_refused_grant_is_walked_again_once_the_hop_could_have_been_driven(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A grant the walk refused is asked again at every wake (its move may have come next in
+    the witness), but walked again only once the AGV could have driven the hop (its free-flow
+    seconds). (It is also woken then, for a fleet that has gone quiet meanwhile; in this busy
+    run other wakes come as soon, so that part is not told apart here.) Before this rule, held-back AGVs walked at every
+    grant: 52,000 failed walks and 600 of 780 s on the fulfilment centre at 200 AGVs."""
+    scenario, layout = scenario_for("warehouse_same_direction", 60, 0.5, 300, "avoiding",
+                                    **{"dispatch.max_active_agvs": 60})
+    model = build_model(scenario, layout, (), False, False, None, 10_000)
+    plans = model.traffic.plans
+    assert plans is not None
+    walked = {"n": 0}
+    refusals: dict[tuple[int, int, str], list[tuple[float, float]]] = {}
+    walk, may_grant = Plans._walk, Plans.may_grant
+
+    def counted(self: Plans, *args: Any) -> bool:
+        walked["n"] += 1
+        return walk(self, *args)
+
+    def recorded(self: Plans, client_id: int, locks: Any, node: str) -> bool:
+        before = walked["n"]
+        granted = may_grant(self, client_id, locks, node)
+        if not granted and walked["n"] > before:
+            now = self.traffic.env.now
+            path = self.path[client_id]
+            k = path.index(node, self.at[client_id])
+            if k == 0:  # back onto the track from parking: no hop, walked at every wake
+                return granted
+            hop_s = self.traffic.routes.edge[path[k - 1], node]["free_time_s"]
+            assert self.retry_at(client_id) == now + hop_s
+            refusals.setdefault((client_id, self.plan_id[client_id], node), []).append(
+                (now, now + hop_s))
+        return granted
+
+    monkeypatch.setattr(Plans, "_walk", counted)
+    monkeypatch.setattr(Plans, "may_grant", recorded)
+    model.env.run(until=scenario.duration_s)
+    again = [(later, until) for times in refusals.values()
+             for (_, until), (later, _) in itertools.pairwise(times)]
+    assert sum(len(times) for times in refusals.values()) > 50
+    assert again and all(later >= until - 1e-9 for later, until in again)
+    assert model.recorder.deadlocks == 0

@@ -111,6 +111,9 @@ class Plans:
         that takes every AGV on the track off it (found by the last walk, `_Walk`)."""
         self._next = 0
         """The first move of `witness` not yet made."""
+        self._refused: dict[int, tuple[int, str, float]] = {}
+        """Client id -> (plan number, node, until when) of its last grant the walk refused:
+        asked again before then, it is refused without a walk (`may_grant`)."""
         self.refused_grants = 0
         self.refused_plans = 0
 
@@ -189,6 +192,7 @@ class Plans:
             return
         del self.path[client_id], self.at[client_id], self._steps[client_id]
         del self._costs[client_id]
+        self._refused.pop(client_id, None)
         del self.plan_id[client_id], self.granted[client_id]
         for lock in needs:
             self.users_of[lock].discard(client_id)
@@ -269,10 +273,27 @@ class Plans:
             return True
         elif self._moves_first(client_id, locks, node):
             return True
+        now = self.traffic.env.now
+        refused = self._refused.get(client_id)
+        plan = self.plan_id[client_id]
+        if refused is not None and refused[0] == plan and refused[1] == node \
+                and now + 1e-9 < refused[2]:
+            return False  # walked and refused a moment ago
         if self._walk(client_id, None, locks):
             return True
+        path = self.path[client_id]
+        k = path.index(node, self.at[client_id])
+        self._refused[client_id] = (plan, node, now + self._costs[client_id][k][0])
         self.refused_grants += 1
         return False
+
+    def retry_at(self, client_id: int) -> float | None:
+        """When a grant the walk refused the client may be walked again, if it is waiting for
+        that (`may_grant`)."""
+        refused = self._refused.get(client_id)
+        if refused is None or refused[0] != self.plan_id.get(client_id):
+            return None
+        return refused[2]
 
     def _is_next(self, client_id: int, node: str) -> bool:
         """Is driving to `node` the client's move that comes next in the witness?"""

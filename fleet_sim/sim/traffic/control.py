@@ -838,6 +838,8 @@ class Traffic:
         client_id = client.id
         start: float | None = None
         zone_wait: str | None = None
+        retry: Timeout | None = None
+        retry_until = 0.0
         try:
             while True:
                 needs = self._needs(client_id, hop) if needs_of is None else needs_of()
@@ -872,7 +874,16 @@ class Traffic:
                         self.stop_waiting(client_id)
                     self.start_waiting(client_id, shown)
                     self._record_cycle(client)
-                yield self._wake_on(blocker)
+                wake = self._wake_on(blocker)
+                retry_at = plans.retry_at(client_id) if blocker is None else None
+                if retry_at is not None and retry_at > env.now:
+                    # walked and refused a moment ago: asked again at every wake, walked
+                    # again from `retry_at` on, so it is woken then too
+                    if retry is None or retry_until != retry_at:
+                        retry, retry_until = Timeout(env, retry_at - env.now), retry_at
+                    if retry.callbacks is not None:
+                        wake = FirstOf(env, wake, retry)
+                yield wake
         finally:
             if client_id in self._held_back:
                 self._held_back.discard(client_id)
