@@ -210,8 +210,9 @@ def test_a_refused_grant_is_walked_again_once_the_hop_could_have_been_driven(
     """A grant the walk refused is asked again at every wake (its move may have come next in
     the witness), but walked again only once the AGV could have driven the hop (its free-flow
     seconds). (It is also woken then, for a fleet that has gone quiet meanwhile; in this busy
-    run other wakes come as soon, so that part is not told apart here.) Before this rule, held-back AGVs walked at every
-    grant: 52,000 failed walks and 600 of 780 s on the fulfilment centre at 200 AGVs."""
+    run other wakes come as soon, so that part is not told apart here.) Before this rule,
+    held-back AGVs walked at every grant: 52,000 failed walks and 600 of 780 s on the
+    fulfilment centre at 200 AGVs."""
     scenario, layout = scenario_for("warehouse_same_direction", 60, 0.5, 300, "avoiding",
                                     **{"dispatch.max_active_agvs": 60})
     model = build_model(scenario, layout, (), False, False, None, 10_000)
