@@ -26,7 +26,9 @@ order (Habermann's sequence). Traffic keeps it acyclic:
 * **A cyclic graph** may still be safe: `_Walk` drives every AGV forward one node at a time
   and, if all get off the track, keeps the order of moves as the *witness*. A request that is
   the witness's next move (`_is_next`), or a later move that no move before it takes anything
-  of (`_moves_first`), is granted without a new walk.
+  of (`_moves_first`), is granted without a new walk. A grant the walk refused is asked again
+  at every wake, but walked again only once the AGV could have driven the hop (its free-flow
+  seconds, `retry_at`): in the meantime its move comes in the witness, which is still valid.
 
 Why this never locks solid: an acyclic graph has a sink, an AGV none of whose remaining
 resources another AGV holds; its next hop is free and granting it adds edges into the sink
@@ -253,9 +255,11 @@ class Plans:
         self.refused_plans += 1
         return False
 
-    def may_grant(self, client_id: int, locks: Sequence[tuple[Lock, int]], node: str) -> bool:
+    def may_grant(self, client_id: int, locks: Sequence[tuple[Lock, int]], node: str,
+                  waits: bool = False) -> bool:
         """Would the state stay safe if the client took `locks` ((lock, direction), free, on
-        its plan) to drive to `node`?"""
+        its plan) to drive to `node`? `waits`: the client waits for the grant (not a
+        look-ahead): once the walk refused it, it is walked again only from `retry_at` on."""
         users_of = self.users_of
         targets: set[int] = set()
         for lock, _ in locks:
@@ -273,17 +277,19 @@ class Plans:
             return True
         elif self._moves_first(client_id, locks, node):
             return True
-        now = self.traffic.env.now
-        refused = self._refused.get(client_id)
-        plan = self.plan_id[client_id]
-        if refused is not None and refused[0] == plan and refused[1] == node \
-                and now + 1e-9 < refused[2]:
-            return False  # walked and refused a moment ago
+        if waits:
+            now = self.traffic.env.now
+            refused = self._refused.get(client_id)
+            plan = self.plan_id[client_id]
+            if refused is not None and refused[0] == plan and refused[1] == node \
+                    and now + 1e-9 < refused[2]:
+                return False  # walked and refused a moment ago
         if self._walk(client_id, None, locks):
             return True
-        path = self.path[client_id]
-        k = path.index(node, self.at[client_id])
-        self._refused[client_id] = (plan, node, now + self._costs[client_id][k][0])
+        if waits:
+            path = self.path[client_id]
+            k = path.index(node, self.at[client_id])
+            self._refused[client_id] = (plan, node, now + self._costs[client_id][k][0])
         self.refused_grants += 1
         return False
 

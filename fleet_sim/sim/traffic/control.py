@@ -852,7 +852,7 @@ class Traffic:
                 if blocker is None and (needs_of is None or not self._held_back) \
                         and plans.may_grant(
                             client_id, [(need.lock, need.direction) for _, need in needs],
-                            hop.node):
+                            hop.node, waits=True):
                     self._held_back.discard(client_id)
                     granted = self._grant_now(client_id, needs)
                     self._wake_held_back()
