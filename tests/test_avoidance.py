@@ -8,7 +8,6 @@ never falls more than 5 % below the best smaller fleet's as the fleet grows."""
 
 from __future__ import annotations
 
-import itertools
 from typing import Any
 
 import pytest
@@ -205,53 +204,66 @@ def test_the_walk_lets_go_of_a_node_once_the_body_has_cleared_it() -> None:
     assert checked > 20
 
 
-def test_a_refused_grant_is_walked_again_once_the_hop_could_have_been_driven(
+def test_a_refused_grant_is_walked_again_once_an_agv_the_walk_got_stuck_on_has_moved(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """A grant the walk refused is asked again at every wake (its move may have come next in
-    the witness), but walked again only once the AGV could have driven the hop (its free-flow
-    seconds). It is also woken then, for a fleet gone quiet meanwhile (in this busy run other
-    wakes come as soon, so that part is not told apart here). A look-ahead the walk refused
-    holds nothing back. Before this rule, held-back AGVs walked at every grant: 52,000 failed
-    walks and 600 of 780 s on the fulfilment centre at 200 AGVs."""
+    the witness), but walked again only once an AGV of the cycle of waits the failed walk got
+    stuck on has moved (without a cycle: once the AGV could have driven the hop). The cycle is
+    one: each of its AGVs waits in the walk for a lock the next holds. A look-ahead the walk
+    refused holds nothing back. Before this rule, held-back AGVs walked again at every grant:
+    52,000 failed walks and 600 of 780 s on the fulfilment centre at 200 AGVs."""
     scenario, layout = scenario_for("warehouse_same_direction", 60, 0.5, 300, "avoiding",
                                     **{"dispatch.max_active_agvs": 60})
     model = build_model(scenario, layout, (), False, False, None, 10_000)
     plans = model.traffic.plans
     assert plans is not None
-    walked = {"n": 0}
-    looked = {"walked": 0}
-    refusals: dict[tuple[int, int, str], list[tuple[float, float]]] = {}
-    walk, may_grant = Plans._walk, Plans.may_grant
+    counts = {"walks": 0, "cycles": 0, "look-ahead walks": 0, "asked without a walk": 0}
+    last: dict[tuple[int, int, str], tuple[float, dict[int, tuple[Any, ...]]]] = {}
+    again: list[tuple[float, float, bool]] = []
+    walk, may_grant, stuck = Plans._walk, Plans.may_grant, _Walk.stuck
 
     def counted(self: Plans, *args: Any) -> bool:
-        walked["n"] += 1
+        counts["walks"] += 1
         return walk(self, *args)
+
+    def checked_stuck(self: _Walk, start: int) -> list[int]:
+        cycle = stuck(self, start)
+        waits_for = {y: lock for lock, ys in self.waiting.items() for y in ys}
+        for y, z in zip(cycle, cycle[1:] + cycle[:1], strict=True):
+            assert y != z and z in self.holders[waits_for[y]]
+        counts["cycles"] += bool(cycle)
+        return cycle
 
     def recorded(self: Plans, client_id: int, locks: Any, node: str,
                  waits: bool = False) -> bool:
-        before, retry_at = walked["n"], self.retry_at(client_id)
+        before, retry_at = counts["walks"], self.retry_at(client_id)
+        key = (client_id, self.plan_id[client_id], node)
+        def where(y: int) -> tuple[Any, ...]:
+            return self.at.get(y), self.granted.get(y), self.plan_id.get(y)
+
+        moved_before = {y: where(y) for y in last.get(key, (0.0, {}))[1]}
         granted = may_grant(self, client_id, locks, node, waits)
+        walked = counts["walks"] > before
         if not waits:  # a look-ahead, never waited for: it holds nothing back
-            looked["walked"] += walked["n"] > before and not granted
+            counts["look-ahead walks"] += walked and not granted
             assert self.retry_at(client_id) == retry_at
-        elif not granted and walked["n"] > before:
-            now = self.traffic.env.now
-            path = self.path[client_id]
-            k = path.index(node, self.at[client_id])
-            if k == 0:  # back onto the track from parking: no hop, walked at every wake
-                return granted
-            hop_s = self.traffic.routes.edge[path[k - 1], node]["free_time_s"]
-            assert self.retry_at(client_id) == now + hop_s
-            refusals.setdefault((client_id, self.plan_id[client_id], node), []).append(
-                (now, now + hop_s))
+            return granted
+        if walked and key in last:  # walked again: has an AGV of the cycle moved?
+            until_s, was = last[key]
+            again.append((self.traffic.env.now, until_s,
+                          any(moved_before[y] != at for y, at in was.items())))
+        if not granted and walked:
+            refusal = self._refused[client_id]
+            last[key] = (refusal.until_s, {y: where(y) for y, *_ in refusal.stuck})
+        elif not granted:
+            counts["asked without a walk"] += 1
         return granted
 
     monkeypatch.setattr(Plans, "_walk", counted)
     monkeypatch.setattr(Plans, "may_grant", recorded)
+    monkeypatch.setattr(_Walk, "stuck", checked_stuck)
     model.env.run(until=scenario.duration_s)
-    again = [(later, until) for times in refusals.values()
-             for (_, until), (later, _) in itertools.pairwise(times)]
-    assert sum(len(times) for times in refusals.values()) > 50
-    assert again and all(later >= until - 1e-9 for later, until in again)
-    assert looked["walked"] > 0
+    assert counts["cycles"] > 20 and counts["asked without a walk"] > counts["cycles"]
+    assert again and all(moved or now >= until_s - 1e-9 for now, until_s, moved in again)
+    assert counts["look-ahead walks"] > 0
     assert model.recorder.deadlocks == 0

@@ -27,8 +27,10 @@ order (Habermann's sequence). Traffic keeps it acyclic:
   and, if all get off the track, keeps the order of moves as the *witness*. A request that is
   the witness's next move (`_is_next`), or a later move that no move before it takes anything
   of (`_moves_first`), is granted without a new walk. A grant the walk refused is asked again
-  at every wake, but walked again only once the AGV could have driven the hop (its free-flow
-  seconds, `retry_at`): in the meantime its move comes in the witness, which is still valid.
+  at every wake (its move may have come next), but walked again only once an AGV of the cycle
+  of waits the walk got stuck on has moved (`_Walk.stuck`; without one, once the AGV could
+  have driven the hop, `retry_at`). Until then a walk mostly sticks there again (not always:
+  other AGVs' moves change the walk too; the rule only delays a grant, it never makes one).
 
 Why this never locks solid: an acyclic graph has a sink, an AGV none of whose remaining
 resources another AGV holds; its next hop is free and granting it adds edges into the sink
@@ -61,6 +63,7 @@ import heapq
 import itertools
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import networkx as nx
@@ -113,9 +116,11 @@ class Plans:
         that takes every AGV on the track off it (found by the last walk, `_Walk`)."""
         self._next = 0
         """The first move of `witness` not yet made."""
-        self._refused: dict[int, tuple[int, str, float]] = {}
-        """Client id -> (plan number, node, until when) of its last grant the walk refused:
-        asked again before then, it is refused without a walk (`may_grant`)."""
+        self._refused: dict[int, _Refusal] = {}
+        """Client id -> its last grant the walk refused, while it waits for it: asked again, it
+        is walked again only once an AGV the walk got stuck on has moved (`may_grant`)."""
+        self._stuck: list[int] = []
+        """The AGVs the last failed walk got stuck on (`_Walk.stuck`)."""
         self.refused_grants = 0
         self.refused_plans = 0
 
@@ -281,15 +286,16 @@ class Plans:
             now = self.traffic.env.now
             refused = self._refused.get(client_id)
             plan = self.plan_id[client_id]
-            if refused is not None and refused[0] == plan and refused[1] == node \
-                    and now + 1e-9 < refused[2]:
-                return False  # walked and refused a moment ago
+            if refused is not None and refused.plan == plan and refused.node == node \
+                    and (now + 1e-9 < refused.until_s if not refused.stuck
+                         else refused.stuck == self._where(y for y, *_ in refused.stuck)):
+                return False  # walked and refused, and nothing the walk stuck on has moved
         if self._walk(client_id, None, locks):
             return True
         if waits:
-            path = self.path[client_id]
-            k = path.index(node, self.at[client_id])
-            self._refused[client_id] = (plan, node, now + self._costs[client_id][k][0])
+            k = self.path[client_id].index(node, self.at[client_id])
+            self._refused[client_id] = _Refusal(plan, node, now + self._costs[client_id][k][0],
+                                                self._where(self._stuck))
         self.refused_grants += 1
         return False
 
@@ -297,9 +303,16 @@ class Plans:
         """When a grant the walk refused the client may be walked again, if it is waiting for
         that (`may_grant`)."""
         refused = self._refused.get(client_id)
-        if refused is None or refused[0] != self.plan_id.get(client_id):
+        if refused is None or refused.plan != self.plan_id.get(client_id) or refused.stuck:
             return None
-        return refused[2]
+        return refused.until_s
+
+    def _where(self, clients: Iterable[int]) -> tuple[tuple[int, int, int, int], ...]:
+        """Where each client is: (id, plan number, index in the plan of the node it stands on
+        and of the furthest node granted; -1 off the track)."""
+        plan_id, at, granted = self.plan_id, self.at, self.granted
+        return tuple((y, plan_id.get(y, -1), at.get(y, -1), granted.get(y, -1))
+                     for y in clients)
 
     def _is_next(self, client_id: int, node: str) -> bool:
         """Is driving to `node` the client's move that comes next in the witness?"""
@@ -363,6 +376,7 @@ class Plans:
                          self.at[x], ())
         done = walk.run()
         if not done:
+            self._stuck = walk.stuck(client_id)
             return False
         if new_plan is not None:  # the client's moves are of the plan it is about to declare
             plan = self._plans_made + 1
@@ -527,6 +541,23 @@ class _Walk:
         self.others[x] = others
         self._ready(x)
 
+    def stuck(self, start: int) -> list[int]:
+        """After a run that failed: members in a cycle of waits, each waiting for a lock the
+        next holds, reached from `start` (or the first member waiting); [] if none."""
+        waits_for = {y: lock for lock, ys in self.waiting.items() for y in ys
+                     if y in self.plans}
+        x: int | None = start if start in waits_for else next(iter(waits_for), None)
+        seen: dict[int, int] = {}
+        chain: list[int] = []
+        while x is not None and x not in seen:
+            seen[x] = len(chain)
+            chain.append(x)
+            lock = waits_for.get(x)
+            if lock is None:
+                return []
+            x = next((h for h in self.holders.get(lock, ()) if h != x and h in self.plans), None)
+        return [] if x is None else chain[seen[x]:]
+
     def _ready(self, x: int) -> None:
         heapq.heappush(self.queue, (self.time_s[x], x))
 
@@ -631,6 +662,19 @@ class _Walk:
             if not keep:
                 held.remove(lock)
                 self.let_go(x, lock)
+
+
+@dataclass(frozen=True, slots=True)
+class _Refusal:
+    """A grant the walk refused a client that waits for it (`Plans.may_grant`)."""
+
+    plan: int
+    node: str
+    until_s: float
+    """With no cycle found: walked again from then on (the hop's free-flow seconds later)."""
+    stuck: tuple[tuple[int, int, int, int], ...]
+    """Where the AGVs of the cycle of waits the walk got stuck on stood (`Plans._where`):
+    walked again once one of them has moved."""
 
 
 def _holders(lock: Lock) -> Iterable[int]:
