@@ -282,22 +282,28 @@ class Plans:
             return True
         elif self._moves_first(client_id, locks, node):
             return True
-        if waits:
-            now = self.traffic.env.now
-            refused = self._refused.get(client_id)
-            plan = self.plan_id[client_id]
-            if refused is not None and refused.plan == plan and refused.node == node \
-                    and (now + 1e-9 < refused.until_s if not refused.stuck
-                         else refused.stuck == self._where(y for y, *_ in refused.stuck)):
-                return False  # walked and refused, and nothing the walk stuck on has moved
+        if waits and not self._may_walk_again(client_id, node):
+            return False  # walked and refused, and nothing the walk stuck on has moved
         if self._walk(client_id, None, locks):
             return True
         if waits:
             k = self.path[client_id].index(node, self.at[client_id])
-            self._refused[client_id] = _Refusal(plan, node, now + self._costs[client_id][k][0],
-                                                self._where(self._stuck))
+            self._refused[client_id] = _Refusal(
+                self.plan_id[client_id], node,
+                self.traffic.env.now + self._costs[client_id][k][0], self._where(self._stuck))
         self.refused_grants += 1
         return False
+
+    def _may_walk_again(self, client_id: int, node: str) -> bool:
+        """False while the client's last refused grant, for `node` under the same plan, would
+        stick where it stuck: no AGV of that cycle has moved (with no cycle: before
+        `until_s`)."""
+        refused = self._refused.get(client_id)
+        if refused is None or refused.plan != self.plan_id[client_id] or refused.node != node:
+            return True
+        if not refused.stuck:
+            return self.traffic.env.now + 1e-9 >= refused.until_s
+        return refused.stuck != self._where(y for y, *_ in refused.stuck)
 
     def retry_at(self, client_id: int) -> float | None:
         """When a grant the walk refused the client may be walked again, if it is waiting for

@@ -881,7 +881,7 @@ class Traffic:
                     # again from `retry_at` on, so it is woken then too
                     if retry is None or retry_until != retry_at:
                         retry, retry_until = Timeout(env, retry_at - env.now), retry_at
-                    if retry.callbacks is not None:
+                    if not retry.processed:
                         wake = FirstOf(env, wake, retry)
                 yield wake
         finally:
