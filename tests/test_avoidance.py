@@ -13,12 +13,13 @@ from typing import Any
 import pytest
 
 from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.config.layout import load_layout
 from fleet_sim.config.scenario import load_layout_for, load_scenario
 from fleet_sim.sim.engine import build_model, simulate
 from fleet_sim.sim.traffic.avoidance import Plans, _Walk
 from fleet_sim.sim.traffic.control import Traffic
 
-from .conftest import ROOT
+from .conftest import DATA, ROOT, make_scenario
 
 EXPERIMENTS = ROOT / "experiments"
 
@@ -267,3 +268,64 @@ def test_a_refused_grant_is_walked_again_once_an_agv_the_walk_got_stuck_on_has_m
     assert again and all(moved or now >= until_s - 1e-9 for now, until_s, moved in again)
     assert counts["look-ahead walks"] > 0
     assert model.recorder.deadlocks == 0
+
+
+def test_the_walk_keeps_out_of_a_junction_until_it_can_drive_on() -> None:
+    """An AGV at W bound across junction J to E, where a second AGV stands; that one is bound
+    round the ring to S, where a third stands, bound through J (tests/data/junction_ring.yaml).
+    A walk that lets the first AGV into J (it has driven least, and has the lowest id) leaves
+    it waiting there for E, the second for S, the third for J: the state is safe, but that
+    walk cannot show it. The walk keeps an AGV out of a junction while the node after it is
+    held, unless nobody else can move, and finds the order."""
+    layout = load_layout(DATA / "junction_ring.yaml")
+    scenario = make_scenario(str(DATA / "junction_ring.yaml"), duration_h=0.1, warmup_h=0,
+                             demand={"rate_per_hour": 0},
+                             fleet={"size": 3, "start_nodes": ["W", "E", "S"]},
+                             dispatch={"park_idle": False}, traffic={"policy": "avoiding"})
+    model = build_model(scenario, layout)
+    traffic = model.traffic
+    plans = traffic.plans
+    assert plans is not None
+    routes = {0: ["W", "J", "E", "X"], 1: ["E", "S", "J", "N"], 2: ["S", "J", "N"]}
+
+    def walk() -> _Walk:
+        walk = _Walk(traffic)
+        for x, path in routes.items():
+            plans.declare(x, path)
+            walk.add(x, plans.plan_id[x], path, plans._steps[x], plans._costs[x], 0, ())
+        return walk
+
+    found = walk()
+    assert found.run()
+    first_into_j = next(x for x, _, k in found.moves if routes[x][k:k + 1] == ["J"])
+    assert first_into_j == 2
+    traffic._junctions = frozenset()  # without the rule: the greedy walk closes the cycle
+    greedy = walk()
+    assert not greedy.run()
+    assert sorted(greedy.stuck(0)) == [0, 1, 2]
+
+
+@pytest.mark.parametrize("replan_after_s", [30.0, 60.0])
+def test_a_blocked_agv_takes_another_way_after_replan_after_s_as_a_checked_plan(
+        replan_after_s: float) -> None:
+    """On the deadlock ring an AGV at N0 bound for N2 finds N1 held by an idle AGV that stays
+    there. As under reactive traffic, once blocked `replan_after_s` (nobody queued behind it,
+    so it does not give way sooner) it takes the bypass N0 -> B0 -> N2, as a new plan the
+    check accepts; before, it waited for ever."""
+    layout = load_layout(DATA / "deadlock_ring.yaml")
+    scenario = make_scenario(str(DATA / "deadlock_ring.yaml"), duration_h=0.1, warmup_h=0,
+                             demand={"rate_per_hour": 0},
+                             fleet={"size": 2, "start_nodes": ["N0", "N1"]},
+                             dispatch={"park_idle": False},
+                             traffic={"policy": "avoiding", "replan_after_s": replan_after_s})
+    model = build_model(scenario, layout)
+    env = model.env
+    mover, stander = model.vehicles
+    mover.process = env.process(mover.drive("N2"))
+    env.run(until=replan_after_s + 60)
+    assert not mover.process.is_alive and mover.node == "N2" and stander.node == "N1"
+    other_ways = [(e.time_s, e.agv, e.event, e.detail) for e in model.recorder.events
+                  if e.event in ("reroute", "circulate")]
+    assert other_ways == [(replan_after_s, mover.id, "reroute", "N0 B0 N2")]
+    plans = model.traffic.plans
+    assert plans is not None and plans.path[mover.id][:3] == ["N0", "B0", "N2"]

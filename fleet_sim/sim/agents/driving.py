@@ -313,7 +313,9 @@ class Driver:
                 self.next_node = nxt
                 claim = yield from traffic.allocate(
                     self, Hop(self.node, nxt, traffic.plan_step(self.id, 2)))
-                assert claim is not None
+                if claim is None:  # blocked long: it took another way (a new plan)
+                    on_plan = True
+                    continue
                 self.ahead.append(Held(nxt, claim, self.env.now))
             nxt = self.ahead[0].node
             self.next_node = nxt

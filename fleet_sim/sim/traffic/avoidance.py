@@ -402,7 +402,8 @@ class Plans:
                 graph.add_edges_from((x, y) for lock in needs for y in _holders(lock) if y != x)
             return "acyclic" if nx.is_directed_acyclic_graph(graph) else None
         walk = _Walk(traffic)
-        for x in sorted(self.path):
+        junctions, walk.junctions = walk.junctions, frozenset()  # replayed moves are made as
+        for x in sorted(self.path):  # they come, into a junction too
             if any(traffic.held_locks(x)):
                 walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self._costs[x],
                          self.at[x], ())
@@ -417,6 +418,7 @@ class Plans:
             walk.step(x)
             if x in walk.plans and walk.at[x] != k:
                 return None  # its move is blocked
+        walk.junctions = junctions
         walk.queue = sorted((walk.time_s[x], x) for x in walk.plans)  # came on since, granted
         walk.waiting = {}  # only what nobody else's plan needs: after the witness, alone
         return "witness" if walk.run() else None
@@ -478,6 +480,12 @@ class _Walk:
         self.plan_of: dict[int, int] = {}
         self.moves: list[Move] = []
         """The moves made, in order."""
+        self.junctions = traffic.plans_junctions()
+        self.deferred: dict[int, Lock] = {}
+        """Member -> the node it waits to see free before it drives into the junction before
+        it (`step`: not blocking the junction)."""
+        self.forced: int | None = None
+        """A deferred member let into its junction all the same (nobody else could move)."""
 
     def held_by(self, lock: Lock) -> list[int]:
         h = self.holders.get(lock)
@@ -565,6 +573,8 @@ class _Walk:
         return [] if x is None else chain[seen[x]:]
 
     def _ready(self, x: int) -> None:
+        if self.deferred:
+            self.deferred.pop(x, None)
         heapq.heappush(self.queue, (self.time_s[x], x))
 
     def run(self) -> bool:
@@ -584,6 +594,10 @@ class _Walk:
                 _, x = heappushpop(queue, (time_s[x], x))
             elif queue:
                 _, x = heappop(queue)
+            elif self.deferred:  # nobody else can move: into its junction after all
+                x = min(self.deferred, key=lambda y: (time_s[y], y))
+                self.waiting[self.deferred.pop(x)].remove(x)
+                self.forced = x
             else:
                 return not plans
 
@@ -604,6 +618,16 @@ class _Walk:
                 if h is None:
                     h = self.held_by(here)
                 if not h:
+                    if here in self.junctions and k + 2 <= last and self.forced != x:
+                        after = steps[k + 2][0][0]
+                        held = self.holders.get(after)
+                        if held is None:
+                            held = self.held_by(after)
+                        if held and x not in held:  # it would stand in the junction, in
+                            # the way of who crosses it: first the node after it
+                            self.waiting.setdefault(after, []).append(x)
+                            self.deferred[x] = after
+                            return False
                     h.append(x)
                 elif x not in h:
                     self.waiting.setdefault(here, []).append(x)
@@ -620,6 +644,7 @@ class _Walk:
                         others.append(lock)
             k += 1
             self.at[x] = k
+            self.forced = None
             self.moves.append((x, self.plan_of[x], k))
             if ahead and here in ahead:
                 ahead.remove(here)

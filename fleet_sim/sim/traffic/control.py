@@ -198,6 +198,7 @@ class Traffic:
         self._type_routes: dict[str, Routes] = {}
         """Vehicle type -> its routes (mixed fleets, layouts with `allowed_types`)."""
         self._client_routes: dict[int, Routes] = {}
+        self._junctions: frozenset[Lock] | None = None
         """Client id -> its type's routes; clients not listed use `routes`."""
         self.zone_locks: dict[str, Gate] = {}
         """Mutex and same-direction zone id -> its lock."""
@@ -796,6 +797,14 @@ class Traffic:
                 return place
         return None
 
+    def plans_junctions(self) -> frozenset[Lock]:
+        """The nodes more than one segment leads into (where AGVs cross or merge)."""
+        if self._junctions is None:
+            graph = self.graph
+            self._junctions = frozenset(self.node_locks[n] for n in graph.nodes
+                                        if graph.in_degree(n) >= 2)
+        return self._junctions
+
     def plan_step(self, client_id: int, ahead: int) -> str | None:
         """Avoiding: the node `ahead` hops further along the client's plan, if any."""
         assert self.plans is not None
@@ -840,6 +849,8 @@ class Traffic:
         zone_wait: str | None = None
         retry: Timeout | None = None
         retry_until = 0.0
+        config = self.config
+        look: Timeout | None = None
         try:
             while True:
                 needs = self._needs(client_id, hop) if needs_of is None else needs_of()
@@ -875,6 +886,15 @@ class Traffic:
                     self.start_waiting(client_id, shown)
                     self._record_cycle(client)
                 wake = self._wake_on(blocker)
+                if needs_of is None:  # driving: blocked long, another way (checked as a plan)
+                    waited = env.now - start + 1e-9
+                    long = waited >= config.give_way_after_s
+                    if long and self._replan_safely(client, waited >= config.replan_after_s):
+                        return None
+                    if look is None or look.processed:  # looks again every deadlock_check_s
+                        look = Timeout(env, config.deadlock_check_s if long
+                                       else config.give_way_after_s - waited + 1e-9)
+                    wake = FirstOf(env, wake, look)
                 retry_at = plans.retry_at(client_id) if blocker is None else None
                 if retry_at is not None and retry_at > env.now:
                     # walked and refused a moment ago: asked again at every wake, walked
@@ -894,6 +914,30 @@ class Traffic:
                 self._close_wait(client)
                 if zone_wait is not None and start < env.now:
                     self.recorder.zone_waited(zone_wait, start, env.now)
+
+    def _replan_safely(self, client: TrafficClient, may_replan: bool) -> bool:
+        """Avoiding, blocked long: another route to the goal whose first node is free (with
+        someone queued behind, circulating too), taken as the plan if the state stays safe
+        with it (`Plans.may_declare`), as reactive traffic's `other_way` does. True: the plan
+        changed, the hop waited for is given up."""
+        plans = self.plans
+        assert plans is not None
+        give_way = self.blocks_others(client.id)
+        if not (give_way or may_replan) or client.goal is None:
+            return False
+        escape = self.escape_for(client, circulate=give_way, backoff=False)
+        if escape is None or not (escape.kind == "reroute"
+                                  or (give_way and escape.kind == "circulate")):
+            return False
+        path = list(escape.path)
+        path += plans.exit_route(self.routes_of(client.id), path[-1])[1:]
+        if not plans.may_declare(client.id, path):
+            return False
+        plans.declare(client.id, path)
+        client.note(escape.kind, " ".join(escape.path[:4]) + (" ..." if len(escape.path) > 4
+                                                               else ""))
+        self._wake_held_back()
+        return True
 
     def _record_cycle(self, client: TrafficClient) -> None:
         """Avoiding: record a wait-for cycle through the client, if one closed (none should)."""
