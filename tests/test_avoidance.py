@@ -223,7 +223,7 @@ def test_a_refused_grant_is_walked_again_once_an_agv_the_walk_got_stuck_on_has_m
     again: list[tuple[float, float, bool]] = []
     walk, may_grant, stuck = Plans._walk, Plans.may_grant, _Walk.stuck
 
-    def counted(self: Plans, *args: Any) -> bool:
+    def counted(self: Plans, *args: Any) -> _Walk | None:
         counts["walks"] += 1
         return walk(self, *args)
 
@@ -299,7 +299,7 @@ def test_the_walk_keeps_out_of_a_junction_until_it_can_drive_on() -> None:
     assert found.run()
     first_into_j = next(x for x, _, k in found.moves if routes[x][k:k + 1] == ["J"])
     assert first_into_j == 2
-    traffic._junctions = frozenset()  # without the rule: the greedy walk closes the cycle
+    traffic._junction_locks = frozenset()  # without the rule: the greedy walk closes the cycle
     greedy = walk()
     assert not greedy.run()
     assert sorted(greedy.stuck(0)) == [0, 1, 2]

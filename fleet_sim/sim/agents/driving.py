@@ -297,7 +297,8 @@ class Driver:
         """`drive` under `traffic.policy: avoiding`: along the plan declared with traffic (the
         route to `goal`, then on to parking). While traffic refuses the plan (the state would
         not be safe with it), the AGV drives on along the plan it has, stopping at each node to
-        ask again; it never gives up a wait and never takes an escape."""
+        ask again. Blocked long, it may take another way (`Traffic._replan_safely`: a new plan
+        the check accepted; the wait ends without a claim); it never backs off."""
         traffic = self.traffic
         self.goal = goal
         on_plan = traffic.declare(self, goal)

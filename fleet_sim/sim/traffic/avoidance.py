@@ -31,6 +31,14 @@ order (Habermann's sequence). Traffic keeps it acyclic:
   of waits the walk got stuck on has moved (`_Walk.stuck`; without one, once the AGV could
   have driven the hop, `retry_at`). Until then a walk mostly sticks there again (not always:
   other AGVs' moves change the walk too; the rule only delays a grant, it never makes one).
+* The walk keeps a member out of a junction (a node more than one segment leads into) while
+  the node after it is held, unless nobody else can move: standing in it, the member would
+  block who crosses there, and the greedy walk would close a cycle of waits in a state that
+  is safe (what happened in the dense states of 300 AGVs on the fulfilment centre). Any order
+  of legal moves is a witness, so this changes which order is found, never what is granted.
+* A blocked AGV takes another way as reactive traffic does (`Traffic._replan_safely`: after
+  `give_way_after_s` with someone queued behind it, else after `replan_after_s`), as a new
+  plan the check accepts (`may_declare`) or not at all.
 
 Why this never locks solid: an acyclic graph has a sink, an AGV none of whose remaining
 resources another AGV holds; its next hop is free and granting it adds edges into the sink
@@ -119,8 +127,6 @@ class Plans:
         self._refused: dict[int, _Refusal] = {}
         """Client id -> its last grant the walk refused, while it waits for it: asked again, it
         is walked again only once an AGV the walk got stuck on has moved (`may_grant`)."""
-        self._stuck: list[int] = []
-        """The AGVs the last failed walk got stuck on (`_Walk.stuck`)."""
         self.refused_grants = 0
         self.refused_plans = 0
 
@@ -255,7 +261,7 @@ class Plans:
                 return True
         elif not any(self.traffic.held_locks(client_id)):
             return True  # off the track: in nobody's way, and in no move of the witness
-        if self._walk(client_id, (list(path), steps, self.costs(path)), ()):
+        if self._walk(client_id, (list(path), steps, self.costs(path)), ()) is None:
             return True
         self.refused_plans += 1
         return False
@@ -284,13 +290,14 @@ class Plans:
             return True
         if waits and not self._may_walk_again(client_id, node):
             return False  # walked and refused, and nothing the walk stuck on has moved
-        if self._walk(client_id, None, locks):
+        failed = self._walk(client_id, None, locks)
+        if failed is None:
             return True
         if waits:
             k = self.path[client_id].index(node, self.at[client_id])
             self._refused[client_id] = _Refusal(
-                self.plan_id[client_id], node,
-                self.traffic.env.now + self._costs[client_id][k][0], self._where(self._stuck))
+                self.plan_id[client_id], node, self.traffic.env.now + self._costs[client_id][k][0],
+                self._where(failed.stuck(client_id)))
         self.refused_grants += 1
         return False
 
@@ -365,10 +372,11 @@ class Plans:
 
     def _walk(self, client_id: int,
               new_plan: tuple[list[str], list[Step], list[tuple[float, float]]] | None,
-              granted: Sequence[tuple[Lock, int]]) -> bool:
+              granted: Sequence[tuple[Lock, int]]) -> _Walk | None:
         """Drive every AGV on the track forward along its plan, one node at a time, with the
         client's new plan or the locks it is granted: if all get off the track, the order
-        of moves becomes the witness."""
+        of moves becomes the witness and None is returned; else the walk where it got stuck
+        (`_Walk.stuck` names the cycle of waits)."""
         walk = _Walk(self.traffic)
         held_locks = self.traffic.held_locks
         for x in sorted(self.path):
@@ -380,16 +388,14 @@ class Plans:
             elif any(held_locks(x)):
                 walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self._costs[x],
                          self.at[x], ())
-        done = walk.run()
-        if not done:
-            self._stuck = walk.stuck(client_id)
-            return False
+        if not walk.run():
+            return walk
         if new_plan is not None:  # the client's moves are of the plan it is about to declare
             plan = self._plans_made + 1
             walk.moves = [(x, plan if p == -1 else p, k) for x, p, k in walk.moves]
         self.witness = walk.moves
         self._next = 0
-        return True
+        return None
 
     def proof(self) -> str | None:
         """Why the state is safe, checked from scratch (for tests and bug hunts): "acyclic"
@@ -480,7 +486,7 @@ class _Walk:
         self.plan_of: dict[int, int] = {}
         self.moves: list[Move] = []
         """The moves made, in order."""
-        self.junctions = traffic.plans_junctions()
+        self.junctions = traffic.junction_locks()
         self.deferred: dict[int, Lock] = {}
         """Member -> the node it waits to see free before it drives into the junction before
         it (`step`: not blocking the junction)."""

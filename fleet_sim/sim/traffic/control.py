@@ -198,8 +198,8 @@ class Traffic:
         self._type_routes: dict[str, Routes] = {}
         """Vehicle type -> its routes (mixed fleets, layouts with `allowed_types`)."""
         self._client_routes: dict[int, Routes] = {}
-        self._junctions: frozenset[Lock] | None = None
         """Client id -> its type's routes; clients not listed use `routes`."""
+        self._junction_locks: frozenset[Lock] | None = None
         self.zone_locks: dict[str, Gate] = {}
         """Mutex and same-direction zone id -> its lock."""
         for z in layout.traffic_zones:
@@ -797,13 +797,14 @@ class Traffic:
                 return place
         return None
 
-    def plans_junctions(self) -> frozenset[Lock]:
-        """The nodes more than one segment leads into (where AGVs cross or merge)."""
-        if self._junctions is None:
+    def junction_locks(self) -> frozenset[Lock]:
+        """The locks of the nodes more than one segment leads into (where AGVs cross or
+        merge)."""
+        if self._junction_locks is None:
             graph = self.graph
-            self._junctions = frozenset(self.node_locks[n] for n in graph.nodes
-                                        if graph.in_degree(n) >= 2)
-        return self._junctions
+            self._junction_locks = frozenset(self.node_locks[n] for n in graph.nodes
+                                             if graph.in_degree(n) >= 2)
+        return self._junction_locks
 
     def plan_step(self, client_id: int, ahead: int) -> str | None:
         """Avoiding: the node `ahead` hops further along the client's plan, if any."""
