@@ -191,8 +191,9 @@ def bottleneck(scenario: Scenario, layout: Layout,
     analysis, Denning and Buzen 1978: the bottleneck's demand per job bounds throughput, and
     the cycle over it is the population beyond which only queues grow; Hopp and Spearman's
     critical WIP). Each leg drives its shortest free-flow route, between every pair of nodes of
-    its two places, equally likely; a hop into node v holds v until the body has cleared it
-    ((segment + length + gap) / speed); a corridor (one AGV at a time) and a zone are held from
+    its two places, equally likely; node v is held from the start of the hop before the hop
+    into it (the driver's look-ahead takes it then; from the leg's start for its first hop)
+    until the body has cleared it ((segment + length + gap) / speed after that); a corridor (one AGV at a time) and a zone are held from
     the hop into them until the body has left, and a station's node, and the corridor or zone
     it lies in, for its mean handling time. A mutex zone's time is shared out over its
     capacity; a same-direction aisle counts as one AGV at a time (it may carry several AGVs
@@ -216,10 +217,12 @@ def bottleneck(scenario: Scenario, layout: Layout,
 
     def drive(path: list[str], weight: float) -> None:
         inside: set[str] = set()
+        before_s = 0.0  # the hop before: the driver takes v then (its look-ahead)
         for u, v in itertools.pairwise(path):
             data = routes.edge[u, v]
             speed = data["length_m"] / data["free_time_s"]
-            hold(f"node {v}", weight * (data["length_m"] + clear_m) / speed)
+            hold(f"node {v}", weight * (before_s + (data["length_m"] + clear_m) / speed))
+            before_s = data["free_time_s"]
             now = {(corridor_of[u, v], 1)} if (u, v) in corridor_of else set()
             now.update(zones_at.get(v, ()))
             for resource, capacity in now:
