@@ -193,11 +193,12 @@ def bottleneck(scenario: Scenario, layout: Layout,
     critical WIP). Each leg drives its shortest free-flow route, between every pair of nodes of
     its two places, equally likely; node v is held from the start of the hop before the hop
     into it (the driver's look-ahead takes it then; from the leg's start for its first hop)
-    until the body has cleared it ((segment + length + gap) / speed after that); a corridor (one AGV at a time) and a zone are held from
-    the hop into them until the body has left, and a station's node, and the corridor or zone
-    it lies in, for its mean handling time. A mutex zone's time is shared out over its
-    capacity; a same-direction aisle counts as one AGV at a time (it may carry several AGVs
-    one way: a lower, safe figure). Charging, turns and acceleration are left out."""
+    until the body has cleared it ((segment + length + gap) / speed after that); a corridor
+    (one AGV at a time) and a zone are held from the hop into them until the body has left,
+    and a station's node, and the corridor or zone it lies in, for its mean handling time. A
+    mutex zone's time is shared out over its capacity; a same-direction aisle counts as one
+    AGV at a time (it may carry several AGVs one way: a lower, safe figure). Charging, turns
+    and acceleration are left out."""
     profile = scenario.fleet.vehicle
     routes = Routes(layout, _motion(profile))
     clear_m = profile.length_m + profile.min_gap_m
