@@ -299,7 +299,7 @@ def test_the_walk_keeps_out_of_a_junction_until_it_can_drive_on() -> None:
     assert found.run()
     first_into_j = next(x for x, _, k in found.moves if routes[x][k:k + 1] == ["J"])
     assert first_into_j == 2
-    traffic._junction_locks = frozenset()  # without the rule: the greedy walk closes the cycle
+    traffic.junction_locks = frozenset()  # without the rule: the greedy walk closes the cycle
     greedy = walk()
     assert not greedy.run()
     assert sorted(greedy.stuck(0)) == [0, 1, 2]
@@ -309,9 +309,8 @@ def test_the_walk_keeps_out_of_a_junction_until_it_can_drive_on() -> None:
 def test_a_blocked_agv_takes_another_way_after_replan_after_s_as_a_checked_plan(
         replan_after_s: float) -> None:
     """On the deadlock ring an AGV at N0 bound for N2 finds N1 held by an idle AGV that stays
-    there. As under reactive traffic, once blocked `replan_after_s` (nobody queued behind it,
-    so it does not give way sooner) it takes the bypass N0 -> B0 -> N2, as a new plan the
-    check accepts; before, it waited for ever."""
+    there. As under reactive traffic, once blocked `replan_after_s` it takes the bypass
+    N0 -> B0 -> N2, as a new plan the check accepts; before, it waited for ever."""
     layout = load_layout(DATA / "deadlock_ring.yaml")
     scenario = make_scenario(str(DATA / "deadlock_ring.yaml"), duration_h=0.1, warmup_h=0,
                              demand={"rate_per_hour": 0},

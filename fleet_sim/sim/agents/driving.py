@@ -428,8 +428,7 @@ class Driver:
         traffic.give_up(self.id)
         assert self.goal is not None
         if escape is not None and escape.kind in ("reroute", "circulate"):
-            self.note(escape.kind, " ".join(escape.path[:4]) + (" ..." if len(escape.path) > 4
-                                                                 else ""))
+            self.note(escape.kind, escape.brief())
             return list(escape.path)
         if escape is not None and escape.kind == "backoff":
             step = escape.path[1]

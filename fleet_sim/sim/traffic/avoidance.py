@@ -36,9 +36,8 @@ order (Habermann's sequence). Traffic keeps it acyclic:
   block who crosses there, and the greedy walk would close a cycle of waits in a state that
   is safe (what happened in the dense states of 300 AGVs on the fulfilment centre). Any order
   of legal moves is a witness, so this changes which order is found, never what is granted.
-* A blocked AGV takes another way as reactive traffic does (`Traffic._replan_safely`: after
-  `give_way_after_s` with someone queued behind it, else after `replan_after_s`), as a new
-  plan the check accepts (`may_declare`) or not at all.
+* A blocked AGV takes another route as reactive traffic does after `replan_after_s`
+  (`Traffic._replan_safely`), as a new plan the check accepts (`may_declare`) or not at all.
 
 Why this never locks solid: an acyclic graph has a sink, an AGV none of whose remaining
 resources another AGV holds; its next hop is free and granting it adds edges into the sink
@@ -486,7 +485,7 @@ class _Walk:
         self.plan_of: dict[int, int] = {}
         self.moves: list[Move] = []
         """The moves made, in order."""
-        self.junctions = traffic.junction_locks()
+        self.junctions = traffic.junction_locks
         self.deferred: dict[int, Lock] = {}
         """Member -> the node it waits to see free before it drives into the junction before
         it (`step`: not blocking the junction)."""

@@ -171,6 +171,10 @@ class Traffic:
         self.recorder = recorder
         self.policy: DeadlockPolicy = policy if policy is not None else GentlestEscapeFirst()
         self.node_locks = {n: Lock(env, NodeLock(n)) for n in self.graph.nodes}
+        self.junction_locks = frozenset(self.node_locks[n] for n in self.graph.nodes
+                                        if self.graph.in_degree(n) >= 2)
+        """The locks of the nodes more than one segment leads into (where AGVs cross or merge;
+        the avoiding policy's walk keeps out of them, fleet_sim.sim.traffic.avoidance)."""
         self._next_nodes = {n: tuple(sorted(self.graph.successors(n))) for n in self.graph.nodes}
         """Node -> the nodes a segment leads to from it, sorted (escapes look in that order)."""
         self._reroutes: dict[tuple[Routes, str, str, Lock | None], list[str] | None] = {}
@@ -199,7 +203,6 @@ class Traffic:
         """Vehicle type -> its routes (mixed fleets, layouts with `allowed_types`)."""
         self._client_routes: dict[int, Routes] = {}
         """Client id -> its type's routes; clients not listed use `routes`."""
-        self._junction_locks: frozenset[Lock] | None = None
         self.zone_locks: dict[str, Gate] = {}
         """Mutex and same-direction zone id -> its lock."""
         for z in layout.traffic_zones:
@@ -497,15 +500,22 @@ class Traffic:
                   may_replan: bool) -> Escape | None:
         """Blocked long enough: another route if there is one; with someone queued behind,
         circulating rather than blocking them. The escape is kept for `take_escape`."""
-        give_way = may_give_way and self.blocks_others(client.id)
+        escape = self._another_route(client, may_give_way and self.blocks_others(client.id),
+                                     may_replan)
+        if escape is not None:
+            self._escapes[client.id] = escape
+        return escape
+
+    def _another_route(self, client: TrafficClient, give_way: bool,
+                       may_replan: bool) -> Escape | None:
+        """Blocked long (`other_way`, `_replan_safely`): a route whose first node is free, or,
+        giving way, a circle; the other escapes are not looked for."""
         if not (give_way or may_replan):
             return None
-        # only a reroute, or giving way a circle, is taken here: the others are not looked for
         escape = self.escape_for(client, circulate=give_way, backoff=False)
         if escape is None or not (escape.kind == "reroute"
                                   or (give_way and escape.kind == "circulate")):
             return None
-        self._escapes[client.id] = escape
         return escape
 
     def resolve_deadlock(self, client: TrafficClient) -> Escape | None:
@@ -779,11 +789,14 @@ class Traffic:
         """Make the route from where the client stands to `goal`, and on to the nearest
         parking access, its plan if the state stays safe with it; False: refused, the old plan
         stays in force."""
+        return self._declare_path(client.id, self.route(client.node, goal, client.id))
+
+    def _declare_path(self, client_id: int, path: list[str]) -> bool:
+        """`path` (to the goal), and on to the parking access nearest its end, as the client's
+        plan if the state stays safe with it."""
         plans = self.plans
         assert plans is not None
-        client_id = client.id
-        path = self.route(client.node, goal, client_id)
-        path = path + plans.exit_route(self.routes_of(client_id), goal)[1:]  # routes are cached
+        path = path + plans.exit_route(self.routes_of(client_id), path[-1])[1:]  # cached
         if not plans.may_declare(client_id, path):
             return False
         plans.declare(client_id, path)
@@ -796,15 +809,6 @@ class Traffic:
             if place.nodes[0] == node:
                 return place
         return None
-
-    def junction_locks(self) -> frozenset[Lock]:
-        """The locks of the nodes more than one segment leads into (where AGVs cross or
-        merge)."""
-        if self._junction_locks is None:
-            graph = self.graph
-            self._junction_locks = frozenset(self.node_locks[n] for n in graph.nodes
-                                             if graph.in_degree(n) >= 2)
-        return self._junction_locks
 
     def plan_step(self, client_id: int, ahead: int) -> str | None:
         """Avoiding: the node `ahead` hops further along the client's plan, if any."""
@@ -889,10 +893,11 @@ class Traffic:
                 wake = self._wake_on(blocker)
                 if needs_of is None:  # driving: blocked long, another way (checked as a plan)
                     waited = env.now - start + 1e-9
-                    long = waited >= config.give_way_after_s
-                    if long and self._replan_safely(client, waited >= config.replan_after_s):
+                    if waited >= config.replan_after_s and self._replan_safely(client):
                         return None
-                    if look is None or look.processed:  # looks again every deadlock_check_s
+                    long = waited >= config.give_way_after_s
+                    if look is None or look.processed:  # from give_way_after_s on, it looks
+                        # (and asks for the grant) again every deadlock_check_s
                         look = Timeout(env, config.deadlock_check_s if long
                                        else config.give_way_after_s - waited + 1e-9)
                     wake = FirstOf(env, wake, look)
@@ -916,28 +921,16 @@ class Traffic:
                 if zone_wait is not None and start < env.now:
                     self.recorder.zone_waited(zone_wait, start, env.now)
 
-    def _replan_safely(self, client: TrafficClient, may_replan: bool) -> bool:
-        """Avoiding, blocked long: another route to the goal whose first node is free (with
-        someone queued behind, circulating too), taken as the plan if the state stays safe
-        with it (`Plans.may_declare`), as reactive traffic's `other_way` does. True: the plan
-        changed, the hop waited for is given up."""
-        plans = self.plans
-        assert plans is not None
-        give_way = self.blocks_others(client.id)
-        if not (give_way or may_replan) or client.goal is None:
+    def _replan_safely(self, client: TrafficClient) -> bool:
+        """Avoiding, blocked `replan_after_s`: another route to the goal whose first node is
+        free, as reactive traffic's `other_way` finds it, taken as the plan if the state stays
+        safe with it. True: the plan changed, the hop waited for is given up. (No giving way:
+        `blocks_others` sees who queues on a lock, and AGVs waiting under this policy do not
+        queue on locks.)"""
+        escape = self._another_route(client, False, True) if client.goal is not None else None
+        if escape is None or not self._declare_path(client.id, list(escape.path)):
             return False
-        escape = self.escape_for(client, circulate=give_way, backoff=False)
-        if escape is None or not (escape.kind == "reroute"
-                                  or (give_way and escape.kind == "circulate")):
-            return False
-        path = list(escape.path)
-        path += plans.exit_route(self.routes_of(client.id), path[-1])[1:]
-        if not plans.may_declare(client.id, path):
-            return False
-        plans.declare(client.id, path)
-        client.note(escape.kind, " ".join(escape.path[:4]) + (" ..." if len(escape.path) > 4
-                                                               else ""))
-        self._wake_held_back()
+        client.note(escape.kind, escape.brief())
         return True
 
     def _record_cycle(self, client: TrafficClient) -> None:

@@ -35,6 +35,10 @@ class Escape:
     """Nodes from the AGV's node onwards (reroute, circulate: to its goal; backoff: one hop;
     yield: none, the AGV gives up a corridor it reserved and tries again a little later)."""
 
+    def brief(self) -> str:
+        """The first nodes of the path, for the event's detail."""
+        return " ".join(self.path[:4]) + (" ..." if len(self.path) > 4 else "")
+
 
 @dataclass(frozen=True)
 class DeadlockVictim:
