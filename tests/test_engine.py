@@ -1,8 +1,13 @@
 """The engine itself (fleet_sim.sim.engine): building the model from a scenario, the run's
-records adding up, determinism (same seed, same bytes), the progress callback."""
+records adding up, determinism (same seed, same bytes, in any process), the progress callback,
+and the results runs under reactive traffic keep (issue 21)."""
 
 from __future__ import annotations
 
+import hashlib
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -10,6 +15,7 @@ import pytest
 from fleet_sim.analysis.kpis import run_kpis
 from fleet_sim.analysis.tables import orders_table, write_run
 from fleet_sim.config.layout import Layout
+from fleet_sim.config.scenario import load_layout_for, load_scenario
 from fleet_sim.sim.engine import build_model, simulate
 
 from .conftest import HALF_LOOP_S, make_scenario
@@ -77,3 +83,61 @@ def test_same_seed_same_bytes_other_seed_other_results(tmp_path: Path,
     for name in ("events.parquet", "orders.parquet", "kpis.json", "config.resolved.yaml"):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
     assert (a / "orders.parquet").read_bytes() != (c / "orders.parquet").read_bytes()
+
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def events_digest(base: str, layout: str, agvs: int, rate: float, policy: str) -> str:
+    """SHA-256 of every event of a one-hour run of experiments/`base` on `layout`, seed 11:
+    time, AGV, event, node and detail, in order."""
+    path = ROOT / "experiments" / base
+    scenario = load_scenario(path, {
+        "layout": f"../layouts/{layout}.yaml", "fleet.size": agvs, "duration_h": 1.0,
+        "warmup_h": 0.25, "demand.rate_per_hour": rate, "demand.profile": [], "seed": 11,
+        "traffic.policy": policy})
+    run = simulate(scenario, load_layout_for(scenario, path))
+    events = [(e.time_s, e.agv, e.event, e.node, e.detail) for e in run.recorder.events]
+    return hashlib.sha256(repr(events).encode()).hexdigest()
+
+
+KEPT = [  # (experiment, layout, AGVs, orders/h) -> digest of the reactive run's events
+    (("warehouse_shift.yaml", "warehouse", 40, 300.0),
+     "5cbffdaf3453a1f699eca64e6d4510854e16f02fa11034afe654444a6cff62ce"),
+    (("warehouse_incidents.yaml", "warehouse_same_direction", 30, 300.0),
+     "2d57bf89703c349611dcea040a7f8c805132e74d5606f319b971e5532f014fae"),
+    (("dc_shift.yaml", "distribution_centre", 60, 600.0),
+     "2bb55b0ee884a04856190b300fd29214e1aaab0bbd806d0b0c016ae690fa3098"),
+]
+
+
+@pytest.mark.parametrize(("case", "digest"), KEPT, ids=[c[1] for c, _ in KEPT])
+def test_runs_under_reactive_traffic_keep_their_results_byte_for_byte(
+        case: tuple[str, str, int, float], digest: str) -> None:
+    """Issue 21 added the avoiding policy and cheaper hops on condition that runs under the
+    default policy (reactive) keep their results byte for byte. These busy one-hour runs
+    cover what reactive traffic does (reroutes, circulating, deadlocks found and broken,
+    same-direction aisles, obstacles, faults and link losses, admission); the digest is of
+    every event. A change that moves one changes what planners got before: make it on
+    purpose, say so in its note, and record the new digest here."""
+    assert events_digest(*case, "reactive") == digest
+
+
+@pytest.mark.parametrize("policy", ["reactive", "avoiding"])
+def test_the_same_results_in_another_process_whatever_its_hash_seed(policy: str) -> None:
+    """Python salts the hashes of strings per process (PYTHONHASHSEED): a result that
+    followed the order of a set of node or zone names would change from one fleet-sim
+    command to the next. The same run in two other processes, with other seeds, gives the
+    same events as here."""
+    case = ("warehouse_incidents.yaml", "warehouse_same_direction", 30, 300.0)
+    here = events_digest(*case, policy)
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); "
+            "from tests.test_engine import events_digest; "
+            "print(events_digest(sys.argv[2], sys.argv[3], int(sys.argv[4]), "
+            "float(sys.argv[5]), sys.argv[6]))")
+    for seed in ("1", "2"):
+        out = subprocess.run(
+            [sys.executable, "-c", code, str(ROOT), *map(str, case), policy],
+            capture_output=True, text=True, check=True,
+            env={**os.environ, "PYTHONHASHSEED": seed})
+        assert out.stdout.strip() == here, (seed, out.stderr[-2000:])
