@@ -5,9 +5,11 @@ reach for: the same number of vehicles on the exported network, each with a rout
 trips between stations (no fleet model, no stops), stepped through the shift at 1 s and 0.1 s.
 
 Demand defaults to 150 orders/h (about what the layout can carry, as in bench/engine_scaling.py).
-These machines are noisy: compare figures within one run of this script only.
+These machines are noisy: compare figures within one run of this script only. `--events` also
+prints what the closed form's SimPy events are spent on, per hop (one more run, counted, after
+the timed ones: counting slows it).
 
-    .venv/bin/python bench/sumo_vs_engine.py [--agvs 50] [--hours 8] [--rate 150]
+    .venv/bin/python bench/sumo_vs_engine.py [--agvs 50] [--hours 8] [--rate 150] [--events]
 """
 
 from __future__ import annotations
@@ -18,8 +20,10 @@ import multiprocessing
 import sys
 import tempfile
 import time
+from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -78,11 +82,69 @@ def sumo_alone(agvs: int, hours: float, step_s: float, seed: int = 1) -> dict[st
             "steps": hours * 3600.0 / step_s}
 
 
+EVENT_KINDS = {  # (SimPy event class, the function that scheduled it) -> what it is for
+    ("Timeout", "move"): "a drive along a hop ends",
+    ("Released", "__init__"): "a lock let go (offered to the first waiting)",
+    ("FirstOf", "_check"): "a blocked AGV resumes (its claim, or its look)",
+    ("Timeout", "wait"): "a blocked AGV's look (every deadlock_check_s)",
+    ("Claim", "grant"): "a queued claim granted",
+}
+
+
+def events_per_hop(scenario: Path, overrides: dict[str, Any]) -> None:
+    """Run the closed form once more, counting every SimPy event by what scheduled it."""
+    import simpy
+
+    from fleet_sim.config.scenario import load_layout_for, load_scenario
+    from fleet_sim.sim.engine import simulate
+    from fleet_sim.sim.traffic.control import Traffic
+
+    counts: Counter[tuple[str, str]] = Counter()
+    hops = 0
+    schedule, hopped = simpy.Environment.schedule, Traffic.hopped
+
+    def counted_schedule(env: simpy.Environment, event: Any, *args: Any, **kwargs: Any) -> None:
+        caller = sys._getframe(1)
+        while caller.f_back is not None and "simpy" in caller.f_code.co_filename:
+            caller = caller.f_back  # the first caller outside SimPy
+        counts[type(event).__name__, caller.f_code.co_name] += 1
+        schedule(env, event, *args, **kwargs)
+
+    def counted_hop(traffic: Traffic, *args: Any) -> None:
+        nonlocal hops
+        hops += 1
+        hopped(traffic, *args)
+
+    run_scenario = load_scenario(scenario, {**overrides, "motion": "closed_form"})
+    layout = load_layout_for(run_scenario, scenario)
+    simpy.Environment.schedule = counted_schedule  # type: ignore[method-assign]
+    Traffic.hopped = counted_hop  # type: ignore[method-assign]
+    try:
+        simulate(run_scenario, layout)
+    finally:
+        simpy.Environment.schedule = schedule  # type: ignore[method-assign]
+        Traffic.hopped = hopped  # type: ignore[method-assign]
+    total = sum(counts.values())
+    print(f"  closed form's SimPy events: {total:,} for {hops:,} hops, "
+          f"{total / max(hops, 1):.2f} per hop")
+    others = 0
+    for (kind, where), n in counts.most_common():
+        label = EVENT_KINDS.get((kind, where))
+        if label is None:
+            others += n
+            continue
+        print(f"    {n / max(hops, 1):5.2f} per hop  {n:9,}  {label} ({kind} from {where})")
+    print(f"    {others / max(hops, 1):5.2f} per hop  {others:9,}  everything else (orders, "
+          "handling, charging, incidents, ...)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--agvs", type=int, default=50)
     parser.add_argument("--hours", type=float, default=8.0)
     parser.add_argument("--rate", type=float, default=150.0, help="orders per hour")
+    parser.add_argument("--events", action="store_true",
+                        help="also print what the closed form's SimPy events are spent on")
     args = parser.parse_args()
     overrides = {"fleet.size": args.agvs, "duration_h": args.hours,
                  "warmup_h": min(0.5, args.hours / 4), "demand.rate_per_hour": args.rate}
@@ -102,6 +164,8 @@ def main() -> None:
         print(f"  SUMO alone, step {step_s:g} s: wall {alone['wall_s']:7.1f} s "
               f"({alone['steps']:,.0f} steps, {alone['distance_km']:.1f} km driven; "
               f"routes set up in {alone['setup_s']:.1f} s)")
+    if args.events:
+        events_per_hop(SCENARIO, overrides)
 
 
 if __name__ == "__main__":
