@@ -125,16 +125,17 @@ def events_per_hop(scenario: Path, overrides: dict[str, Any]) -> None:
         simpy.Environment.schedule = schedule  # type: ignore[method-assign]
         Traffic.hopped = hopped  # type: ignore[method-assign]
     total = sum(counts.values())
+    per_hop = 1.0 / max(hops, 1)
     print(f"  closed form's SimPy events: {total:,} for {hops:,} hops, "
-          f"{total / max(hops, 1):.2f} per hop")
+          f"{total * per_hop:.2f} per hop")
     others = 0
     for (kind, where), n in counts.most_common():
         label = EVENT_KINDS.get((kind, where))
         if label is None:
             others += n
             continue
-        print(f"    {n / max(hops, 1):5.2f} per hop  {n:9,}  {label} ({kind} from {where})")
-    print(f"    {others / max(hops, 1):5.2f} per hop  {others:9,}  everything else (orders, "
+        print(f"    {n * per_hop:5.2f} per hop  {n:9,}  {label} ({kind} from {where})")
+    print(f"    {others * per_hop:5.2f} per hop  {others:9,}  everything else (orders, "
           "handling, charging, incidents, ...)")
 
 

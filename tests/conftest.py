@@ -16,7 +16,7 @@ import yaml
 
 from agv_model.protocols import Device
 from fleet_sim.config.layout import Layout, load_layout
-from fleet_sim.config.scenario import Scenario, parse_scenario
+from fleet_sim.config.scenario import Scenario, load_layout_for, load_scenario, parse_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 LAYOUTS = ROOT / "layouts"
@@ -168,3 +168,15 @@ def in_browser(html: str, tmp_path: Path, check: str) -> tuple[dict[str, Any], s
     found = re.search(r'<pre id="img-check">(.*?)</pre>', dom, re.S)
     assert found, dom[-2000:]
     return json.loads(html_lib.unescape(found.group(1))), dom
+
+
+def scenario_for(layout: str, agvs: int, hours: float, rate: float, policy: str,
+                 base: str = "warehouse_shift.yaml", **extra: Any) -> Any:
+    """A scenario of experiments/`base` on a bundled layout, seed 11, flat demand, and its
+    layout: (scenario, layout)."""
+    path = ROOT / "experiments" / base
+    scenario = load_scenario(path, {
+        "layout": f"../layouts/{layout}.yaml", "fleet.size": agvs, "duration_h": hours,
+        "warmup_h": min(0.5, hours / 4), "demand.rate_per_hour": rate, "demand.profile": [],
+        "seed": 11, "traffic.policy": policy, **extra})
+    return scenario, load_layout_for(scenario, str(path))

@@ -14,24 +14,11 @@ import pytest
 
 from fleet_sim.analysis.kpis import run_kpis
 from fleet_sim.config.layout import load_layout
-from fleet_sim.config.scenario import load_layout_for, load_scenario
 from fleet_sim.sim.engine import build_model, simulate
 from fleet_sim.sim.traffic.avoidance import Plans, _Walk
 from fleet_sim.sim.traffic.control import Traffic
 
-from .conftest import DATA, ROOT, make_scenario
-
-EXPERIMENTS = ROOT / "experiments"
-
-
-def scenario_for(layout: str, agvs: int, hours: float, rate: float, policy: str,
-                 base: str = "warehouse_shift.yaml", **extra: Any) -> Any:
-    path = EXPERIMENTS / base
-    scenario = load_scenario(path, {
-        "layout": f"../layouts/{layout}.yaml", "fleet.size": agvs, "duration_h": hours,
-        "warmup_h": min(0.5, hours / 4), "demand.rate_per_hour": rate, "demand.profile": [],
-        "seed": 11, "traffic.policy": policy, **extra})
-    return scenario, load_layout_for(scenario, str(path))
+from .conftest import DATA, make_scenario, scenario_for
 
 
 def test_every_state_is_shown_safe_after_every_grant_and_plan_with_incidents(

@@ -15,10 +15,9 @@ import pytest
 from fleet_sim.analysis.kpis import run_kpis
 from fleet_sim.analysis.tables import orders_table, write_run
 from fleet_sim.config.layout import Layout
-from fleet_sim.config.scenario import load_layout_for, load_scenario
 from fleet_sim.sim.engine import build_model, simulate
 
-from .conftest import HALF_LOOP_S, make_scenario
+from .conftest import HALF_LOOP_S, ROOT, make_scenario, scenario_for
 
 __all__ = ["HALF_LOOP_S"]  # test_sizing imports it from here; it lives in conftest now
 
@@ -85,19 +84,11 @@ def test_same_seed_same_bytes_other_seed_other_results(tmp_path: Path,
     assert (a / "orders.parquet").read_bytes() != (c / "orders.parquet").read_bytes()
 
 
-ROOT = Path(__file__).resolve().parent.parent
-
-
 def events_digest(base: str, layout: str, agvs: int, rate: float, policy: str) -> str:
     """SHA-256 of every event of a one-hour run of experiments/`base` on `layout`, seed 11:
     time (to the microsecond, so that a last-bit difference of another machine's maths
     library in a time alone does not count), AGV, event, node and detail, in order."""
-    path = ROOT / "experiments" / base
-    scenario = load_scenario(path, {
-        "layout": f"../layouts/{layout}.yaml", "fleet.size": agvs, "duration_h": 1.0,
-        "warmup_h": 0.25, "demand.rate_per_hour": rate, "demand.profile": [], "seed": 11,
-        "traffic.policy": policy})
-    run = simulate(scenario, load_layout_for(scenario, path))
+    run = simulate(*scenario_for(layout, agvs, 1.0, rate, policy, base=base))
     events = [(round(e.time_s, 6), e.agv, e.event, e.node, e.detail)
               for e in run.recorder.events]
     return hashlib.sha256(repr(events).encode()).hexdigest()
