@@ -650,6 +650,28 @@ def _size(args: argparse.Namespace) -> int:
     return 0
 
 
+@command("optimise", "cheapest design (fleet, chargers, policies, layout changes) that meets "
+         "the experiment's targets, with a guarantee (resumable)",
+         arg("experiment", type=Path, help="experiment YAML file with an optimise section"),
+         *RUNNER)
+def _optimise(args: argparse.Namespace) -> int:
+    import time
+
+    from fleet_sim.report.console import optimise_header, optimise_lines
+    from fleet_sim.study.optimise import check_optimise, optimise
+    from fleet_sim.study.runner import default_out
+
+    experiment = experiment_for(args.experiment, args.settings)
+    space = check_optimise(experiment)
+    out = args.out or default_out(experiment)
+    print(optimise_header(experiment, space))
+    start = time.perf_counter()
+    outcome = optimise(experiment, out, args.workers, args.scheduler, args.quiet,
+                       dask_timeout_s=args.dask_timeout)
+    print(optimise_lines(outcome, time.perf_counter() - start))
+    return 1 if outcome.runs_failed else 0
+
+
 @command("compare", "every variant against the baseline: paired differences with common random "
          "numbers, replications added until decided, the best variant selected (resumable)",
          arg("experiment", type=Path, help="experiment YAML file with variants"), *RUNNER,

@@ -80,6 +80,7 @@ import numpy as np
 from pydantic import Field, Strict, field_validator, model_validator
 
 from agv_model.inputs import Items, Positive, Problem, StrictModel, Text, read_yaml, validate
+from fleet_sim.config.decisions import OptimiseConfig, design_space
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.layout_changes import (
     Change,
@@ -320,6 +321,9 @@ class ExperimentSpec(StrictModel):
     (common random numbers)."""
     baseline: Text | None = None
     """The variant the others are compared with; default: the base scenario (`baseline`)."""
+    optimise: OptimiseConfig | None = None
+    """What `fleet-sim optimise` may choose and what each choice costs
+    (fleet_sim.config.decisions)."""
 
     @field_validator("name")
     @classmethod
@@ -645,14 +649,14 @@ def load_experiment(path: str | Path, settings: Mapping[str, Any] | None = None,
         raise InputError(file, "scenario", spec.scenario,
                          f"an existing scenario file (looked for {scenario_file})")
     for key in spec.overrides:
-        _check_path(file, f"overrides.{key}", key)
+        check_path(file, f"overrides.{key}", key)
     _check_layout_names(file, "overrides.layout", spec.overrides.get("layout", ""))
     if settings:
         spec = _with_settings(spec, settings, source, scenario_file)
     levels: dict[str, list[Any]] = {}
     ranges: dict[str, Range] = {}
     for key, value in spec.factors.items():
-        _check_path(file, f"factors.{key}", key)
+        check_path(file, f"factors.{key}", key)
         if key in spec.overrides:
             raise InputError(file, f"factors.{key}", value,
                              "a field not also set in overrides (the factor varies it)")
@@ -694,6 +698,8 @@ def load_experiment(path: str | Path, settings: Mapping[str, Any] | None = None,
     _check_scenarios(experiment, levels)
     _check_vary_type(experiment)
     _check_variants(experiment)
+    if spec.optimise is not None:
+        design_space(experiment)
     return experiment
 
 
@@ -711,7 +717,7 @@ def _check_variants(experiment: Experiment) -> None:
     for name, variant in spec.variants.items():
         at = f"variants.{name}"
         for key, value in variant.overrides.items():
-            _check_path(file, f"{at}.overrides.{key}", key)
+            check_path(file, f"{at}.overrides.{key}", key)
             if key == "layout":
                 raise InputError(file, f"{at}.overrides.layout", value,
                                  f"the variant's own layout key ({at}.layout), not an override")
@@ -749,7 +755,7 @@ def _with_settings(spec: ExperimentSpec, settings: Mapping[str, Any], source: st
     layout, not a factor, and a valid scenario with the file's overrides (whose own problems
     are left to the checks of the file that follow)."""
     for key, value in settings.items():
-        _check_path(source, key, key)
+        check_path(source, key, key)
         if key in spec.factors:
             raise InputError(source, key, value, f"a field that is not a factor of the "
                              f"experiment (factors.{key} varies it)")
@@ -784,7 +790,7 @@ def _check_vary_type(experiment: Experiment) -> None:
                          f"a type of the base scenario's fleet.vehicles ({', '.join(types)})")
 
 
-def _check_path(file: str, element: str, key: str) -> None:
+def check_path(file: str, element: str, key: str) -> None:
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z0-9_][A-Za-z0-9_-]*)*", key):
         raise InputError(file, element, key, "a dotted scenario path such as fleet.size")
     if key == "seed":

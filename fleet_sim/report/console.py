@@ -18,16 +18,19 @@ Decisions:
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from fleet_sim.config.decisions import DesignSpace
     from fleet_sim.config.experiment import Experiment
     from fleet_sim.config.layout import Layout, LayoutSpec
     from fleet_sim.config.layout_lif import Imported as ImportedLif
     from fleet_sim.config.profile_factsheet import ImportedProfile
     from fleet_sim.report.export import Exported
+    from fleet_sim.study.optimise import OptimiseOutcome
     from fleet_sim.study.runner import SweepOutcome
     from fleet_sim.study.sizing import GroupResult as SizingResult
 
@@ -164,6 +167,41 @@ def size_lines(results: Sequence[SizingResult], out: Path) -> str:
 
         lines += gridlock_lines(pd.read_parquet(out / "summary.parquet"))
     lines.append(f"  sizing       {out / 'sizing.json'}")
+    return "\n".join(lines)
+
+
+def optimise_header(experiment: Experiment, space: DesignSpace) -> str:
+    config = space.config
+    decisions = [*config.decisions, *config.layout_decisions]
+    return (f"optimise {experiment.name}: {len(space.designs)} designs over "
+            f"{', '.join(decisions)}; targets "
+            + ", ".join(t.describe() for t in experiment.spec.targets)
+            + f"; {100 * config.confidence:g} % confidence")
+
+
+def optimise_lines(outcome: OptimiseOutcome, wall_s: float) -> str:
+    """The answer in one paragraph, the runs used against the full grid, where the files
+    are."""
+    doc = outcome.document
+    lines = textwrap.wrap(outcome.statement, width=96, initial_indent="  ",
+                          subsequent_indent="  ")
+    reps = doc["answer"]["replications"] if doc["answer"] else \
+        doc["procedure"]["min_replications"]
+    lines.append(f"  runs: {doc['runs_used']} used ({outcome.runs_made} made or reused now, "
+                 f"{len(outcome.runs_failed)} failed) against {doc['full_grid_runs']} for the "
+                 f"full grid of {doc['procedure']['designs_counted']} designs at "
+                 f"{reps} replications; {doc['designs_examined']} designs examined; {wall_s:.0f} s")
+    if doc["assumption"]["more_agvs_never_worse"]:
+        held = "held" if doc["assumption"]["held"] else "DID NOT HOLD"
+        lines.append(f"  assumption more_agvs_never_worse: {held} on the designs next to the "
+                     "answer")
+    for row in doc["target_costs"]:
+        if row["price"] is not None and row["saving"]:
+            lines.append(f"  {row['kpi']} relaxed to {row['relaxed_to']:g}: "
+                         f"{row['design']} would do, saving {row['saving']:,.0f} "
+                         f"{doc['currency']}")
+    lines.append(f"  optimise     {outcome.out_dir / 'optimise.json'}  (`fleet-sim report "
+                 f"{outcome.out_dir}` for the report)")
     return "\n".join(lines)
 
 

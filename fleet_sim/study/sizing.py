@@ -74,7 +74,6 @@ from typing import IO, Any
 
 import numpy as np
 
-from fleet_sim.analysis.kpis import target_value
 from fleet_sim.analysis.stats import (
     CONFIDENCE,
     TargetCheck,
@@ -91,7 +90,7 @@ from fleet_sim.config.experiment import (
     load_trace_for,
     point_text,
 )
-from fleet_sim.errors import FleetSimError, InputError
+from fleet_sim.errors import InputError
 from fleet_sim.sim.estimate import Estimate, analytic_estimate
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
@@ -100,12 +99,13 @@ from fleet_sim.study.runner import (
     DaskPool,
     LocalPool,
     check_extras,
-    execute,
     folder_lock,
     make_pool,
     prepare,
     write_plan,
 )
+from fleet_sim.study.search import RunBudget as SearchBudget
+from fleet_sim.study.search import RunLimit, ordered_search, run_searches, run_values
 from fleet_sim.study.warmup import largest_fleet, settle_warmup
 
 DEFAULT_MAX_AGVS = 50
@@ -120,29 +120,18 @@ FUTILE_MARGIN = 2
 # ---- the search ----------------------------------------------------------------------------
 
 
-class SizingLimit(FleetSimError):
+class SizingLimit(RunLimit):
     """The search would need more runs than one experiment may have."""
 
 
-class RunBudget:
-    """The distinct runs a search has used, at most `limit` of them."""
+class RunBudget(SearchBudget):
+    """The distinct runs a sizing search has used, at most `limit` of them."""
 
     def __init__(self, limit: int = MAX_RUNS) -> None:
-        self.limit = limit
-        self.used: set[str] = set()
-
-    def take(self, runs: Sequence[RunSpec]) -> None:
-        """Count `runs` in, or raise SizingLimit (counting none of them) if they would take
-        the search over the limit."""
-        new = {r.run_id for r in runs} - self.used
-        if len(self.used) + len(new) > self.limit:
-            raise SizingLimit(
-                f"the sizing search stopped: it needs more than {self.limit} runs, the limit "
-                f"of one experiment (it has used {len(self.used)} and asked for {len(new)} "
-                "more); sizing.json keeps what was decided so far. Narrow sizing.min_agvs / "
-                "sizing.max_agvs or lower sizing.max_replications")
-        self.used |= new
-
+        super().__init__(limit, "sizing search", "sizing.json",
+                         "Narrow sizing.min_agvs / sizing.max_agvs or lower "
+                         "sizing.max_replications")
+        self.error = SizingLimit
 
 
 @dataclass
@@ -351,7 +340,7 @@ class Sizer:
             runs = [self.experiment.run(factors, r) for r in range(reps)]
             self.budget.take(runs)
             yield runs
-            values, failed = self._values(runs)
+            values, failed = run_values(self.out_dir, runs, [t.kpi for t in self.targets])
             arrays = {t.kpi: np.array(list(values[t.kpi].values()), dtype=float)
                       for t in self.targets}
             checks = [target_check(factors, t, arrays[t.kpi]) for t in self.targets]
@@ -374,20 +363,6 @@ class Sizer:
         self.progress.note(f"{_where(self.fixed)}{agvs} {self.unit}, {ev.replications} "
                            f"replications: {ev.verdict}{note}")
         return ev
-
-    def _values(self, runs: Sequence[Any]) -> tuple[dict[str, dict[int, float]], int]:
-        values: dict[str, dict[int, float]] = {t.kpi: {} for t in self.targets}
-        failed = 0
-        for spec in runs:
-            kpi_file = self.out_dir / "runs" / spec.run_id / "kpis.json"
-            if not kpi_file.exists():
-                failed += 1
-                continue
-            figures = json.loads(kpi_file.read_text(encoding="utf-8"))
-            for kpi in values:
-                value = target_value(figures, kpi)  # lead times: open orders' age too
-                values[kpi][spec.replication] = math.nan if value is None else float(value)
-        return values, failed
 
     def search(self, estimate: Estimate, lo_limit: int, hi_limit: int,
                beside: dict[str, int] | None = None
@@ -413,34 +388,7 @@ class Sizer:
                 ev = yield from self.evaluate(n, result)
             return ev.verdict == "meets"
 
-        lo = lo_limit - 1  # largest size known not to meet (lo_limit - 1: none below)
-        hi: int | None = None  # smallest size known to meet
-        if (yield from meets(start)):
-            hi, step = start, 1
-            while hi - step >= lo_limit:
-                probe = hi - step
-                if (yield from meets(probe)):
-                    hi, step = probe, step * 2
-                else:
-                    lo = probe
-                    break
-        else:
-            lo, step = start, 1
-            while lo < hi_limit:
-                probe = min(lo + step, hi_limit)
-                if (yield from meets(probe)):
-                    hi = probe
-                    break
-                lo, step = probe, step * 2
-        if hi is None:
-            return
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if (yield from meets(mid)):
-                hi = mid
-            else:
-                lo = mid
-        result.recommended = hi
+        result.recommended = yield from ordered_search(meets, start, lo_limit, hi_limit)
 
 
 def start_count(estimate: Estimate, beside: dict[str, int], lo_limit: int,
@@ -448,30 +396,6 @@ def start_count(estimate: Estimate, beside: dict[str, int], lo_limit: int,
     """Where the search starts: the estimate's least whole fleet, less the other types' fixed
     counts of a mixed fleet, within the limits."""
     return min(max(estimate.minimum - sum(beside.values()), lo_limit), hi_limit)
-
-
-def run_searches(searches: Sequence[Generator[list[RunSpec], None, GroupResult]],
-                 out_dir: Path, pool: LocalPool | DaskPool) -> list[GroupResult]:
-    """Drive every group's search together: the batches they ask for at the same step run as
-    one, so the workers stay busy while each search waits for its own few runs."""
-    results: list[GroupResult | None] = [None] * len(searches)
-    wanted: dict[int, list[RunSpec]] = {}
-
-    def advance(i: int) -> None:
-        try:
-            wanted[i] = next(searches[i])
-        except StopIteration as done:
-            results[i] = done.value
-            wanted.pop(i, None)
-
-    for i in range(len(searches)):
-        advance(i)
-    while wanted:
-        batch = [spec for i in sorted(wanted) for spec in wanted[i]]
-        execute(batch, out_dir, quiet=True, pool=pool)
-        for i in sorted(wanted):
-            advance(i)
-    return [r for r in results if r is not None]
 
 
 def groups(experiment: Experiment) -> list[dict[str, Any]]:
