@@ -296,14 +296,15 @@ def _document(experiment: Experiment, space: DesignSpace, search: CheapestSearch
         "undecided_cheaper": [d["label"] for d in designs
                               if d["verdict"] == UNDECIDED and
                               (answer is None or search.cheaper(d["index"], answer))],
-        "runs_used": runs_used, "designs": len(designs), "designs_examined": len(examined),
+        "runs_used": runs_used, "design_count": len(designs),
+        "designs_examined": len(examined),
         "full_grid_runs": len(candidates) * reps,
         "stopped": stopped,
     }
     if answer is None:
         document["closest"] = closest(designs, targets, config.tolerance)
     document["target_costs"] = target_costs(experiment, space, search, h2)
-    document["designs_table"] = designs
+    document["designs"] = designs
     document["statement"] = statement(document, space, search)
     return document
 
@@ -463,7 +464,7 @@ def _just_cheaper(document: dict[str, Any], space: DesignSpace, search: Cheapest
     answer = search.answer()
     if answer is None:
         return None
-    rows = document.get("designs_table") or []
+    rows = document.get("designs") or []
     if not rows:
         return None
     if space.count_decision is not None:
