@@ -698,8 +698,9 @@ def _compare(args: argparse.Namespace) -> int:
     return 1 if outcome.failed else 0
 
 
-@command("report", "HTML and PDF report of a sweep, sizing or compare results folder",
-         arg("results", type=Path, help="results folder of `sweep`, `size` or `compare`"),
+@command("report", "HTML and PDF report of a sweep, sizing, compare or optimise results folder",
+         arg("results", type=Path, help="results folder of `sweep`, `size`, `compare` or "
+             "`optimise`"),
          arg("--no-pdf", action="store_true", help="write the HTML report only"))
 def _report(args: argparse.Namespace) -> int:
     from fleet_sim.report.console import report_lines

@@ -257,6 +257,62 @@ VARIANT_CASES: list[tuple[str, dict[str, Any]]] = [
 ]
 
 
+def _optimise(**changes: Any) -> dict[str, Any]:
+    """An experiment's optimise section on the tiny loop, with `changes` to it."""
+    section: dict[str, Any] = {
+        "decisions": {"fleet.size": {"min": 1, "max": 3, "price_per_unit": 100}},
+        "layout_decisions": {"handling": {"as_it_is": {}, "fast": {"price": 30, "changes": [
+            {"station_handling": {"id": "PICK", "handling": {"mean_s": 2}}}]}}},
+        "tolerance": {"lead_time_p95_s": 60}}
+    section.update(changes)
+    return {"targets": [{"kpi": "lead_time_p95_s", "at_most": 600}], "optimise": section}
+
+
+_SLOW = {"as_it_is": {}, "slow": {"changes": [
+    {"speed_limit": {"chain": ["SW", "S1"], "speed_mps": 0.5}}]}}
+# Decisions and costs (fleet-sim optimise): each refused in one line, naming optimise...
+OPTIMISE_CASES: list[tuple[str, dict[str, Any]]] = [
+    ("key-the-scenario-lacks", _optimise(decisions={"fleet.sise": {"min": 1, "max": 2}})),
+    ("level-the-scenario-refuses", _optimise(decisions={"dispatch.policy": {
+        "levels": [{"level": "nearest_idle"}, {"level": "whenever"}]}})),
+    ("range-and-levels", _optimise(decisions={"fleet.size": {"min": 1, "max": 2,
+                                                             "levels": [{"level": 1}]}})),
+    ("range-reversed", _optimise(decisions={"fleet.size": {"min": 3, "max": 1}})),
+    ("range-half", _optimise(decisions={"fleet.size": {"min": 1}})),
+    ("price-nan", _optimise(decisions={"fleet.size": {"min": 1, "max": 2,
+                                                      "price_per_unit": NAN}})),
+    ("price-negative", _optimise(decisions={"fleet.size": {"min": 1, "max": 2,
+                                                           "price_per_unit": -5}})),
+    ("price-inf", _optimise(decisions={"fleet.size": {"min": 1, "max": 2,
+                                                      "yearly_per_unit": INF}})),
+    ("option-price-text", _optimise(layout_decisions={"handling": {
+        "as_it_is": {}, "fast": {"price": "cheap"}}})),
+    ("horizon-negative", _optimise(horizon_years=-1)),
+    ("levels-repeated", _optimise(decisions={"dispatch.policy": {
+        "levels": [{"level": "nearest_idle"}, {"level": "nearest_idle"}]}})),
+    ("decision-is-seed", _optimise(decisions={"seed": {"min": 1, "max": 2}})),
+    ("decision-is-layout", _optimise(decisions={"layout": {"levels": [{"level": "x.yaml"}]}})),
+    ("no-decisions", _optimise(decisions={}, layout_decisions={})),
+    ("one-option-group", _optimise(layout_decisions={"handling": {"fast": {}}})),
+    ("option-change-unknown-node", _optimise(layout_decisions={"g": {
+        "as_it_is": {}, "x": {"changes": [{"one_way": ["SW", "ZZ"]}]}}})),
+    ("groups-conflict", _optimise(layout_decisions={"a": _SLOW, "b": _SLOW})),
+    ("tolerance-missing", _optimise(tolerance={})),
+    ("tolerance-zero", _optimise(tolerance={"lead_time_p95_s": 0})),
+    ("tolerance-not-a-target", _optimise(tolerance={"lead_time_p95_s": 60,
+                                                     "lead_time_p59_s": 5})),
+    ("relax-tighter", _optimise(relax={"lead_time_p95_s": [500]})),
+    ("confidence-one", _optimise(confidence=1)),
+    ("replications-reversed", _optimise(min_replications=10, max_replications=5)),
+    ("assume-without-a-count", _optimise(decisions={}, more_agvs_never_worse=True)),
+    ("space-over-the-design-limit", _optimise(decisions={
+        "fleet.size": {"min": 1, "max": 200}, "demand.rate_per_hour": {"min": 10, "max": 200}})),
+    ("space-over-the-run-limit", _optimise(decisions={
+        "fleet.size": {"min": 1, "max": 100}, "demand.rate_per_hour": {"min": 10, "max": 29}})),
+    ("unknown-key", _optimise(budget=5)),
+]
+
+
 @dataclass(frozen=True)
 class Case:
     id: str
@@ -345,6 +401,12 @@ def _cases() -> Iterator[Case]:
     for name, extra in VARIANT_CASES:
         yield Case(f"experiment-variants-{name}", "experiment",
                    lambda d, e=extra: _yaml({**_experiment(_write_base(d)), **e}))
+    for name, extra in OPTIMISE_CASES:
+        yield Case(f"experiment-optimise-{name}", "experiment",
+                   lambda d, e=extra: _yaml({**{k: v for k, v in _experiment(
+                       _write_base(d)).items() if k != "factors"}, **e}))
+    yield Case("experiment-optimise-with-factors", "experiment",
+               lambda d: _yaml({**_experiment(_write_base(d)), **_optimise()}))
     yield Case("experiment-lhs-samples", "experiment", lambda d: _yaml({
         **_experiment(_write_base(d)), "design": "latin_hypercube", "samples": 10_001,
         "factors": {"demand.rate_per_hour": {"min": 10, "max": 50}}}))

@@ -130,7 +130,7 @@ class ScenarioDecision(StrictModel):
                 return lv.description
         if count_path(key):
             kind = "" if key == "fleet.size" else key.split(".")[2] + " "
-            return f"{value} {kind}AGVs"
+            return f"{value} {kind}AGV{'' if value == 1 else 's'}"
         from fleet_sim.config.experiment import level_text
 
         return f"{key} = {level_text(value)}"
@@ -440,7 +440,7 @@ def _check_against_experiment(experiment: Experiment, config: OptimiseConfig) ->
                                             else ()), key: value})
             except InputError as exc:
                 element = f"{at}.{key}" + (f".levels[{i}].level" if decision.levels else "")
-                hint = _did_you_mean(experiment, key)
+                hint = "" if "did you mean" in exc.expected else _did_you_mean(experiment, key)
                 raise InputError(file, element, value, f"{exc.expected} (scenario field "
                                  f"{exc.element}{hint})") from None
     kpis = [t.kpi for t in spec.targets]

@@ -65,8 +65,9 @@ def write_pdf(report: Report, path: Path) -> None:
 
     lines = [report.answer_title.upper(), *report.statements, "", *report.estimates, ""]
     for sec in report.sections:
-        if sec.text:
-            lines += [sec.title.upper(), *sec.text, ""]
+        if sec.text:  # a comparison's or optimise report's section has its own heading
+            heading = str(getattr(sec, "heading", "")) or sec.title
+            lines += [heading.upper(), *sec.text, ""]
     with PdfPages(path) as pdf:
         page = figs.text_page(report.title, lines)
         pdf.savefig(page)
@@ -78,11 +79,17 @@ def write_pdf(report: Report, path: Path) -> None:
 
 def write_report(out_dir: Path, pdf: bool = True) -> tuple[Path, Path | None]:
     """Write report.html (and report.pdf) into `out_dir`; returns their paths. A folder of
-    `fleet-sim compare` (with compare.json) gets the comparison report."""
+    `fleet-sim compare` (with compare.json) gets the comparison report, one of `fleet-sim
+    optimise` (with optimise.json) the optimise report."""
     from fleet_sim.report.compare_report import build_compare_report, is_compare_folder
+    from fleet_sim.report.optimise_report import build_optimise_report, is_optimise_folder
 
-    report = build_compare_report(out_dir) if is_compare_folder(out_dir) \
-        else build_report(out_dir)
+    if is_compare_folder(out_dir):
+        report = build_compare_report(out_dir)
+    elif is_optimise_folder(out_dir):
+        report = build_optimise_report(out_dir)
+    else:
+        report = build_report(out_dir)
     try:
         html_path = out_dir / "report.html"
         write_text_atomic(html_path, render_html(report))

@@ -1,0 +1,552 @@
+"""The optimise report: a `fleet-sim optimise` results folder (optimise.json) -> a `Report`
+(plain data, as fleet_sim.report.report's) that fleet_sim.report.render writes as HTML and PDF.
+
+The first screen answers in a planner's words: "The cheapest system that meets both targets
+(throughput at least 95 % of demand; p95 lead time at most 600 s): 16 AGVs, opportunity
+charging, a fifth charger at C05: 742,000 EUR.", what it reaches, then "No cheaper design does:
+the same system with 15 AGVs (704,000 EUR) misses p95 lead time (631 s, 604 to 658)."; the
+guarantee, and the runs used against the full grid. When no design meets: which target binds
+and the design that comes closest. Below: price against each target's KPI (every design run,
+marked by its verdict), the table of every design, the chosen design's layout with its changes
+in red, what each target costs, and how the answer was found.
+
+Decisions, where the issue is silent:
+
+* The sentences are built here from optimise.json's answer and designs (the KPIs by their
+  names and units from the catalogue, fleet_sim.analysis.kpis), not its ``statement``, which
+  names KPIs by their keys; the numbers are the same. The guarantee is optimise.json's, with
+  the KPIs in words.
+* The design named beside the answer is the one `fleet-sim optimise` names: one AGV fewer with
+  the same other choices where the space has it, else the dearest design cheaper than the
+  answer, whatever its verdict (a ruled-out or refused design says why); then how the other
+  cheaper designs were decided, counted by verdict.
+* Designs are shown in words (fleet_sim.study.optimise.design_words) when the experiment file
+  can be read again and its design space still matches optimise.json (the same labels in the
+  same order), else by their labels; the layout is drawn only then. If the file is gone, no
+  longer valid, or changed, the layout section says so and the rest stands.
+* The layout drawn is the answer's; when no design meets, the closest design's (the section
+  says which). Its base is the same design without layout changes (the same scenario
+  settings), so the drawing shows only what the layout options change. A design without
+  layout changes is drawn as its layout is.
+* The designs table lists designs by price (the order of examination), every design, the
+  answer's verdict marked "meets (the answer)".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from fleet_sim.analysis.kpis import kpi_label, kpi_short
+from fleet_sim.analysis.paired import number_text
+from fleet_sim.config.decisions import DesignSpace, count_path, design_layout, design_space
+from fleet_sim.config.experiment import Experiment, Target, load_experiment
+from fleet_sim.config.layout_changes import layout_diff
+from fleet_sim.errors import FleetSimError, InputError
+from fleet_sim.report import figures as figs
+from fleet_sim.report import optimise_figures as ofigs
+from fleet_sim.report.compare_report import CompareSection
+from fleet_sim.report.layout_plot import variant_figure
+from fleet_sim.report.report import Figure, Report, Section, Table, target_words
+from fleet_sim.study.optimise import OPTIMISE_FILE, design_words, money
+
+ANSWER_VERDICT = "meets (the answer)"
+
+
+def is_optimise_folder(out_dir: Path) -> bool:
+    return (out_dir / OPTIMISE_FILE).exists()
+
+
+def read_optimise(out_dir: Path) -> dict[str, Any]:
+    """optimise.json of `out_dir`; InputError if it is not there or not readable."""
+    path = out_dir / OPTIMISE_FILE
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InputError(str(out_dir), "folder", str(out_dir),
+                         f"a results folder of `fleet-sim optimise` (with a readable "
+                         f"{OPTIMISE_FILE}: {exc})") from exc
+    if not isinstance(document, dict) or "designs" not in document:
+        raise InputError(str(path), "designs", None,
+                         "the list of every design, as `fleet-sim optimise` writes it")
+    return document
+
+
+# ---- words ------------------------------------------------------------------------------------
+
+
+def _unit(kpi: str) -> str:
+    """The unit after a number, from the catalogue's label: ``s``, ``% of demand``."""
+    _, _, unit = kpi_label(kpi).partition(" [")
+    unit = unit.removesuffix("]")
+    return f" {unit}" if unit and unit != "count" else ""
+
+
+def _target(row: Mapping[str, Any], bound: float | None = None) -> Target:
+    value = float(row["bound"] if bound is None else bound)
+    return Target(kpi=str(row["kpi"]), at_least=value) if row["at_least"] \
+        else Target(kpi=str(row["kpi"]), at_most=value)
+
+
+def _and(parts: Sequence[str]) -> str:
+    if not parts:
+        return ""
+    return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
+
+
+def value_words(row: Mapping[str, Any]) -> str:
+    """``p95 lead time 631 s (604 to 658)``: the mean and its 95 % interval."""
+    kpi = str(row["kpi"])
+    if row["mean"] is None:
+        return f"{kpi_short(kpi)}: no value"
+    text = f"{kpi_short(kpi)} {number_text(row['mean'])}{_unit(kpi)}"
+    if row["ci_low"] is not None and row["ci_high"] is not None:
+        text += f" ({number_text(row['ci_low'])} to {number_text(row['ci_high'])})"
+    return text
+
+
+def interval_cell(row: Mapping[str, Any]) -> str:
+    """A table cell: ``631 (604 to 658)``, "-" where the design was not run."""
+    if row["mean"] is None:
+        return "-"
+    if row["ci_low"] is None or row["ci_high"] is None:
+        return number_text(row["mean"])
+    return (f"{number_text(row['mean'])} ({number_text(row['ci_low'])} to "
+            f"{number_text(row['ci_high'])})")
+
+
+def _targets_words(document: Mapping[str, Any]) -> tuple[str, str]:
+    """("both targets", "throughput at least 95 % of demand; p95 lead time at most 600 s")."""
+    rows = document["designs"][0]["targets"] if document["designs"] else []
+    count = len(rows)
+    what = "every target" if count > 2 else ("both targets" if count == 2 else "the target")
+    return what, "; ".join(target_words(_target(r)) for r in rows)
+
+
+def _agvs(count: int, key: str) -> str:
+    kind = "" if key == "fleet.size" else key.split(".")[2] + " "
+    return f"{count} {kind}{'AGV' if count == 1 else 'AGVs'}"
+
+
+def _verdict_phrase(row: Mapping[str, Any]) -> str:
+    """What became of a design cheaper than the answer, after its subject (singular)."""
+    verdict = row["verdict"]
+    if verdict == "fails":
+        if row["inferred"] or not row["replications"]:
+            return f"fails: {row['reason']}" if row["reason"] else "fails"
+        misses = [r for r in row["targets"] if r["meets_bound"] is False]
+        if misses:
+            return "misses " + _and([value_words(r) for r in misses[:2]])
+        return "fails the targets within their tolerance: " + _and(
+            [value_words(r) for r in row["targets"]])
+    if verdict == "ruled out":
+        return f"is ruled out: {row['reason']}"
+    if verdict == "refused":
+        return f"does not fit its layout: {row['reason']}"
+    if verdict == "undecided":
+        return (f"is not decided at {row['replications']} replications: "
+                + _and([value_words(r) for r in row["targets"]]))
+    return f"is {verdict}" + (f": {row['reason']}" if row["reason"] else "")
+
+
+def _count_key(choices: Mapping[str, Any]) -> str | None:
+    keys = [k for k in choices if count_path(k)]
+    return keys[0] if len(keys) == 1 else None
+
+
+def next_cheaper(document: Mapping[str, Any], answer: int) -> dict[str, Any] | None:
+    """The design to name beside the answer: one AGV fewer with the same other choices where
+    the space has it, else the dearest design cheaper than the answer."""
+    designs: list[dict[str, Any]] = document["designs"]
+    chosen = designs[answer]
+    key = _count_key(chosen["choices"])
+    if key is not None:
+        rest = {k: v for k, v in chosen["choices"].items() if k != key}
+        for d in designs:
+            if d["choices"].get(key) == chosen["choices"][key] - 1 and \
+                    {k: v for k, v in d["choices"].items() if k != key} == rest:
+                return d
+    cheaper = [d for d in _by_price(designs) if _cheaper(d, chosen)]
+    return cheaper[-1] if cheaper else None
+
+
+def _by_price(designs: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    return sorted(designs, key=lambda d: (float(d["price"]), int(d["index"])))
+
+
+def _cheaper(d: Mapping[str, Any], than: Mapping[str, Any]) -> bool:
+    return (float(d["price"]), int(d["index"])) < (float(than["price"]), int(than["index"]))
+
+
+def _counted(verdicts: Sequence[str]) -> str:
+    counts: dict[str, int] = {}
+    for v in verdicts:
+        counts[v] = counts.get(v, 0) + 1
+    return _and([f"{n} {v}" for v, n in counts.items()])
+
+
+def answer_statements(document: Mapping[str, Any], words: Sequence[str]) -> list[str]:
+    """The answer in a planner's words (see the module); `words`: each design in words."""
+    currency = str(document["currency"])
+    what, targets = _targets_words(document)
+    designs: list[dict[str, Any]] = document["designs"]
+    answer = answer_index(document)
+    out: list[str] = []
+    if document.get("stopped"):
+        out.append(f"The search stopped before it could name an answer: {document['stopped']}")
+    if answer is None:
+        out.append(f"No design in the space meets {what} ({targets}) with "
+                   f"{100 * float(document['confidence']):g} % confidence.")
+        close = document.get("closest")
+        if close is not None:
+            index = _index_of(document, str(close["design"]))
+            name = words[index] if index is not None else str(close["design"])
+            row = next(r for r in close["targets"] if r["kpi"] == close["binding_target"])
+            misses = close.get("misses_by_tolerances")
+            by = f", {number_text(misses)} tolerances off" if misses is not None else ""
+            out.append(f"The target that binds is {target_words(_target(row))}: the design "
+                       f"that comes closest, {name} ({money(close['price'], currency)}), "
+                       f"reaches {value_words(row)}{by}.")
+        return out
+    chosen = designs[answer]
+    out.append(f"The cheapest system that meets {what} ({targets}): {words[answer]}: "
+               f"{money(chosen['price'], currency)}.")
+    out.append(f"Over {chosen['replications']} replications it reaches "
+               + _and([value_words(r) for r in chosen["targets"]]) + ".")
+    cheaper = [d for d in designs if _cheaper(d, chosen)]
+    below = next_cheaper(document, answer)
+    if below is None:
+        out.append("It is the cheapest design in the space.")
+    else:
+        key = _count_key(chosen["choices"])
+        if key is not None and \
+                below["choices"].get(key) == chosen["choices"][key] - 1:
+            subject = f"the same system with {_agvs(int(below['choices'][key]), key)}"
+        else:
+            subject = f"the next cheaper design, {words[int(below['index'])]}"
+        price = money(below["price"], currency)
+        price = f"({price})" if subject.startswith("the same") else f"({price}),"
+        text = f"No cheaper design does: {subject} {price} {_verdict_phrase(below)}."
+        others = [d["verdict"] for d in _by_price(cheaper) if d is not below]
+        if others:
+            text += (f" Of the {len(others)} other cheaper designs: {_counted(others)}.")
+        out.append(text)
+    undecided = list(document.get("undecided_cheaper") or [])
+    if undecided:
+        out.append("Not decided at the replication limit, and cheaper: " + "; ".join(
+            words[i] if (i := _index_of(document, label)) is not None else label
+            for label in undecided) + " (more replications could still tell).")
+    return out
+
+
+def guarantee_sentence(document: Mapping[str, Any]) -> str:
+    """optimise.json's guarantee, with the KPIs in words."""
+    tolerance: Mapping[str, float] = document.get("tolerance") or {}
+    if not tolerance:
+        return str(document.get("guarantee", ""))
+    within = "; ".join(f"{kpi_short(k)} within {number_text(v)}{_unit(k)}"
+                       for k, v in tolerance.items())
+    return (f"With probability at least {100 * float(document['confidence']):g} %, the design "
+            f"named meets every target (within its tolerance: {within}), and no cheaper design "
+            "meets them all by more than that tolerance.")
+
+
+def runs_sentence(document: Mapping[str, Any]) -> str:
+    procedure = document.get("procedure") or {}
+    counted = procedure.get("designs_counted", document["design_count"])
+    reps = document["answer"]["replications"] if document["answer"] else \
+        procedure.get("min_replications", "?")
+    return (f"{document['runs_used']} runs used, against {document['full_grid_runs']} for the "
+            f"full grid ({counted} designs at {reps} replications each); "
+            f"{document['designs_examined']} of {document['design_count']} designs run.")
+
+
+def answer_index(document: Mapping[str, Any]) -> int | None:
+    answer = document.get("answer")
+    return None if answer is None else _index_of(document, str(answer["design"]))
+
+
+def _index_of(document: Mapping[str, Any], label: str) -> int | None:
+    for d in document["designs"]:
+        if d["label"] == label:
+            return int(d["index"])
+    return None
+
+
+# ---- the report -------------------------------------------------------------------------------
+
+
+def build_optimise_report(out_dir: Path) -> Report:
+    """Read an optimise results folder and prepare every section (figures drawn)."""
+    document = read_optimise(out_dir)
+    experiment, space, problem = _experiment(out_dir, document)
+    designs: list[dict[str, Any]] = document["designs"]
+    words = [design_words(space, space.designs[i]) if space is not None else str(d["label"])
+             for i, d in enumerate(designs)]
+    statements = answer_statements(document, words)
+    estimates = [guarantee_sentence(document), runs_sentence(document)]
+    if document["assumption"].get("more_agvs_never_worse") and \
+            not document["assumption"].get("held", True):
+        estimates.append("The assumption more_agvs_never_worse did NOT hold on the designs "
+                         "next to the answer: see How the answer was found.")
+    sections: list[Section] = [
+        _section_chart(document),
+        _section_designs(document, words),
+        _section_layout(document, experiment, space, words, problem),
+        _section_target_costs(document, words),
+        _section_procedure(document),
+    ]
+    decisions = list(designs[0]["choices"]) if designs else []
+    what, targets = _targets_words(document)
+    lead = (f"The cheapest of {document['design_count']} designs over "
+            f"{_and([k.removeprefix('layout:') for k in decisions])} that meets {what} "
+            f"({targets}); prices in {document['currency']}. Generated "
+            f"{time.strftime('%Y-%m-%d %H:%M')} by fleet-sim.")
+    return Report(f"Cheapest design: {document.get('experiment', 'experiment')}", lead,
+                  statements, estimates, sections, template="optimise.html.j2",
+                  answer_title="Answer")
+
+
+def _experiment(out_dir: Path, document: Mapping[str, Any]
+                ) -> tuple[Experiment | None, DesignSpace | None, str]:
+    """The experiment read again and its design space, if it still matches optimise.json;
+    else why not."""
+    resolved_file = out_dir / "experiment.resolved.yaml"
+    try:
+        resolved = yaml.safe_load(resolved_file.read_text(encoding="utf-8")) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        return None, None, f"The folder's experiment.resolved.yaml could not be read: {exc}"
+    file = resolved.get("experiment_file") if isinstance(resolved, dict) else None
+    try:
+        experiment = load_experiment(str(file))
+        space = design_space(experiment)
+    except (InputError, FleetSimError, OSError) as exc:
+        return None, None, f"The experiment file {file} could not be read again: {exc}"
+    labels = [d.label() for d in space.designs]
+    if labels != [d["label"] for d in document["designs"]]:
+        return None, None, (f"The experiment file {file} has changed since the search: its "
+                            "design space is no longer the one optimise.json describes.")
+    return experiment, space, ""
+
+
+def _figure(key: str, caption: str, fig: Any) -> Figure:
+    return Figure(key, caption, figs.png_bytes(fig), fig)
+
+
+def _section_chart(document: Mapping[str, Any]) -> CompareSection:
+    sec = CompareSection(heading="Price against each target")
+    designs: list[dict[str, Any]] = document["designs"]
+    answer = answer_index(document)
+    run = [d for d in designs if d["replications"]]
+    if not run or not designs:
+        sec.paragraphs.append("No design was run: there is nothing to draw.")
+        return sec
+    tolerance: Mapping[str, float] = document.get("tolerance") or {}
+    targets = [ofigs.TargetLine(str(r["kpi"]), float(r["bound"]), bool(r["at_least"]),
+                                tolerance.get(str(r["kpi"])))
+               for r in designs[0]["targets"]]
+    points = [ofigs.DesignPoint(float(d["price"]), str(d["verdict"]),
+                                [(r["mean"], r["ci_low"], r["ci_high"]) for r in d["targets"]],
+                                answer=int(d["index"]) == answer) for d in run]
+    sec.paragraphs.append(
+        f"Every design that was run ({len(run)} of {len(designs)}): its price against each "
+        "target's KPI, the mean with its 95 % interval, marked by its verdict. The dashed line "
+        "is the target; in the grey band round it (± the tolerance) either verdict may be "
+        "right. The answer is ringed in blue. Designs never run (not needed, ruled out, "
+        "refused) are in the table below.")
+    sec.figures.append(_figure("price_against_targets",
+                               "Price against each target's KPI, every design run",
+                               ofigs.price_against_targets(points, targets,
+                                                           str(document["currency"]))))
+    return sec
+
+
+def _reason(d: Mapping[str, Any]) -> str:
+    if d["reason"]:
+        text = str(d["reason"])
+    elif d["decided_at"] is not None:
+        text = f"decided after {d['decided_at']} replications"
+    else:
+        text = ""
+    if d.get("check"):
+        text += ("; " if text else "") + f"run to check the assumption: {d['check']}"
+    return text
+
+
+def _section_designs(document: Mapping[str, Any], words: Sequence[str]) -> CompareSection:
+    designs: list[dict[str, Any]] = document["designs"]
+    currency = str(document["currency"])
+    answer = answer_index(document)
+    kpis = [str(r["kpi"]) for r in designs[0]["targets"]] if designs else []
+    header = ["design", "decisions", f"price [{currency}]", "verdict", "replications",
+              *(f"{kpi_label(k)}: mean (95 % interval)" for k in kpis), "why"]
+    rows = [[words[int(d["index"])], str(d["label"]), number_text(d["price"]),
+             ANSWER_VERDICT if int(d["index"]) == answer else str(d["verdict"]),
+             str(d["replications"]), *(interval_cell(r) for r in d["targets"]), _reason(d)]
+            for d in _by_price(designs)]
+    sec = CompareSection(heading="Every design", tables=[Table(header, rows, "designs")])
+    counts = _counted([str(d["verdict"]) for d in _by_price(designs)])
+    sec.paragraphs.append(
+        f"All {len(designs)} designs by price: {counts}. A design costlier than one shown to "
+        "meet every target is not needed and never run; a fleet below the AGVs the analytic "
+        "estimate keeps busy is ruled out, a design whose AGVs do not fit its layout refused, "
+        "both before any run.")
+    sec.text += [f"{r[0]} ({r[2]} {currency}): {r[3]}, {r[4]} replications"
+                 + "".join(f"; {kpi_short(k)} {c}" for k, c in zip(kpis, r[5:-1], strict=True)
+                           if r[4] != "0")
+                 + (f"; {r[-1]}" if r[-1] else "") for r in rows]
+    return sec
+
+
+def _section_layout(document: Mapping[str, Any], experiment: Experiment | None,
+                    space: DesignSpace | None, words: Sequence[str],
+                    problem: str) -> CompareSection:
+    sec = CompareSection(heading="The chosen design's layout")
+    answer = answer_index(document)
+    which = "the answer"
+    if answer is None:
+        close = document.get("closest")
+        answer = _index_of(document, str(close["design"])) if close else None
+        sec.heading = "The closest design's layout"
+        which = "the design that comes closest (no design meets)"
+        if answer is None:
+            sec.paragraphs.append("No design was run: there is no layout to show.")
+            return sec
+    if experiment is None or space is None:
+        sec.paragraphs.append(problem + " The layout is not drawn; the rest of the report "
+                              "stands.")
+        sec.text += sec.paragraphs
+        return sec
+    design = space.designs[answer]
+    factors = dict(experiment.points[0]) if experiment.points else {}
+    try:
+        scenario = experiment.scenario({**factors, **dict(design.settings)})
+        changed = design_layout(experiment, scenario, design)
+        base = design_layout(experiment, scenario, dataclasses.replace(design, changes=()))
+    except (InputError, FleetSimError, OSError) as exc:
+        sec.paragraphs.append(f"The layout of {words[answer]} could not be drawn: {exc}")
+        sec.text += sec.paragraphs
+        return sec
+    config = space.config
+    chosen = [f"{group}: {option}" + (f" ({config.layout_decisions[group][option].description})"
+                                       if config.layout_decisions[group][option].description
+                                       else "")
+              for group, option in design.options]
+    diff = layout_diff(base, changed)
+    if not design.changes or diff.empty:
+        sec.paragraphs.append(
+            f"{words[answer][0].upper() + words[answer][1:]}, {which}, drives on the layout as "
+            f"it is ({changed.name})"
+            + (f"; layout options chosen: {'; '.join(chosen)}." if chosen else "."))
+        png = figs.layout_png(changed)
+        caption = f"Layout {changed.name}, as it is"
+        sec.figures.append(Figure("layout_answer", caption, png,
+                                  figs.image_page(png, caption)))
+        sec.text += sec.paragraphs
+        return sec
+    what = [f"{len(items)} {name}: {', '.join(items)}" for name, items in (
+        ("changed or new nodes", diff.changed_nodes), ("removed nodes", diff.removed_nodes),
+        ("changed or new places", diff.changed_places), ("removed places", diff.removed_places))
+        if items]
+    if diff.changed_segments or diff.removed_segments:
+        what.append(f"{len(diff.changed_segments)} changed or new hops, "
+                    f"{len(diff.removed_segments)} removed")
+    sec.paragraphs.append(
+        f"{words[answer][0].upper() + words[answer][1:]}, {which}, on layout {changed.name} "
+        f"with its layout changes in red; options chosen: {'; '.join(chosen)}. "
+        f"Against the layout as it is: {'; '.join(what)}.")
+    title = "Layout changes in red (new or changed hops, nodes ringed)"
+    sec.figures.append(_figure("layout_answer", f"{words[answer]}: its layout changes in red "
+                               "(new or changed hops, nodes ringed)",
+                               variant_figure(changed, base, diff, title)))
+    sec.text += sec.paragraphs
+    return sec
+
+
+def _section_target_costs(document: Mapping[str, Any], words: Sequence[str]) -> CompareSection:
+    sec = CompareSection(heading="What each target costs")
+    currency = str(document["currency"])
+    rows_in: list[dict[str, Any]] = list(document.get("target_costs") or [])
+    answer = answer_index(document)
+    if not rows_in:
+        sec.paragraphs.append("optimise.json has no target costs.")
+        return sec
+    designs: list[dict[str, Any]] = document["designs"]
+    by_kpi = {str(r["kpi"]): r for r in designs[0]["targets"]} if designs else {}
+    rows: list[list[str]] = []
+    for r in rows_in:
+        target_row = by_kpi.get(str(r["kpi"]))
+        target = target_words(_target(target_row)) if target_row else str(r["target"])
+        relaxed = target_words(_target(target_row, r["relaxed_to"])) if target_row \
+            else f"{r['relaxed_to']:g}"
+        index = _index_of(document, str(r["design"])) if r["design"] is not None else None
+        if r["design"] is None:
+            design = "undecided" if not r["decided"] else "no design meets"
+            price = saving = "-"
+            sentence = f"{design}: {r['reason']}" if r["reason"] else design
+        else:
+            design = words[index] if index is not None else str(r["design"])
+            price = money(r["price"], currency)
+            if r["saving"] is None:
+                saving = "-"
+            elif index == answer:
+                saving = "none: the same design"
+            else:
+                saving = money(r["saving"], currency)
+            sentence = (f"{design} would do, {price}"
+                        + (f", saving {saving}" if r["saving"] and index != answer else
+                           " (the same design)" if index == answer else ""))
+        rows.append([target, relaxed, design, price, saving,
+                     str(r["reason"]) if r["design"] is None else ""])
+        sec.text.append(f"{relaxed} (instead of {target}): {sentence}.")
+    sec.tables.append(Table(["target", "relaxed to", "cheapest design", "price", "saving",
+                             "why undecided"], rows, "target-costs"))
+    saving_note = "" if answer is not None else \
+        " No design meets the targets as they stand, so there is no saving to count."
+    sec.paragraphs.append(
+        "The cheapest design if one target were relaxed, each in turn, to each looser bound the "
+        "file lists (else by its tolerance), the other targets as they are; decided from the "
+        "replications already made, no new runs: where those do not decide it, it says "
+        f"undecided and why.{saving_note}")
+    return sec
+
+
+def _section_procedure(document: Mapping[str, Any]) -> CompareSection:
+    sec = CompareSection(heading="How the answer was found")
+    p = document.get("procedure") or {}
+    sec.paragraphs.append(
+        f"{p.get('name', 'F_B feasibility checks in order of price')}. Designs are examined "
+        f"cheapest first; each starts with {p.get('min_replications', '?')} replications and "
+        f"gets more, up to {p.get('max_replications', '?')}, until every target is decided. "
+        f"The error is split over the {p.get('designs_counted', '?')} designs that could be "
+        f"run and their targets (beta {float(p.get('beta', float('nan'))):.2g} per check, h² "
+        f"{float(p.get('h2', float('nan'))):.3g}); refused and ruled-out designs are decided "
+        "without error and not counted. Replication r has the same seed in every design "
+        "(common random numbers).")
+    sec.paragraphs.append(f"Warm-up: {number_text(document.get('warmup_h'))} h of every run "
+                          "is left out of its KPIs.")
+    assumption = document.get("assumption") or {}
+    if assumption.get("more_agvs_never_worse"):
+        checked = assumption.get("checked") or []
+        seen = "; ".join(f"{c['design']}: expected {c['expected']}, seen {c['seen']}"
+                         for c in checked) or "no design next to the answer to check"
+        held = "held" if assumption.get("held") else "did NOT hold"
+        sec.paragraphs.append(
+            "Assumed: more AGVs, all else the same, never make a target worse (a fleet below "
+            f"one that fails fails too). Checked on the designs next to the answer: {seen}. "
+            f"The assumption {held}.")
+    else:
+        sec.paragraphs.append("No assumption about the fleet size: every design cheaper than "
+                              "the answer was decided on its own replications (or before any "
+                              "run).")
+    sec.paragraphs.append(runs_sentence(document)
+                          + (f" The search stopped: {document['stopped']}"
+                             if document.get("stopped") else ""))
+    sec.text += sec.paragraphs
+    return sec
