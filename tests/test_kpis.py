@@ -10,6 +10,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+import pytest
 import yaml
 
 from fleet_sim.analysis.kpis import (
@@ -83,6 +84,13 @@ def hand_made_recorder() -> Recorder:
     rec.warnings = Counter({"E_002": 3})
     rec.obstacle_pauses, rec.comm_losses = 4, 1
     rec.commands_sent, rec.command_retries = 7, 1
+    # state of charge at state changes: AGV 0 falls 10 points inside the window, rises, then
+    # falls 10 over 2500-4000 s (1100 of its 1500 s inside); AGV 1 falls 20 in the warm-up,
+    # then 10 over 600-1800 s (900 of 1200 s inside)
+    for time_s, agv, soc in [(0.0, 0, 100.0), (0.0, 1, 100.0), (600.0, 1, 80.0),
+                             (1200.0, 0, 100.0), (1800.0, 1, 70.0), (2000.0, 0, 90.0),
+                             (2500.0, 0, 95.0), (4000.0, 0, 85.0)]:
+        rec.soc(time_s, agv, soc)
     return rec
 
 
@@ -137,6 +145,8 @@ def test_every_kpi_of_a_hand_made_run() -> None:
         "open_order_age_mean_s": 100.0, "open_order_age_p95_s": 100.0,  # 3600 - 3500
         "open_order_age_max_s": 100.0, "orders_unassigned_at_end": 1,
         "gridlock_at_h": None, "gridlock_where": None,
+        # (10 + 10 x 1100/1500 + 10 x 900/1200) % of 960 Wh
+        "energy_used_kwh": pytest.approx((10 + 10 * 1100 / 1500 + 7.5) / 100 * 0.96),
     }
 
 

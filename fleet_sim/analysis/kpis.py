@@ -166,6 +166,9 @@ CATALOGUE: tuple[Kpi, ...] = (
     Kpi("charging_queue_wait_mean_s", "s", "mean time from asking for a charger to getting one, "
         "requests still waiting at the end counted to the end (none if no AGV asked)"),
     Kpi("charger_waits_open_at_end", "count", "AGVs still waiting for a charger at the end"),
+    Kpi("energy_used_kwh", "kWh", "energy the fleet drew from its batteries in the window (each "
+        "fall of the state of charge between two state changes x the battery's capacity, the "
+        "part inside the window; none without a battery model)"),
     Kpi("commands_sent", "count", "commands the fleet manager sent, whole run"),
     Kpi("command_retries", "count", "commands sent again after no answer, whole run"),
     Kpi("obstacle_pauses", "count", "obstacle pauses (RSS-AGV-001 4.2.3), whole run"),
@@ -212,6 +215,7 @@ BETTER: Mapping[str, Literal["higher", "lower"]] = {
     "idle_with_orders_waiting_pct": "lower", "orders_failed": "lower",
     "orders_reassigned": "lower", "charging_queue_wait_mean_s": "lower",
     "command_retries": "lower", "orders_open_at_end": "lower", "distance_km": "lower",
+    "energy_used_kwh": "lower",
 }
 """Which way a KPI is better, where a planner would agree without knowing the study
 (utilisation, charges, time per state: neither); `kpi_better` adds the per-code counts
@@ -228,7 +232,7 @@ SHORT_NAMES: Mapping[str, str] = {
     "orders_open_at_end": "orders open at the end",
     "open_order_age_mean_s": "mean age of open orders",
     "open_order_age_p95_s": "p95 age of open orders", "open_order_age_max_s": "oldest open order",
-    "wall_s": "wall-clock time",
+    "energy_used_kwh": "energy used", "wall_s": "wall-clock time",
 }
 """A KPI's name in a planner's words, for sentences and axes (else its key, spaced)."""
 
@@ -363,6 +367,9 @@ class KpiSums:
         self._queue_last: tuple[float, int] | None = None
         self.charges = 0
         self.charge_wait_sum_s = 0.0
+        self.soc_used_pct: dict[int, float] = {}
+        """Per AGV, the falls of its state of charge in the window, in percentage points."""
+        self._soc_last: dict[int, tuple[float, float]] = {}
         self.errors_by_code: Counter[str] = Counter()
         self.idle_waiting = IdleWhileWaiting(start_s, end_s)
         self.closed = False
@@ -418,7 +425,20 @@ class KpiSums:
                     - _clip(o.assigned_s, start, end)
 
     def soc_samples(self, rows: Sequence[SocSample]) -> None:
-        """No KPI reads the state of charge (soc.parquet is for plots)."""
+        """energy_used_kwh: each fall of an AGV's state of charge between two of its samples
+        (its state changes), the share of that time inside the window."""
+        start, end = self.start_s, self.end_s
+        for t1, agv, soc in rows:
+            last = self._soc_last.get(agv)
+            self._soc_last[agv] = (t1, soc)
+            if last is None:
+                self.soc_used_pct.setdefault(agv, 0.0)
+                continue
+            t0, before = last
+            if before > soc and t1 > t0:
+                inside = max(0.0, min(t1, end) - max(t0, start)) / (t1 - t0)
+                self.soc_used_pct[agv] = self.soc_used_pct.get(agv, 0.0) \
+                    + (before - soc) * inside
 
     def queue_lengths(self, rows: Sequence[QueueLength]) -> None:
         """The integral of the waiting-order count over the window (a step function, zero
@@ -545,6 +565,7 @@ class KpiSums:
             "charging_queue_wait_mean_s": _charge_wait_mean(
                 self.charge_wait_sum_s, self.charges, recorder.charger_waits_open, end),
             "charger_waits_open_at_end": len(recorder.charger_waits_open),
+            "energy_used_kwh": self._energy_kwh(scenario),
             "commands_sent": recorder.commands_sent,
             "command_retries": recorder.command_retries,
             "obstacle_pauses": recorder.obstacle_pauses,
@@ -566,6 +587,18 @@ class KpiSums:
         if recorder.zone_wait_s:
             out["zone_wait_s"] = {z: _round(s) for z, s in recorder.zone_wait_s.items()}
         return out
+
+    def _energy_kwh(self, scenario: Scenario) -> float | None:
+        """energy_used_kwh from the falls of charge and each AGV's battery capacity."""
+        profiles = scenario.fleet.agv_profiles
+        if all(p.battery is None for p in profiles):
+            return None
+        wh = 0.0
+        for agv, used_pct in sorted(self.soc_used_pct.items()):
+            battery = profiles[agv].battery if agv < len(profiles) else None
+            if battery is not None:
+                wh += used_pct / 100.0 * battery.capacity_wh
+        return _round(wh / 1000.0)
 
     def by_type(self, scenario: Scenario) -> dict[str, Any]:
         """`BY_TYPE` for each type of a mixed fleet, keyed ``<type>.<kpi>``, in fleet order."""

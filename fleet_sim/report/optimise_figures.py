@@ -46,7 +46,8 @@ class DesignPoint:
     verdict: str
     values: Sequence[tuple[float | None, float | None, float | None]]
     """Per target: (mean, 95 % interval low, high); None where there is no value."""
-    answer: bool = False
+    highlight: str = ""
+    """Words to ring the point with: "the answer", or "closest" when no design meets."""
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,7 @@ def price_against_targets(points: Sequence[DesignPoint], targets: Sequence[Targe
                           currency: str) -> Figure:
     """One panel per target: every design run at its price (y) and its KPI (x: mean dot,
     95 % interval bar), marked by verdict; the bound dashed, its tolerance band shaded; the
-    answer ringed and named."""
+    answer (else the closest design) ringed and named."""
     cols = max(1, len(targets))
     fig, axes = plt.subplots(1, cols, figsize=(max(6.0, 4.8 * cols), 4.4), squeeze=False,
                              sharey=True)
@@ -84,15 +85,17 @@ def price_against_targets(points: Sequence[DesignPoint], targets: Sequence[Targe
                         solid_capstyle="butt", zorder=2)
             ax.plot([mean], [p.price], marker=marker, color=colour, ms=7, ls="none",
                     zorder=3, markeredgecolor="white", markeredgewidth=0.5)
-            if p.answer:
+            if p.highlight:
                 ax.plot([mean], [p.price], marker="o", ms=16, mfc="none", ls="none",
                         mec=ANSWER_COLOUR, mew=2.0, zorder=4)
-                ax.annotate("the answer", (mean, p.price), xytext=(0, 11),
+                ax.annotate(p.highlight, (mean, p.price), xytext=(0, 11),
                             textcoords="offset points", fontsize=7, color=ANSWER_COLOUR,
                             ha="center", va="bottom", zorder=5)
         side = "at least" if target.at_least else "at most"
         ax.set_xlabel(kpi_label(target.kpi), fontsize=8)
-        ax.set_title(f"target: {side} {target.bound:g}", fontsize=9)
+        unit = kpi_label(target.kpi).partition(" [")[2].removesuffix("]")
+        unit = f" {unit}" if unit and unit != "count" else ""
+        ax.set_title(f"target: {side} {target.bound:g}{unit}", fontsize=9)
         ax.margins(y=0.12)
         ax.grid(color="#f1f3f4", zorder=0)
         ax.tick_params(labelsize=8)
@@ -101,8 +104,9 @@ def price_against_targets(points: Sequence[DesignPoint], targets: Sequence[Targe
     handles = [Line2D([], [], color=VERDICT_STYLE.get(v, ("#202124", "o"))[0],
                       marker=VERDICT_STYLE.get(v, ("#202124", "o"))[1], ls="none", label=v)
                for v in seen]
-    handles.append(Line2D([], [], marker="o", ms=11, mfc="none", mec=ANSWER_COLOUR, mew=2.0,
-                          ls="none", label="the answer"))
+    handles += [Line2D([], [], marker="o", ms=11, mfc="none", mec=ANSWER_COLOUR, mew=2.0,
+                       ls="none", label=words)
+                for words in dict.fromkeys(p.highlight for p in points if p.highlight)]
     handles.append(Line2D([], [], color="#202124", ls="--", label="target"))
     handles.append(Line2D([], [], color="#e8eaed", lw=6, label="target ± tolerance"))
     fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 7), fontsize=7,

@@ -4,7 +4,7 @@
 The first screen answers in a planner's words: "The cheapest system that meets both targets
 (throughput at least 95 % of demand; p95 lead time at most 600 s): 16 AGVs, opportunity
 charging, a fifth charger at C05: 742,000 EUR.", what it reaches, then "No cheaper design does:
-the same system with 15 AGVs (704,000 EUR) misses p95 lead time (631 s, 604 to 658)."; the
+the same system with 15 AGVs (704,000 EUR) misses p95 lead time 631 s (604 to 658)."; the
 guarantee, and the runs used against the full grid. When no design meets: which target binds
 and the design that comes closest. Below: price against each target's KPI (every design run,
 marked by its verdict), the table of every design, the chosen design's layout with its changes
@@ -15,11 +15,14 @@ Decisions, where the issue is silent:
 * The sentences are built here from optimise.json's answer and designs (the KPIs by their
   names and units from the catalogue, fleet_sim.analysis.kpis), not its ``statement``, which
   names KPIs by their keys; the numbers are the same. The guarantee is optimise.json's, with
-  the KPIs in words.
-* The design named beside the answer is the one `fleet-sim optimise` names: one AGV fewer with
-  the same other choices where the space has it, else the dearest design cheaper than the
-  answer, whatever its verdict (a ruled-out or refused design says why); then how the other
-  cheaper designs were decided, counted by verdict.
+  the KPIs in words; when no design meets, what it says of the space instead ("no design meets
+  every target by more than its tolerance"); none when the search stopped early.
+* The design named beside the answer: one AGV fewer with the same other choices where the space
+  has it, else the dearest design cheaper than the answer, whatever its verdict (optimise.json's
+  statement names only a design that was run; here a ruled-out or refused one is named with
+  why, so the planner sees why the cheaper design is not the answer); then how the other
+  cheaper designs were decided, counted by verdict. "No cheaper design does" becomes "No
+  cheaper design is shown to meet them" when a cheaper one is undecided.
 * Designs are shown in words (fleet_sim.study.optimise.design_words) when the experiment file
   can be read again and its design space still matches optimise.json (the same labels in the
   same order), else by their labels; the layout is drawn only then. If the file is gone, no
@@ -184,11 +187,32 @@ def _cheaper(d: Mapping[str, Any], than: Mapping[str, Any]) -> bool:
     return (float(d["price"]), int(d["index"])) < (float(than["price"]), int(than["index"]))
 
 
-def _counted(verdicts: Sequence[str]) -> str:
+def _counts(verdicts: Sequence[str]) -> dict[str, int]:
     counts: dict[str, int] = {}
     for v in verdicts:
         counts[v] = counts.get(v, 0) + 1
-    return _and([f"{n} {v}" for v, n in counts.items()])
+    return counts
+
+
+VERDICT_VERBS = {"fails": ("fails", "fail"), "ruled out": ("is ruled out", "are ruled out"),
+                 "refused": ("does not fit its layout", "do not fit their layout"),
+                 "undecided": ("is undecided", "are undecided"),
+                 "not examined": ("was not examined", "were not examined")}
+"""A verdict of designs cheaper than the answer, as a verb: (one design, several)."""
+
+
+def _others_sentence(verdicts: Sequence[str]) -> str:
+    """``Of the other 5 cheaper designs, 4 fail and 1 is ruled out.``"""
+    counts = _counts(verdicts)
+
+    def verb(v: str, n: int) -> str:
+        one, many = VERDICT_VERBS.get(v, (f"is {v}", f"are {v}"))
+        return one if n == 1 else many
+
+    if len(verdicts) == 1:
+        return f"The other cheaper design {verb(verdicts[0], 1)}."
+    return (f"Of the other {len(verdicts)} cheaper designs, "
+            + _and([f"{n} {verb(v, n)}" for v, n in counts.items()]) + ".")
 
 
 def answer_statements(document: Mapping[str, Any], words: Sequence[str]) -> list[str]:
@@ -232,10 +256,12 @@ def answer_statements(document: Mapping[str, Any], words: Sequence[str]) -> list
             subject = f"the next cheaper design, {words[int(below['index'])]}"
         price = money(below["price"], currency)
         price = f"({price})" if subject.startswith("the same") else f"({price}),"
-        text = f"No cheaper design does: {subject} {price} {_verdict_phrase(below)}."
+        lead = "No cheaper design is shown to meet them" if \
+            any(d["verdict"] == "undecided" for d in cheaper) else "No cheaper design does"
+        text = f"{lead}: {subject} {price} {_verdict_phrase(below)}."
         others = [d["verdict"] for d in _by_price(cheaper) if d is not below]
         if others:
-            text += (f" Of the {len(others)} other cheaper designs: {_counted(others)}.")
+            text += " " + _others_sentence(others)
         out.append(text)
     undecided = list(document.get("undecided_cheaper") or [])
     if undecided:
@@ -246,15 +272,23 @@ def answer_statements(document: Mapping[str, Any], words: Sequence[str]) -> list
 
 
 def guarantee_sentence(document: Mapping[str, Any]) -> str:
-    """optimise.json's guarantee, with the KPIs in words."""
+    """optimise.json's guarantee, with the KPIs in words; when no design meets, what it says
+    of the space; none when the search stopped early."""
+    if document.get("stopped"):
+        return "The search stopped before it was done: its guarantee does not hold yet."
     tolerance: Mapping[str, float] = document.get("tolerance") or {}
     if not tolerance:
         return str(document.get("guarantee", ""))
     within = "; ".join(f"{kpi_short(k)} within {number_text(v)}{_unit(k)}"
                        for k, v in tolerance.items())
-    return (f"With probability at least {100 * float(document['confidence']):g} %, the design "
-            f"named meets every target (within its tolerance: {within}), and no cheaper design "
-            "meets them all by more than that tolerance.")
+    chance = f"With probability at least {100 * float(document['confidence']):g} %"
+    if document.get("answer") is None:
+        undecided = " (the designs undecided at the replication limit excepted)" \
+            if document.get("undecided_cheaper") else ""
+        return (f"{chance}, no design in the space meets every target by more than its "
+                f"tolerance ({within}){undecided}.")
+    return (f"{chance}, the design named meets every target (within its tolerance: {within}), "
+            "and no cheaper design meets them all by more than that tolerance.")
 
 
 def runs_sentence(document: Mapping[str, Any]) -> str:
@@ -343,6 +377,10 @@ def _section_chart(document: Mapping[str, Any]) -> CompareSection:
     sec = CompareSection(heading="Price against each target")
     designs: list[dict[str, Any]] = document["designs"]
     answer = answer_index(document)
+    highlight = "the answer"
+    if answer is None and document.get("closest"):
+        answer = _index_of(document, str(document["closest"]["design"]))
+        highlight = "closest"
     run = [d for d in designs if d["replications"]]
     if not run or not designs:
         sec.paragraphs.append("No design was run: there is nothing to draw.")
@@ -353,13 +391,14 @@ def _section_chart(document: Mapping[str, Any]) -> CompareSection:
                for r in designs[0]["targets"]]
     points = [ofigs.DesignPoint(float(d["price"]), str(d["verdict"]),
                                 [(r["mean"], r["ci_low"], r["ci_high"]) for r in d["targets"]],
-                                answer=int(d["index"]) == answer) for d in run]
+                                highlight if int(d["index"]) == answer else "")
+              for d in run]
     sec.paragraphs.append(
         f"Every design that was run ({len(run)} of {len(designs)}): its price against each "
         "target's KPI, the mean with its 95 % interval, marked by its verdict. The dashed line "
         "is the target; in the grey band round it (± the tolerance) either verdict may be "
-        "right. The answer is ringed in blue. Designs never run (not needed, ruled out, "
-        "refused) are in the table below.")
+        "right. The answer (else the design that comes closest) is ringed in blue. Designs "
+        "never run (not needed, ruled out, refused) are in the table below.")
     sec.figures.append(_figure("price_against_targets",
                                "Price against each target's KPI, every design run",
                                ofigs.price_against_targets(points, targets,
@@ -391,9 +430,10 @@ def _section_designs(document: Mapping[str, Any], words: Sequence[str]) -> Compa
              str(d["replications"]), *(interval_cell(r) for r in d["targets"]), _reason(d)]
             for d in _by_price(designs)]
     sec = CompareSection(heading="Every design", tables=[Table(header, rows, "designs")])
-    counts = _counted([str(d["verdict"]) for d in _by_price(designs)])
+    counts = ", ".join(f"{v}: {n}" for v, n in
+                       _counts([str(d["verdict"]) for d in _by_price(designs)]).items())
     sec.paragraphs.append(
-        f"All {len(designs)} designs by price: {counts}. A design costlier than one shown to "
+        f"All {len(designs)} designs by price ({counts}). A design costlier than one shown to "
         "meet every target is not needed and never run; a fleet below the AGVs the analytic "
         "estimate keeps busy is ruled out, a design whose AGVs do not fit its layout refused, "
         "both before any run.")
@@ -506,7 +546,7 @@ def _section_target_costs(document: Mapping[str, Any], words: Sequence[str]) -> 
                      str(r["reason"]) if r["design"] is None else ""])
         sec.text.append(f"{relaxed} (instead of {target}): {sentence}.")
     sec.tables.append(Table(["target", "relaxed to", "cheapest design", "price", "saving",
-                             "why undecided"], rows, "target-costs"))
+                             "why not decided"], rows, "target-costs"))
     saving_note = "" if answer is not None else \
         " No design meets the targets as they stand, so there is no saving to count."
     sec.paragraphs.append(

@@ -75,6 +75,9 @@ from fleet_sim.study.search import RunBudget, RunLimit, drive, run_kpis
 from fleet_sim.study.warmup import settle_warmup
 
 OPTIMISE_FILE = "optimise.json"
+ENERGY = "energy_used_kwh"
+"""Reported per design (the fleet's energy in the measured window), never part of the price:
+the procedures need a price known without simulation."""
 REFUSED = "refused"
 NOT_EXAMINED = "not examined"
 
@@ -123,6 +126,8 @@ def optimise(experiment: Experiment, out_dir: Path, workers: int = 0,
                            "Fewer decisions or levels, or a lower optimise.max_replications")
         budget.error = OptimiseLimit
         made: list[RunSpec] = []
+        energy: dict[int, dict[int, float]] = {}
+        """Per design: replication -> energy_used_kwh (reported, not optimised)."""
         with pool, Progress(stream=stream, quiet=quiet) as progress:
             largest = max((space.count(d) or 0 for d in space.designs), default=0) or None
             experiment = settle_warmup(experiment, out_dir, [{}], largest, pool, progress)
@@ -152,9 +157,11 @@ def optimise(experiment: Experiment, out_dir: Path, workers: int = 0,
                 execute(runs, out_dir, quiet=True, pool=pool)
                 made.extend(runs)
                 for (i, r), spec in zip(request, runs, strict=True):
-                    measured = run_kpis(out_dir, spec, kpis)  # a run that failed: no value
-                    search.record(i, r, [math.nan] * len(kpis) if measured is None
-                                  else measured)
+                    measured = run_kpis(out_dir, spec, [*kpis, ENERGY])
+                    if measured is None:  # a run that failed: no value, its targets fail
+                        measured = [math.nan] * (len(kpis) + 1)
+                    search.record(i, r, measured[:-1])
+                    energy.setdefault(i, {})[r] = measured[-1]
                 _progress(progress, space, search, len(budget.used), config.currency)
 
             stopped: str | None = None
@@ -165,7 +172,7 @@ def optimise(experiment: Experiment, out_dir: Path, workers: int = 0,
             except OptimiseLimit as exc:
                 stopped = str(exc)
             document = _document(experiment, space, search, h2, beta, len(budget.used),
-                                 checks, stopped)
+                                 checks, stopped, energy)
         write_json_atomic(out_dir / OPTIMISE_FILE, document)
         if stopped is not None:
             raise OptimiseLimit(stopped)
@@ -247,7 +254,7 @@ def _target_rows(targets: Sequence[Target], values: np.ndarray) -> list[dict[str
 
 def _document(experiment: Experiment, space: DesignSpace, search: CheapestSearch, h2: float,
               beta: float, runs_used: int, checks: list[dict[str, object]],
-              stopped: str | None) -> dict[str, Any]:
+              stopped: str | None, energy: dict[int, dict[int, float]]) -> dict[str, Any]:
     config = space.config
     targets = list(experiment.spec.targets)
     width = len(targets)
@@ -265,8 +272,10 @@ def _document(experiment: Experiment, space: DesignSpace, search: CheapestSearch
             "decided_at": verdict.at if verdict is not None and verdict.decision != UNDECIDED
             else None,
             "check": search.checks.get(design.index),
+            "energy_used_kwh": _energy_mean(energy.get(design.index, {}), len(values)),
             "targets": _target_rows(targets, values)})
     answer = search.answer()
+    base = experiment.scenario(dict(experiment.points[0]) if experiment.points else None)
     examined = [d for d in designs if d["replications"]]
     reps = designs[answer]["replications"] if answer is not None else config.min_replications
     candidates = [d for d in designs if d["verdict"] not in (REFUSED, RULED_OUT)]
@@ -286,12 +295,13 @@ def _document(experiment: Experiment, space: DesignSpace, search: CheapestSearch
                        "checked": [{**c, "design": designs[int(str(c["design"]))]["label"]}
                                    for c in checks],
                        "held": all(bool(c["agrees"]) for c in checks)},
-        "warmup_h": experiment.scenario(dict(experiment.points[0]) if experiment.points
-                                        else None).warmup_h,
+        "warmup_h": base.warmup_h,
+        "window_h": base.duration_h - base.warmup_h,
         "answer": None if answer is None else {
             "design": designs[answer]["label"], "choices": designs[answer]["choices"],
             "words": design_words(space, space.designs[answer]),
             "price": space.designs[answer].price, "replications": reps,
+            "energy_used_kwh": designs[answer]["energy_used_kwh"],
             "targets": designs[answer]["targets"]},
         "undecided_cheaper": [d["label"] for d in designs
                               if d["verdict"] == UNDECIDED and
@@ -307,6 +317,12 @@ def _document(experiment: Experiment, space: DesignSpace, search: CheapestSearch
     document["designs"] = designs
     document["statement"] = statement(document, space, search)
     return document
+
+
+def _energy_mean(values: dict[int, float], replications: int) -> float | None:
+    """Mean energy_used_kwh over the design's first `replications` (None: no value)."""
+    xs = [values[r] for r in range(replications) if r in values and not math.isnan(values[r])]
+    return float(np.mean(xs)) if xs else None
 
 
 def guarantee_words(confidence: float, targets: Sequence[Target],
