@@ -296,10 +296,14 @@ def test_a_one_decision_space_gives_the_answer_of_size(tmp_path: Path) -> None:
                         "more_agvs_never_worse": True}
     file = tmp_path / "one.yaml"
     file.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-    outcome = optimise(load_experiment(file), tmp_path / "o", workers=2, quiet=True)
-    (sized,) = size_fleet(load_experiment(sizing), tmp_path / "s", workers=2, quiet=True)
+    out = tmp_path / "o"
+    (sized,) = size_fleet(load_experiment(sizing), out, workers=2, quiet=True)
+    shared = out / "runs" / "fleet.size=2__r00" / "kpis.json"
+    before = shared.stat().st_mtime_ns
+    outcome = optimise(load_experiment(file), out, workers=2, quiet=True)
     assert outcome.document["answer"]["choices"] == {"fleet.size": sized.recommended} \
         == {"fleet.size": 2}
+    assert shared.stat().st_mtime_ns == before  # size's run, shared: not made again
     assumption = outcome.document["assumption"]
     assert assumption["more_agvs_never_worse"] and assumption["held"]
     # 1 AGV is ruled out by the analytic estimate (1.66 busy), so only 3 AGVs is checked

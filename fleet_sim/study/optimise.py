@@ -120,7 +120,9 @@ def optimise(experiment: Experiment, out_dir: Path, workers: int = 0,
     check_extras(experiment, scheduler)
     targets = list(experiment.spec.targets)
     kpis = [t.kpi for t in targets]
-    with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
+    columns = [*experiment.factor_names, *(k for k in space.config.decisions),
+               *(f"{LAYOUT_PREFIX}{g}" for g in space.config.layout_decisions)]
+    with folder_lock(out_dir, stream), tables_written(experiment, out_dir, columns):
         pool = make_pool(scheduler, workers, dask_timeout_s=dask_timeout_s)
         budget = RunBudget(max_runs, "design search", OPTIMISE_FILE,
                            "Fewer decisions or levels, or a lower optimise.max_replications")

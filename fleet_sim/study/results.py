@@ -39,16 +39,18 @@ from fleet_sim.study.runner import DAMAGED, FAILED, MANIFEST, OK, run_problem
 
 
 @contextmanager
-def tables_written(experiment: Experiment, out_dir: Path) -> Iterator[None]:
+def tables_written(experiment: Experiment, out_dir: Path,
+                   columns: Sequence[str] | None = None) -> Iterator[None]:
     """Write the summary tables when the block ends, also when an exception (Ctrl-C, a run
-    function that fails to report) ends it, so the tables keep up with the runs finished."""
+    function that fails to report) ends it, so the tables keep up with the runs finished.
+    `columns`: what sets a run apart (default: the experiment's factors)."""
     try:
         yield
     except BaseException:
         with contextlib.suppress(Exception):  # the exception that ended the block matters more
-            write_tables(experiment, out_dir)
+            write_tables(experiment, out_dir, columns)
         raise
-    write_tables(experiment, out_dir)
+    write_tables(experiment, out_dir, columns)
 
 
 
@@ -159,16 +161,19 @@ def read_summary(out_dir: Path, factor_names: Sequence[str]) -> tuple[pd.DataFra
     return collect_summary(out_dir, factor_names, statuses=statuses), True
 
 
-def write_tables(experiment: Experiment, out_dir: Path) -> pd.DataFrame:
+def write_tables(experiment: Experiment, out_dir: Path,
+                 columns: Sequence[str] | None = None) -> pd.DataFrame:
     """summary.parquet, stats.parquet and sweep.duckdb from the run folders on disk (with a
-    `variant` column, and statistics per variant, when the folder holds a comparison)."""
+    `variant` column, and statistics per variant, when the folder holds a comparison).
+    `columns`: what sets a run apart (default: the experiment's factors; a design search's
+    decisions)."""
     from fleet_sim.analysis.stats import point_stats
 
-    summary = collect_summary(out_dir, experiment.factor_names)
+    names = list(experiment.factor_names if columns is None else columns)
+    summary = collect_summary(out_dir, names)
     with atomic_path(out_dir / "summary.parquet") as tmp:
         summary.to_parquet(tmp, index=False)
-    by = ["variant", *experiment.factor_names] if "variant" in summary.columns \
-        else experiment.factor_names
+    by = ["variant", *names] if "variant" in summary.columns else names
     stats = point_stats(summary, by)
     with atomic_path(out_dir / "stats.parquet") as tmp:
         stats.to_parquet(tmp, index=False)
