@@ -309,3 +309,12 @@ def test_a_one_decision_space_gives_the_answer_of_size(tmp_path: Path) -> None:
     # 1 AGV is ruled out by the analytic estimate (1.66 busy), so only 3 AGVs is checked
     assert [c["agvs"] for c in assumption["checked"]] == [3]
     assert outcome.document["designs"][0]["verdict"] == "ruled out"
+
+
+def test_on_a_dask_cluster_the_same_answer_to_the_byte(tmp_path: Path) -> None:
+    pytest.importorskip("dask.distributed")
+    experiment = load_experiment(DESIGN)
+    optimise(experiment, tmp_path / "pool", workers=2, quiet=True)
+    optimise(experiment, tmp_path / "dask", workers=2, scheduler="local", quiet=True)
+    assert (tmp_path / "dask" / "optimise.json").read_bytes() == \
+        (tmp_path / "pool" / "optimise.json").read_bytes()
