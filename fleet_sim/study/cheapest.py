@@ -158,6 +158,7 @@ class CheapestSearch:
             yield from self._by_price()
         else:
             yield from self._by_count()
+        self._prune()  # what the count searches never reached above the answer
         return self.answer()
 
     def _by_price(self) -> Generator[Request, None, None]:
