@@ -244,6 +244,7 @@ def test_optimise_writes_the_answer_and_every_design(tmp_path: Path) -> None:
     assert doc["answer"]["price"] == 130
     assert doc["statement"].startswith("The cheapest system that meets both targets")
     assert "1 AGV, 2 s handling at both stations: 130 kEUR" in doc["statement"]
+    assert "p95 lead time at most 600 s" in doc["statement"]  # KPIs in words
     verdicts = {d["label"]: d["verdict"] for d in doc["designs"]}
     # one AGV at 20 s + 30 s handling carries 31.2 orders/h < 33: ruled out without a run
     assert verdicts["fleet.size=1, handling=as_it_is"] == "ruled out"
@@ -282,7 +283,7 @@ def test_when_no_design_meets_it_names_the_binding_target_and_the_closest(
     assert doc["answer"] is None
     assert doc["closest"]["binding_target"] == "lead_time_p95_s"
     assert doc["statement"].startswith("No design in the space meets both targets")
-    assert "The target that binds is lead_time_p95_s" in doc["statement"]
+    assert "The target that binds is p95 lead time at most 40 s" in doc["statement"]
 
 
 def test_a_one_decision_space_gives_the_answer_of_size(tmp_path: Path) -> None:

@@ -69,6 +69,8 @@ from typing import Any, Literal
 
 import numpy as np
 
+from fleet_sim.analysis.paired import number_text
+from fleet_sim.config.experiment import Target
 from fleet_sim.config.scenario import Scenario, setup_warnings
 from fleet_sim.model.error_codes import CODES
 from fleet_sim.model.not_dispatched import NOT_DISPATCHED, NOT_DISPATCHED_END, NotDispatched
@@ -977,3 +979,11 @@ def _reasons_text(by_reason: Mapping[str, float]) -> str:
     """`` (waiting_for_charger 61.2 %, link_lost 0.1 %)``: the reasons above zero."""
     shown = [f"{reason} {value:,.1f} %" for reason, value in by_reason.items() if value > 0]
     return f" ({', '.join(shown)})" if shown else ""
+
+
+def target_words(target: Target) -> str:
+    """A target in words, its unit from the catalogue: ``throughput at least 95 % of demand``."""
+    name, _, unit = kpi_label(target.kpi).partition(" [")
+    unit = unit.removesuffix("]")
+    relation = "at least" if target.higher_is_better else "at most"
+    return f"{name} {relation} {number_text(target.bound)}" + (f" {unit}" if unit else "")

@@ -80,7 +80,14 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from fleet_sim.analysis.kpis import BY_REASON, kpi_better, kpi_label, kpi_short, kpi_unit
+from fleet_sim.analysis.kpis import (
+    BY_REASON,
+    kpi_better,
+    kpi_label,
+    kpi_short,
+    kpi_unit,
+    target_words,
+)
 from fleet_sim.analysis.paired import number_text, signed_text
 from fleet_sim.analysis.replay import LEAD_LABELS, LEAD_PARTS, lead_times, load_run, state_spells
 from fleet_sim.analysis.stats import (
@@ -1142,14 +1149,6 @@ def build_report(out_dir: Path) -> Report:
                       answer_title="What the sweep shows")
     title = "Fleet sizing report" if data.kind == "sizing" else "Fleet sizing sweep"
     return Report(f"{title}: {name}", lead, statements, estimates, sections)
-
-
-def target_words(target: Target) -> str:
-    """A target in words, its unit from the catalogue: ``throughput at least 95 % of demand``."""
-    name, _, unit = kpi_label(target.kpi).partition(" [")
-    unit = unit.removesuffix("]")
-    relation = "at least" if target.higher_is_better else "at most"
-    return f"{name} {relation} {number_text(target.bound)}" + (f" {unit}" if unit else "")
 
 
 def question(data: ReportData) -> str:

@@ -60,6 +60,7 @@ from fleet_sim.study.cheapest import (
     CheapestSearch,
     Structure,
 )
+from fleet_sim.study.optimise_words import answer_statements, guarantee_sentence, money
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
 from fleet_sim.study.runner import (
@@ -213,8 +214,9 @@ def _ruled_out(experiment: Experiment, space: DesignSpace, refused: dict[int, st
             busy[rest] = estimate.agvs
         count = space.count(design) or 0
         if count < busy[rest] - 1e-9:
-            out[design.index] = (f"{count} AGVs are fewer than the {busy[rest]:.2f} the "
-                                 "analytic estimate keeps busy at the mean demand")
+            out[design.index] = (f"{count} AGV{' is' if count == 1 else 's are'} fewer than "
+                                 f"the {busy[rest]:.2f} the analytic estimate keeps busy at "
+                                 "the mean demand")
     if busy:
         low, high = min(busy.values()), max(busy.values())
         progress.note(f"analytic estimate: {low:.2f} to {high:.2f} AGVs busy at the mean "
@@ -223,11 +225,6 @@ def _ruled_out(experiment: Experiment, space: DesignSpace, refused: dict[int, st
 
 
 # ---- optimise.json -----------------------------------------------------------------------------
-
-
-def money(value: float, currency: str) -> str:
-    """742,000 EUR."""
-    return f"{value:,.0f} {currency}"
 
 
 def _status(search: CheapestSearch, i: int, refused: set[int]) -> str:
@@ -286,7 +283,6 @@ def _document(experiment: Experiment, space: DesignSpace, search: CheapestSearch
         "horizon_years": config.horizon_years, "confidence": config.confidence,
         "targets": [t.describe() for t in targets],
         "tolerance": dict(config.tolerance),
-        "guarantee": guarantee_words(config.confidence, targets, config.tolerance),
         "procedure": {"name": "F_B feasibility checks in order of price (Batur and Kim 2010; "
                               "Andradóttir and Kim 2010), Bonferroni over designs (common "
                               "random numbers)",
@@ -317,7 +313,10 @@ def _document(experiment: Experiment, space: DesignSpace, search: CheapestSearch
         document["closest"] = closest(designs, targets, config.tolerance)
     document["target_costs"] = target_costs(experiment, space, search, h2)
     document["designs"] = designs
-    document["statement"] = statement(document, space, search)
+    words = [design_words(space, d) for d in space.designs]
+    document["guarantee"] = guarantee_sentence(document)
+    document["statement"] = " ".join([*answer_statements(document, words),
+                                      document["guarantee"]])
     return document
 
 
@@ -325,14 +324,6 @@ def _energy_mean(values: dict[int, float], replications: int) -> float | None:
     """Mean energy_used_kwh over the design's first `replications` (None: no value)."""
     xs = [values[r] for r in range(replications) if r in values and not math.isnan(values[r])]
     return float(np.mean(xs)) if xs else None
-
-
-def guarantee_words(confidence: float, targets: Sequence[Target],
-                    tolerance: dict[str, float]) -> str:
-    within = "; ".join(f"{t.kpi} within {tolerance[t.kpi]:g}" for t in targets)
-    return (f"With probability at least {100 * confidence:g} %, the design named meets every "
-            f"target (within its tolerance: {within}), and no cheaper design meets them all by "
-            "more than that tolerance.")
 
 
 def design_words(space: DesignSpace, design: Design) -> str:
@@ -438,69 +429,6 @@ def _inferred(search: CheapestSearch, i: int, fails: dict[int, bool],
         if len(values) >= search.n0 and check(values, cons, search.n0, h2).decision == FAILS:
             return True
     return False
-
-
-def statement(document: dict[str, Any], space: DesignSpace, search: CheapestSearch) -> str:
-    """The answer in one paragraph."""
-    currency = document["currency"]
-    targets = document["targets"]
-    what = "every target" if len(targets) > 2 else \
-        ("both targets" if len(targets) == 2 else "the target")
-    answer = document["answer"]
-    if document.get("stopped"):
-        return f"The search stopped before an answer: {document['stopped']}"
-    if answer is None:
-        close = document.get("closest")
-        text = (f"No design in the space meets {what} ({'; '.join(targets)}) with "
-                f"{100 * document['confidence']:g} % confidence.")
-        if close is not None:
-            row = next(r for r in close["targets"] if r["kpi"] == close["binding_target"])
-            text += (f" The target that binds is {close['binding_target']}; the design that "
-                     f"comes closest is {close['design']} ({money(close['price'], currency)}):"
-                     f" {_kpi_words(row)}.")
-        return text
-    text = (f"The cheapest system that meets {what} ({'; '.join(targets)}): {answer['words']}:"
-            f" {money(answer['price'], currency)}. Over {answer['replications']} replications "
-            + "; ".join(_kpi_words(r) for r in answer["targets"]) + ".")
-    below = _just_cheaper(document, space, search)
-    if below is not None:
-        misses = [r for r in below["targets"] if r["meets_bound"] is False] or below["targets"]
-        text += (f" No cheaper design does: {below['label']} "
-                 f"({money(below['price'], currency)}) {below['verdict']}: "
-                 + "; ".join(_kpi_words(r) for r in misses[:2]) + ".")
-    if document["undecided_cheaper"]:
-        text += (" Not decided at the replication limit, and cheaper: "
-                 + ", ".join(document["undecided_cheaper"]) + ".")
-    text += " " + str(document["guarantee"])
-    return text
-
-
-def _just_cheaper(document: dict[str, Any], space: DesignSpace, search: CheapestSearch
-                  ) -> dict[str, Any] | None:
-    """The design to name beside the answer: one AGV fewer with the same choices where it was
-    run, else the dearest examined design cheaper than the answer."""
-    answer = search.answer()
-    if answer is None:
-        return None
-    rows = document.get("designs") or []
-    if not rows:
-        return None
-    if space.count_decision is not None:
-        rest, n = space.rest(space.designs[answer]), space.count(space.designs[answer])
-        for d in space.designs:
-            if space.rest(d) == rest and space.count(d) == (n or 0) - 1 \
-                    and rows[d.index]["replications"]:
-                return dict(rows[d.index])
-    cheaper = [rows[i] for i in search.order if search.cheaper(i, answer)
-               and rows[i]["replications"]]
-    return dict(cheaper[-1]) if cheaper else None
-
-
-def _kpi_words(row: dict[str, Any]) -> str:
-    if row["mean"] is None:
-        return f"{row['kpi']} no value"
-    return (f"{row['kpi']} {row['mean']:.4g} (95 % CI {row['ci_low']:.4g} to "
-            f"{row['ci_high']:.4g}; target {row['target'].split(' ', 1)[1]})")
 
 
 def _num(value: float) -> float | None:
