@@ -698,7 +698,7 @@ def _compare(args: argparse.Namespace) -> int:
     return 1 if outcome.failed else 0
 
 
-@command("report", "HTML and PDF report of a sweep, sizing, compare or optimise results folder",
+@command("report", "HTML and PDF report of a results folder (of sweep, size, compare, optimise)",
          arg("results", type=Path, help="results folder of `sweep`, `size`, `compare` or "
              "`optimise`"),
          arg("--no-pdf", action="store_true", help="write the HTML report only"))
