@@ -31,7 +31,7 @@ def _yaml(path: Path) -> Any:
 
 
 def _is_experiment(data: dict[str, Any]) -> bool:
-    return "scenario" in data and ("factors" in data or "variants" in data)
+    return "scenario" in data and ("factors" in data or "variants" in data or "optimise" in data)
 
 
 def bundled() -> list[tuple[str, Path]]:
