@@ -17,9 +17,10 @@ import yaml
 from fleet_sim.cli import main
 from fleet_sim.config.experiment import load_experiment
 from fleet_sim.report.compare_report import CompareSection
-from fleet_sim.report.optimise_report import answer_statements, build_optimise_report
+from fleet_sim.report.optimise_report import build_optimise_report
 from fleet_sim.report.render import write_report
 from fleet_sim.study.optimise import optimise
+from fleet_sim.study.optimise_words import answer_statements, guarantee_sentence
 from tests.conftest import ROOT, in_browser, write_yaml
 
 DESIGN_FILE = ROOT / "experiments" / "tiny_loop_design.yaml"
@@ -251,6 +252,9 @@ def test_undecided_cheaper_designs_and_a_stopped_search_are_said() -> None:
     assert said[2].endswith("The other cheaper design fails.")
     assert said[3] == ("Not decided at the replication limit, and cheaper: 15 AGVs (more "
                        "replications could still tell).")
+    guarantee = guarantee_sentence({**document, "tolerance": {"lead_time_p95_s": 25}})
+    assert guarantee.endswith("no cheaper design meets them all by more than that tolerance, "
+                              "but for the cheaper design undecided at the replication limit.")
     stopped = {**document, "answer": None, "undecided_cheaper": [], "closest": None,
                "stopped": "the design search would need more than 10000 runs"}
     said = answer_statements(stopped, words)
