@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fleet_sim.analysis.feasibility import Constraint, Verdict, check
-from fleet_sim.study.search import drive, ordered_search, side_by_side
+from fleet_sim.study.search import drive, ordered_search
 
 Request = list[tuple[int, int]]
 """(design, replication) pairs to run."""
@@ -162,45 +162,72 @@ class CheapestSearch:
         return self.answer()
 
     def _by_price(self) -> Generator[Request, None, None]:
-        while True:
-            self._prune()
-            best = self.incumbent()
-            open_ = [i for i in self.order if self.states[i].status == OPEN
-                     and (best is None or self.cheaper(i, best))]
-            if not open_:
-                return
-            chosen = open_[:self.width]
-            step = max(1, self.width // len(chosen))
-            yield [pair for i in chosen for pair in self._next(i, step)]
-            for i in chosen:
-                self._decide(i)
+        """Every design its own search, examined cheapest first."""
+        yield from self._schedule([self._until_decided(i) for i in self.order
+                                   if self.states[i].status == OPEN])
 
     def _by_count(self) -> Generator[Request, None, None]:
+        """One search along the AGV count per combination of the other decisions."""
         assert self.structure is not None
         groups: dict[Hashable, dict[int, int]] = {}
         for i in self.order:
             rest, n = self.structure.rest[i], self.structure.count[i]
             if self.states[i].status != RULED_OUT:
                 groups.setdefault(rest, {})[n] = i
-        searches = [self._group(members) for members in groups.values() if members]
-        yield from side_by_side(searches)
+        yield from self._schedule([self._group(members) for members in groups.values()
+                                   if members])
 
-    def _group(self, members: dict[int, int]) -> Generator[Request, None, int | None]:
+    def _schedule(self, searches: Sequence[Generator[int, None, object]]
+                  ) -> Generator[Request, None, None]:
+        """Searches that each ask for one design at a time to be taken further: at each step,
+        the cheapest designs asked for (as many as there are workers) get their next
+        replications; a design asked for that a cheaper design's success has made not needed
+        is not run, and its search looks again at once. Searches not served wait."""
+        wants: dict[int, int] = {}
+
+        def advance(k: int) -> None:
+            try:
+                wants[k] = next(searches[k])
+            except StopIteration:
+                wants.pop(k, None)
+
+        for k in range(len(searches)):
+            advance(k)
+        while wants:
+            best = self.incumbent()
+            spared = [k for k, i in wants.items() if best is not None and self.cheaper(best, i)]
+            if spared:
+                for k in spared:
+                    st = self.states[wants[k]]
+                    if st.status == OPEN:
+                        st.status, st.reason = NOT_NEEDED, "a cheaper design meets every target"
+                    advance(k)
+                continue
+            chosen = sorted(wants.items(), key=lambda kv: self.rank[kv[1]])[:self.width]
+            designs = list(dict.fromkeys(i for _, i in chosen))
+            step = max(1, self.width // len(designs))
+            yield [pair for i in designs for pair in self._next(i, step)]
+            for i in designs:
+                self._decide(i)
+            for k, _ in chosen:
+                advance(k)
+
+    def _until_decided(self, i: int) -> Generator[int, None, bool]:
+        """A design's own search: asks for it until it is decided (or not needed)."""
+        while self.states[i].status == OPEN:
+            yield i
+        return self.states[i].status == MEETS
+
+    def _group(self, members: dict[int, int]) -> Generator[int, None, int | None]:
         """One combination's search along the AGV count."""
         counts = sorted(members)
 
-        def meets(n: int) -> Generator[Request, None, bool]:
+        def meets(n: int) -> Generator[int, None, bool]:
             i = members.get(n)
             if i is None:  # a count between the levels (a range with a step): not a design
                 return False
             st = self.states[i]
-            while st.status == OPEN:
-                best = self.incumbent()
-                if best is not None and self.cheaper(best, i):
-                    st.status, st.reason = NOT_NEEDED, "a cheaper design meets every target"
-                    break
-                yield self._next(i, 1)
-                self._decide(i)
+            yield from self._until_decided(i)
             if st.status == FAILS:
                 for m in counts:
                     j = members[m]

@@ -230,10 +230,10 @@ def guarantee_sentence(document: Mapping[str, Any]) -> str:
             if document.get("undecided_cheaper") else ""
         return (f"{chance}, no design in the space meets every target by more than its "
                 f"tolerance ({within}){undecided}.")
-    undecided = len(document.get("undecided_cheaper") or [])
-    but = "" if not undecided else \
-        (f", but for the {undecided} cheaper designs undecided at the replication limit"
-         if undecided > 1 else ", but for the cheaper design undecided at the replication limit")
+    left = len(document.get("undecided_cheaper") or [])
+    but = "" if not left else \
+        (f", but for the {left} cheaper designs undecided at the replication limit"
+         if left > 1 else ", but for the cheaper design undecided at the replication limit")
     return (f"{chance}, the design named meets every target (within its tolerance: {within}), "
             f"and no cheaper design meets them all by more than that tolerance{but}.")
 

@@ -113,8 +113,13 @@ def run_searches(searches: Sequence[Search[Result]], out_dir: Path,
     return drive(side_by_side(searches), run_batch)
 
 
-def ordered_search(meets: Callable[[int], Generator[list[Request], None, bool]], start: int,
-                   lo_limit: int, hi_limit: int) -> Generator[list[Request], None, int | None]:
+Ask = TypeVar("Ask")
+"""What a search yields while it waits: the runs it needs (size), a design to take further
+(optimise)."""
+
+
+def ordered_search(meets: Callable[[int], Generator[Ask, None, bool]], start: int,
+                   lo_limit: int, hi_limit: int) -> Generator[Ask, None, int | None]:
     """The smallest count in lo_limit..hi_limit that meets, assuming a larger count never
     meets less: from `start`, step down (1, 2, 4 ...) while counts meet, or up until one
     does, then bisect between the largest count known not to meet and the smallest known to.
