@@ -5,7 +5,7 @@ PYTHON ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: run sweep shift test bench docs clean
+.PHONY: run sweep shift design test bench docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -42,6 +42,16 @@ sweep: $(STAMP)
 # One 8-hour shift of the warehouse with 12 AGVs, KPIs printed.
 shift: $(STAMP)
 	$(VENV)/bin/fleet-sim run experiments/warehouse_shift.yaml --out results/warehouse_shift
+
+# Which system to buy for the warehouse at 108 orders/h: the cheapest design (fleet, chargers,
+# charging policy, one-way aisle pairs) that meets the targets, with a guarantee; its report.
+design: $(STAMP)
+	@start=$$(date +%s); status=0; \
+	$(VENV)/bin/fleet-sim optimise experiments/warehouse_design.yaml --out results/warehouse_design \
+	  && $(VENV)/bin/fleet-sim report results/warehouse_design || status=$$?; \
+	t=$$(( $$(date +%s) - start )); \
+	echo "make design: wall time $$((t / 60)) min $$((t % 60)) s on $$(nproc) cores"; \
+	exit $$status
 
 # The whole test suite, ruff and mypy included.
 test: $(STAMP)
