@@ -319,3 +319,18 @@ def test_on_a_dask_cluster_the_same_answer_to_the_byte(tmp_path: Path) -> None:
     optimise(experiment, tmp_path / "dask", workers=2, scheduler="local", quiet=True)
     assert (tmp_path / "dask" / "optimise.json").read_bytes() == \
         (tmp_path / "pool" / "optimise.json").read_bytes()
+
+
+def test_a_fleet_the_layout_cannot_hold_is_refused_without_a_run(tmp_path: Path) -> None:
+    # the tiny loop parks 4 AGVs (and starts none elsewhere): 5 and 6 do not fit
+    file = _experiment_file(tmp_path, optimise={"decisions": {"fleet.size": {
+        "min": 1, "max": 6, "price_per_unit": 100}}})
+    outcome = optimise(load_experiment(file), tmp_path / "o", workers=2, quiet=True)
+    rows = {d["label"]: d for d in outcome.document["designs"]}
+    for n in (5, 6):
+        for handling in ("as_it_is", "fast"):
+            row = rows[f"fleet.size={n}, handling={handling}"]
+            assert row["verdict"] == "refused" and row["replications"] == 0
+            assert "parking" in row["reason"] or "start" in row["reason"], row["reason"]
+    assert outcome.document["procedure"]["designs_counted"] == 12 - 4 - 1  # 1 ruled out
+    assert outcome.document["answer"]["price"] == 130
