@@ -334,3 +334,16 @@ def test_a_fleet_the_layout_cannot_hold_is_refused_without_a_run(tmp_path: Path)
             assert "parking" in row["reason"] or "start" in row["reason"], row["reason"]
     assert outcome.document["procedure"]["designs_counted"] == 12 - 4 - 1  # 1 ruled out
     assert outcome.document["answer"]["price"] == 130
+
+
+def test_at_the_run_limit_it_stops_keeping_what_was_decided(tmp_path: Path) -> None:
+    from fleet_sim.study.optimise import OptimiseLimit
+
+    out = tmp_path / "o"
+    with pytest.raises(OptimiseLimit, match="needs more than 8 runs, the limit"):
+        optimise(load_experiment(DESIGN), out, workers=2, quiet=True, max_runs=8)
+    doc = json.loads((out / "optimise.json").read_text(encoding="utf-8"))
+    assert doc["stopped"] and doc["runs_used"] <= 8
+    assert doc["statement"].startswith("The search stopped before it could name an answer")
+    assert "its guarantee does not hold yet" in doc["statement"]
+    assert (out / "summary.parquet").exists()  # the runs made are in the tables

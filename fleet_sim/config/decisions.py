@@ -39,6 +39,10 @@ Decisions, where the issue is silent:
   decisions; a design with layout changes carries them (and its options in its run id).
 * The tolerance of every target's KPI is required: it is what "meets" means to the
   guarantee (fleet_sim.analysis.feasibility).
+
+fleet_sim.config.experiment reads the ``optimise:`` section with the models here and checks it
+with `design_space` when the file is loaded, so what this module needs of that one (run ids,
+seeds, the layout cache) it imports inside its functions.
 """
 
 from __future__ import annotations

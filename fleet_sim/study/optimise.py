@@ -101,12 +101,10 @@ class OptimiseOutcome:
         return str(self.document["statement"])
 
 
-def constraints_of(targets: Sequence[Target], tolerance: dict[str, float],
-                   bounds: dict[int, float] | None = None) -> list[Constraint]:
-    """The targets as the check sees them (`bounds`: target index -> another bound)."""
-    bounds = bounds or {}
-    return [Constraint(bounds.get(i, t.bound), t.higher_is_better, tolerance[t.kpi])
-            for i, t in enumerate(targets)]
+def constraints_of(targets: Sequence[Target], tolerance: dict[str, float]
+                   ) -> list[Constraint]:
+    """The targets as the check sees them."""
+    return [Constraint(t.bound, t.higher_is_better, tolerance[t.kpi]) for t in targets]
 
 
 def optimise(experiment: Experiment, out_dir: Path, workers: int = 0,
