@@ -350,3 +350,22 @@ def test_scheduled_charging_calls_every_agv(tmp_path: Path) -> None:
     went = events(out, "Event_Go_Charge")
     assert sorted(e.agv for e in went) == [0, 1]
     assert min(e.time_s for e in went) == pytest.approx(1800.0)
+
+
+def test_an_agv_on_its_way_to_charge_drives_on_to_its_charger_when_the_link_is_back(
+        tmp_path: Path) -> None:
+    """Booting at 19 % it heads for the charger (Event_Low_Battery), stops at a tag when the
+    FMS link drops at 8 s (Req.Err.011), and when the link is back 30 s later it may not
+    take orders (SOC <= P_050) but drives on to the charger it holds: it must not ask for a
+    charger again and wait for itself until E_201."""
+    out = run(tiny(tmp_path), [], duration_h=1.0,
+              fleet={"size": 1, "vehicle": {"battery": {"initial_soc_pct": 19.0}}},
+              incidents={"link_losses": [{"agv": 0, "at_s": 8.0, "duration_s": 30.0}]})
+    lost, back = events(out, "Event_Heartbeat_Lost"), events(out, "Event_Low_Battery")
+    assert len(lost) == 1 and lost[0].time_s >= 8.0
+    assert not error_events(out, "E_201")
+    arrived = events(out, "Event_Arrived_Charger")
+    assert len(arrived) == 1 and arrived[0].time_s > 38.0  # after the link came back
+    assert back[-1].time_s >= 38.0 and back[-1].to_state == "Moving"
+    assert events(out, "Event_Charge_Complete")
+    assert len(out.recorder.charge_waits) == 1  # one charger asked for, once

@@ -506,9 +506,14 @@ class Vehicle:
         self.fleet.release_parking(place)
 
     # ---- charging ------------------------------------------------------------------------------
-    def _charge(self) -> Proc:
-        trigger = "Event_Low_Battery" if self.soc_pct <= self.rules.bat_low_pct \
+    def _charge_trigger(self) -> str:
+        """Idle -> Moving to a charger: Event_Low_Battery at or below P_050, else a planned
+        charge (Event_Go_Charge)."""
+        return "Event_Low_Battery" if self.soc_pct <= self.rules.bat_low_pct \
             else "Event_Go_Charge"
+
+    def _charge(self) -> Proc:
+        trigger = self._charge_trigger()
         asked = self.env.now
         request = self.fleet.request_charger(self)
         until_dead = self.battery.seconds_until(self.env.now, self.rules.bat_critical_pct)
@@ -593,10 +598,16 @@ class Vehicle:
                 self.fail_now("E_301")
             yield self.link_changed | self.env.timeout(left)
         yield from self.fleet.resume(self)
-        if not self.fire("Event_Heartbeat_Restored", "link back"):
-            # may not move on (SOC at or below P_050): charge first, then resume the trip
-            yield from self._charge()
-            self.fire("Event_Transport_Order", "resume after charging")
+        if self.fire("Event_Heartbeat_Restored", "link back"):
+            return
+        # may not move on (SOC at or below P_050): on the way to the charger it holds, drive on
+        # to it (as when it first set off); on any other trip, charge first, then resume it
+        if self.charger is not None:
+            self.fire(self._charge_trigger(),
+                      f"to_charger {self.charger.id} soc {self.soc_pct:.1f} (link back)")
+            return
+        yield from self._charge()
+        self.fire("Event_Transport_Order", "resume after charging")
 
     def set_link(self, down_delta: int) -> None:
         """An FMS link loss starts (+1) or ends (-1); wakes an AGV waiting for the link."""
