@@ -26,6 +26,8 @@ from typing import Any
 import pandas as pd
 import pytest
 
+from fleet_sim.study.runner import MANIFEST
+
 from .conftest import ROOT, write_yaml
 
 TINY = str(ROOT / "experiments" / "tiny_loop.yaml")
@@ -204,6 +206,28 @@ def test_a_damaged_finished_run_is_named_and_made_again(tmp_path: Path, undistur
     stats, reference = (s[s["kpi"] != "wall_s"].reset_index(drop=True)
                         for s in (stats, reference))
     pd.testing.assert_frame_equal(stats, reference)  # every replication counted again
+
+
+def test_deleting_any_file_of_a_finished_run_makes_the_resume_make_it_again(
+        tmp_path: Path, undisturbed: Path) -> None:
+    """Each file of a finished run deleted in turn (spec.json included: that run used to
+    vanish from the summary with exit 0): the resume names it or finds it unfinished, makes
+    it again, and the summary is the undisturbed one."""
+    names = sorted(p.name for p in sorted((undisturbed / "runs").iterdir())[1].iterdir()
+                   if p.is_file())
+    assert {"spec.json", "kpis.json", "manifest.json", "events.parquet"} <= set(names)
+    experiment = experiment_file(tmp_path)
+    for name in names:
+        out = tmp_path / f"out_{name}"
+        shutil.copytree(undisturbed, out)
+        victim = sorted((out / "runs").iterdir())[1]
+        (victim / name).unlink()
+        again = fleet_sim("sweep", experiment, "--out", out, "--workers", "1", "--quiet",
+                          cwd=tmp_path)
+        assert again.returncode == 0, (name, again.stderr)
+        if name != MANIFEST:  # without its manifest a run is read as an older one: kept
+            assert "1 runs made, 3 already finished" in again.stdout, (name, again.stdout)
+        pd.testing.assert_frame_equal(summary_kpis(out), summary_kpis(undisturbed))
 
 
 def test_orphan_temporaries_are_gone_after_a_resume(tmp_path: Path, undisturbed: Path) -> None:

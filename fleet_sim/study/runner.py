@@ -314,6 +314,9 @@ def run_problem(run_dir: Path) -> str | None:
     kpis.json), in a few words; None when every file it should hold is there, whole and
     readable. A run of an older fleet_sim (kpis.json, no manifest) is checked by reading:
     its kpis.json must hold KPIs and every Parquet file must open."""
+    spec_problem = _spec_problem(run_dir)
+    if spec_problem is not None:  # the summary could not place the run: it would vanish
+        return spec_problem
     manifest_file = run_dir / MANIFEST
     if manifest_file.exists():
         try:
@@ -339,6 +342,20 @@ def run_problem(run_dir: Path) -> str | None:
             return "kpis.json is missing"
     return _kpis_problem(run_dir) or (None if manifest_file.exists()
                                       else _tables_problem(run_dir))
+
+
+def _spec_problem(run_dir: Path) -> str | None:
+    """spec.json (which run this is: its factors, replication and seed) is missing or cannot
+    be read."""
+    try:
+        spec = json.loads((run_dir / "spec.json").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return "spec.json is missing"
+    except (OSError, ValueError):
+        return "spec.json is damaged (not JSON)"
+    if not isinstance(spec, dict) or "run_id" not in spec:
+        return "spec.json does not say which run this is"
+    return None
 
 
 def _kpis_problem(run_dir: Path) -> str | None:
