@@ -19,7 +19,7 @@ import pytest
 
 from fleet_sim.analysis.congestion import node_waits
 from fleet_sim.config.experiment import Experiment, load_experiment
-from fleet_sim.study.runner import CRASHED, FAILED, OK, execute_run
+from fleet_sim.study.runner import CRASHED, FAILED, OK, SweepError, execute_run
 from fleet_sim.study.sweep import sweep
 
 from . import sweep_helpers
@@ -80,6 +80,20 @@ def test_replications_share_order_streams_across_fleet_sizes(tmp_path: Path) -> 
     assert not orders[(3, 0)]["created_s"].equals(orders[(3, 1)]["created_s"])
     assert kpis(tmp_path / runs[(1, 0)].run_id)["throughput_per_hour"] < \
         kpis(tmp_path / runs[(3, 0)].run_id)["throughput_per_hour"]
+
+
+def test_a_planned_run_that_left_no_record_is_not_passed_over(tmp_path: Path) -> None:
+    """Every run asked for is accounted for: one that reports success but left nothing on
+    disk ends the sweep with an error naming it (the summary would hold 5 of 6 runs), and
+    the next sweep makes it."""
+    exp = tiny_experiment(tmp_path)
+    out = tmp_path / "out"
+    with pytest.raises(SweepError, match=f"1 of the 6 runs asked for left no record .*"
+                                         f"{sweep_helpers.FAIL}.*run the study again"):
+        sweep(exp, out, workers=2, run_fn=sweep_helpers.recordless_run, quiet=True)
+    outcome = sweep(exp, out, workers=2, quiet=True)
+    assert outcome.total == 6 and outcome.skipped == 5
+    assert len(pd.read_parquet(out / "summary.parquet")) == 6
 
 
 def test_failing_and_crashing_runs_are_recorded_and_resume_completes(tmp_path: Path) -> None:

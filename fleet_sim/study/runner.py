@@ -816,6 +816,12 @@ def execute(specs: Iterable[RunSpec], out_dir: Path, workers: int = 0,
                 results = dask_pool.run(todo, runs_dir, tally)
         else:
             results = run_local(todo, runs_dir, min(workers, len(todo)), tally, run_fn)
+    unrecorded = [s.run_id for s in specs if not (runs_dir / s.run_id / "spec.json").is_file()]
+    if unrecorded:  # the summary would hold fewer runs than were planned, without a word
+        raise SweepError(
+            f"{len(unrecorded)} of the {len(specs)} runs asked for left no record in "
+            f"{runs_dir} ({', '.join(unrecorded[:3])}{' ...' if len(unrecorded) > 3 else ''}): "
+            "run the study again to make them")
     return SweepOutcome(out_dir, len(specs), len(specs) - len(todo), results)
 
 
