@@ -207,7 +207,7 @@ def _section_designs(document: Mapping[str, Any], words: Sequence[str]) -> Compa
     kpis = [str(r["kpi"]) for r in designs[0]["targets"]] if designs else []
     header = ["design", "decisions", f"price [{currency}]", "verdict", "replications",
               *(f"{kpi_label(k)}: mean (95 % interval)" for k in kpis), "why"]
-    rows = [[words[int(d["index"])], str(d["label"]), number_text(d["price"]),
+    rows = [[words[int(d["index"])], str(d["label"]), f"{float(d['price']):,.0f}",
              ANSWER_VERDICT if int(d["index"]) == answer else str(d["verdict"]),
              str(d["replications"]), *(interval_cell(r) for r in d["targets"]), _reason(d)]
             for d in by_price(designs)]
