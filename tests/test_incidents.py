@@ -369,3 +369,32 @@ def test_an_agv_on_its_way_to_charge_drives_on_to_its_charger_when_the_link_is_b
     assert back[-1].time_s >= 38.0 and back[-1].to_state == "Moving"
     assert events(out, "Event_Charge_Complete")
     assert len(out.recorder.charge_waits) == 1  # one charger asked for, once
+
+
+def test_an_agv_waiting_in_error_enters_safe_mode_when_its_charge_falls_below_15(
+        tmp_path: Path) -> None:
+    """4.2.14 / 6.3 looked at again while the AGV waits in Error: at 16 % it is not SafeMode
+    at the fault, but with no link in a dead spot and its idle draw (20 W of 960 Wh: 1 % in
+    1,728 s) it crosses 15 % before the operator comes (after an hour): SafeMode then, at the
+    crossing. In SafeMode the drive relay is off and the controller asleep: 2 W, so 1,800 s
+    to the rescue cost 0.104 points, where the idle draw would cost 1.04."""
+    dead = {"id": "cellar", "area_m": EVERYWHERE, "rssi_dbm": -90.0}
+    out = run(tiny(tmp_path, zones=[dead]), [], duration_h=2.0,
+              fleet={"size": 1, "start_nodes": ["S1"],
+                     "vehicle": {"battery": {"initial_soc_pct": 16.0}}},
+              charging={"enabled": False}, dispatch={"park_idle": False},
+              incidents={"faults": [{"agv": 0, "at_s": 30.0, "code": "E_999"}],
+                         "operator_response": {"dist": "fixed", "mean_s": 3600},
+                         "rescue": {"dist": "fixed", "mean_s": 1800}},
+              rules={"bat_low_pct": 12.0, "bat_critical_pct": 5.0})
+    safe = events(out, "Event_NetLoss_LowBat")
+    assert len(safe) == 1 and (safe[0].from_state, safe[0].to_state) == ("Error", "SafeMode")
+    soc = {round(t, 3): s for t, _, s in out.recorder.soc_samples}
+    at_safe = soc[round(safe[0].time_s, 3)]
+    assert at_safe == pytest.approx(15.0, abs=1e-3)
+    assert 30.0 < safe[0].time_s < 30.0 + 3600.0
+    rescued = events(out, "Event_Operator_Rescue")
+    assert rescued and rescued[0].time_s == pytest.approx(safe[0].time_s + 1800.0)
+    assert soc[round(rescued[0].time_s, 3)] == pytest.approx(15.0 - 1800 * 2 / 3600 / 9.6,
+                                                             abs=1e-3)
+    assert not events(out, "Event_Switch_Manual")  # the operator's visit became the rescue

@@ -379,6 +379,9 @@ class Rules(StrictModel):
     """4.2.14 / 6.3."""
     safe_mode_rssi_dbm: float = -80.0
     """4.2.14."""
+    safe_mode_draw_w: NonNegative = 2.0
+    """Assumed: the draw in SafeMode, drive relay off and the controller in deep sleep (6.3;
+    the document gives no figure): a beacon and the sleeping controller."""
     obstacle_pause_s: NonNegative = 0.3
     """4.2.3: obstacle within 1.0 m for >= 300 ms."""
     obstacle_clear_s: NonNegative = 2.0

@@ -262,6 +262,12 @@ class Vehicle:
         return self.docked
 
     # ---- the state machine ------------------------------------------------------------------
+    def may(self, event: str) -> bool:
+        """Whether `event`'s transition from the current state would pass its guard (nothing
+        recorded: a look again, not an attempt)."""
+        transition = transition_for(self.id, self.state, event)
+        return transition.guard is None or bool(transition.guard(self, self.rules))
+
     def fire(self, event: str, detail: str = "") -> bool:
         """Take the transition for `event` from the current state; False if its guard fails.
         An event with no transition from here raises InvalidTransition."""
@@ -779,6 +785,33 @@ class Vehicle:
         return good[0] if good else self.node
 
     # ---- faults and recovery -------------------------------------------------------------------
+    def _wait_in_error(self) -> Generator[simpy.Event, Any, bool]:
+        """Wait in Error for the operator; SafeMode's conditions (4.2.14, 6.3) are looked at
+        again whenever one of them may have changed: the FMS link (lost or back) and the
+        state of charge falling below its threshold (the idle draw goes on in Error). True:
+        SafeMode was entered before the operator came."""
+        arrived = self.env.timeout(self.incidents.operator_response.sample(self.incident_rng))
+        while True:
+            events: list[simpy.Event] = [arrived, self.link_changed]
+            until_low = self.battery.seconds_until(self.env.now, self.rules.safe_mode_soc_pct)
+            if math.isfinite(until_low) and until_low > 0:
+                events.append(self.env.timeout(until_low + 1e-6))
+            yield self.env.any_of(events)
+            if arrived.processed:  # (a Timeout is "triggered" from the start)
+                return False
+            if self.may("Event_NetLoss_LowBat"):
+                self.fire("Event_NetLoss_LowBat", "4.2.14 while in Error: no link, low "
+                          "battery, no charger")
+                return True
+
+    def _safe_mode(self) -> Proc:
+        """SafeMode (4.2.14, 6.3): the drive relay off and the controller asleep (the draw of
+        rules.safe_mode_draw_w) until an operator rescues the AGV."""
+        self.battery.draw(self.env.now, self.rules.safe_mode_draw_w)
+        yield self.env.timeout(self.incidents.rescue.sample(self.incident_rng))
+        self.battery.draw(self.env.now, self.battery.profile.idle_w)
+        self.fire("Event_Operator_Rescue")
+
     def _recover(self, failure: Failure) -> Proc:
         """Error -> (operator) -> Maintenance -> (repair) -> Idle, or SafeMode -> rescue."""
         env = self.env
@@ -802,11 +835,10 @@ class Vehicle:
         if self.charger is not None and not self.docked:
             self.fleet.release_charger(self.charger)
             self.charger = None
-        if self.fire("Event_NetLoss_LowBat", "4.2.14: no link, low battery, no charger"):
-            yield env.timeout(self.incidents.rescue.sample(self.incident_rng))
-            self.fire("Event_Operator_Rescue")
+        safe = self.fire("Event_NetLoss_LowBat", "4.2.14: no link, low battery, no charger")
+        if safe or (yield from self._wait_in_error()):
+            yield from self._safe_mode()
         else:
-            yield env.timeout(self.incidents.operator_response.sample(self.incident_rng))
             self.fire("Event_Switch_Manual", "operator at the AGV")
         if self.parked_in is None:
             self.driver.leave_track()
