@@ -156,8 +156,9 @@ class ProfileFile(StrictModel):
 
     title: Annotated[str, Field(min_length=1)]
     document: str
-    """The file name of the vehicle's document in specs/, or ``VDA 5050 factsheet: <file
-    name>`` for a profile imported from a factsheet."""
+    """Which source document the vehicle comes from (the name of one of the four protocol
+    documents or the core-logic spec), or ``VDA 5050 factsheet: <file name>`` for a profile
+    imported from a factsheet."""
     protocol: str | None
     """The wire protocol (agv_model.protocols); null: the document defines none."""
     kinematics: KinematicsSection

@@ -1,6 +1,6 @@
 """AGV-3 SCPI-like protocol: codec and virtual device.
 
-Source: ``specs/agv-3-protocol.sv.md`` ("Grupp 3 AGV protokoll", revision 1.1), cited by its
+Source: the AGV-3 protocol document ("Grupp 3 AGV protokoll", revision 1.1), cited by its
 headings: Syntax, Kommandon, Revision.
 
 Syntax: ``"cmd(?) (args...)\\r\\n"``; identifiers have levels separated by ':', upper-case letters

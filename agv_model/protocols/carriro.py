@@ -1,6 +1,6 @@
 """ZMP CarriRo AD+ external serial interface, API reference v1.4 (firmware V1.16.0.x).
 
-Source: `specs/carriro-ad-plus-serial-api-v1.4.ja.md`; sections are cited by their headings.
+Source: the CarriRo AD+ serial API reference v1.4; sections are cited by their headings.
 RS-232C, 19200 bps, 8 data bits, even parity, 1 stop bit (インターフェイス仕様). Commands are ASCII
 lines, `name?` (get) or `name: <params>` (set), parameters separated by spaces, LF-terminated, at
 most 255 characters (コマンド形式). Replies repeat the command's head (コマンドレスポンス); errors
@@ -15,7 +15,7 @@ settings of the device):
 Wire format
 - 255 characters (コマンド形式) count the characters before the LF. A longer line is answered
   when its LF arrives: `<name>: error 2` if it starts with a known command, else `error 1`
-  (DESIGN.md: over-long lines are errors).
+  (our reading: over-long lines are errors).
 - Error replies always use `:` (`battery: error 2`), as the エラーコード format shows, even for
   get commands. The name is the line's text up to its first `?`, `:` or space; bytes outside
   printable ASCII are written as Python escapes (`\\xff`, `\\r`); an empty line answers

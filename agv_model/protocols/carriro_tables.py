@@ -1,6 +1,6 @@
 """CarriRo AD+ serial API v1.4: the document's tables as data, and the field types of its values.
 
-Every figure here is taken from `specs/carriro-ad-plus-serial-api-v1.4.ja.md`; the section is named
+Every figure here is taken from the CarriRo AD+ serial API reference v1.4; the section is named
 beside it. The readings where the document is unclear are listed in `agv_model.protocols.carriro`.
 """
 

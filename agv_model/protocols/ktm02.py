@@ -1,6 +1,6 @@
 """KTM-02 binary frames: codec and virtual device.
 
-Source: ``specs/ktm-02-commands.ja.md`` (final update H23-02-08, history to 2011-02-25), cited
+Source: the KTM-02 command reference (final update H23-02-08, history to 2011-02-25), cited
 below by its section headings.
 
 Frame ("コマンドの書式"): ``[0]`` start byte 0xAA, ``[1]`` command, ``[2..3]`` packet size,
@@ -11,7 +11,7 @@ packet size counts the whole frame). Two-byte fields are low byte first, as the 
 Decisions where the document is silent or unclear:
 
 1. Verify code: no algorithm is given. We use `sum16`, the low 16 bits of the sum of every frame
-   byte except the two verify bytes (DESIGN.md, "Readings of the specs"). Pass another function
+   byte except the two verify bytes (our reading: the document has none). Pass another function
    as ``Ktm02Codec(verify=...)`` / ``Ktm02Device(verify=...)`` to replace it.
 2. "コマンドID" names two things: the class code column of both command tables (0x01..0x18) and
    the frame's Id part. We read byte ``[1]`` ("コマンド") as the class code and byte ``[4]``
@@ -290,8 +290,8 @@ VerifyFn = Callable[[bytes], int]
 
 
 def sum16(data: bytes) -> int:
-    """KTM-02 verify code, our choice (DESIGN.md): the low 16 bits of the byte sum of the frame
-    without its two verify bytes."""
+    """KTM-02 verify code, our choice (the document gives none): the low 16 bits of the byte
+    sum of the frame without its two verify bytes."""
     return sum(data) & 0xFFFF
 
 

@@ -1,6 +1,6 @@
 """TABO ASCII commands: codec and virtual device.
 
-Source: ``specs/tabo-commands.ja.tsv``, a spreadsheet export with OCR damage; rows are cited by
+Source: the TABO robot command table, a spreadsheet export with OCR damage; rows are cited by
 their command ("MLL row") and column (コマンド返信, 引数補足, メモ).
 
 Wire format: ``NAME`` or ``NAME:arg,arg...`` (the コマンド column), replies ``ACK:x``, ``ACK:c``,

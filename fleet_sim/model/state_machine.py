@@ -2,7 +2,7 @@
 
 Every transition of section 4.2 is a row with its trigger event, its condition (a guard over the
 vehicle's facts) and its action, as the spec words them. Rows the spec does not list but the fleet
-model needs are marked `spec=None` with the reason; each follows a reading of DESIGN.md:
+model needs are marked `spec=None` with the reason; each is a reading of the spec taken here:
 
 * Travel to a charger is driving: 4.2.9 (Idle -> Charging on Event_Go_Charge/Event_Low_Battery)
   is split into Idle -> Moving (purpose to_charger) and Moving -> Charging on arrival and docking,
