@@ -657,17 +657,18 @@ def _size(args: argparse.Namespace) -> int:
 def _optimise(args: argparse.Namespace) -> int:
     import time
 
+    from fleet_sim.config.decisions import design_space
     from fleet_sim.report.console import optimise_header, optimise_lines
-    from fleet_sim.study.optimise import check_optimise, optimise
+    from fleet_sim.study.optimise import optimise
     from fleet_sim.study.runner import default_out
 
     experiment = experiment_for(args.experiment, args.settings)
-    space = check_optimise(experiment)
+    space = design_space(experiment)  # refuses a file without an optimise section
     out = args.out or default_out(experiment)
     print(optimise_header(experiment, space))
     start = time.perf_counter()
     outcome = optimise(experiment, out, args.workers, args.scheduler, args.quiet,
-                       dask_timeout_s=args.dask_timeout)
+                       dask_timeout_s=args.dask_timeout, space=space)
     print(optimise_lines(outcome, time.perf_counter() - start))
     return 1 if outcome.runs_failed else 0
 

@@ -347,3 +347,28 @@ def test_at_the_run_limit_it_stops_keeping_what_was_decided(tmp_path: Path) -> N
     assert doc["statement"].startswith("The search stopped before it could name an answer")
     assert "its guarantee does not hold yet" in doc["statement"]
     assert (out / "summary.parquet").exists()  # the runs made are in the tables
+
+
+@pytest.mark.parametrize(("extra", "words"), [
+    ({}, "optimise: got None; expected an optimise section"),
+    ({"optimise": {"decisions": {"fleet.sise": {"min": 1, "max": 3}},
+                   "tolerance": {"lead_time_p95_s": 20}}},
+     "optimise.decisions.fleet.sise: got 1; expected no such key here: did you mean 'size'?"),
+])
+def test_the_command_refuses_a_bad_optimise_file_in_one_line(tmp_path: Path,
+                                                             extra: dict[str, Any],
+                                                             words: str) -> None:
+    import subprocess
+    import sys
+
+    file = tmp_path / "x.yaml"
+    file.write_text(yaml.safe_dump({
+        "scenario": str(ROOT / "experiments" / "tiny_loop.yaml"),
+        "targets": [{"kpi": "lead_time_p95_s", "at_most": 600}], **extra}), encoding="utf-8")
+    done = subprocess.run([sys.executable, "-m", "fleet_sim.cli", "optimise", str(file),
+                           "--out", str(tmp_path / "o")], capture_output=True, text=True,
+                          cwd=tmp_path)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("fleet-sim: error: ") and words in lines[0]
+    assert not (tmp_path / "o").exists()  # refused before anything was made

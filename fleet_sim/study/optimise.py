@@ -49,7 +49,6 @@ from fleet_sim.config.decisions import (
 )
 from fleet_sim.config.experiment import MAX_RUNS, Experiment, RunSpec, Target, load_trace_for
 from fleet_sim.config.writing import write_json_atomic
-from fleet_sim.errors import InputError
 from fleet_sim.sim.estimate import analytic_estimate
 from fleet_sim.study.cheapest import (
     FAILS,
@@ -110,11 +109,12 @@ def constraints_of(targets: Sequence[Target], tolerance: dict[str, float]
 def optimise(experiment: Experiment, out_dir: Path, workers: int = 0,
              scheduler: str | None = None, quiet: bool = False,
              stream: IO[str] | None = None, max_runs: int = MAX_RUNS,
-             dask_timeout_s: float = DEFAULT_NO_WORKERS_TIMEOUT_S) -> OptimiseOutcome:
-    """Search the experiment's design space; write optimise.json and the summary tables
-    (holding the results folder). Raises OptimiseLimit, after writing them, if the search
-    would need more than `max_runs` runs."""
-    space = design_space(experiment)
+             dask_timeout_s: float = DEFAULT_NO_WORKERS_TIMEOUT_S,
+             space: DesignSpace | None = None) -> OptimiseOutcome:
+    """Search the experiment's design space (`space`, where the caller has it already);
+    write optimise.json and the summary tables (holding the results folder). Raises
+    OptimiseLimit, after writing them, if the search would need more than `max_runs` runs."""
+    space = space if space is not None else design_space(experiment)
     config = space.config
     check_extras(experiment, scheduler)
     targets = list(experiment.spec.targets)
@@ -124,8 +124,8 @@ def optimise(experiment: Experiment, out_dir: Path, workers: int = 0,
     with folder_lock(out_dir, stream), tables_written(experiment, out_dir, columns):
         pool = make_pool(scheduler, workers, dask_timeout_s=dask_timeout_s)
         budget = RunBudget(max_runs, "design search", OPTIMISE_FILE,
-                           "Fewer decisions or levels, or a lower optimise.max_replications")
-        budget.error = OptimiseLimit
+                           "Fewer decisions or levels, or a lower optimise.max_replications",
+                           OptimiseLimit)
         made: list[RunSpec] = []
         energy: dict[int, dict[int, float]] = {}
         """Per design: replication -> energy_used_kwh (reported, not optimised)."""
@@ -431,12 +431,3 @@ def _inferred(search: CheapestSearch, i: int, fails: dict[int, bool],
 
 def _num(value: float) -> float | None:
     return None if math.isnan(value) else float(value)
-
-
-def check_optimise(experiment: Experiment) -> DesignSpace:
-    """Before any run: the file has an optimise section and its space is sound."""
-    if experiment.spec.optimise is None:
-        raise InputError(str(experiment.file), "optimise", None,
-                         "an optimise section (decisions and their costs) for `fleet-sim "
-                         "optimise`")
-    return design_space(experiment)

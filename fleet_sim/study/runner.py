@@ -347,26 +347,23 @@ def run_problem(run_dir: Path) -> str | None:
 def _spec_problem(run_dir: Path) -> str | None:
     """spec.json (which run this is: its factors, replication and seed) is missing or cannot
     be read."""
-    try:
-        spec = json.loads((run_dir / "spec.json").read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        return "spec.json is missing"
-    except (OSError, ValueError):
-        return "spec.json is damaged (not JSON)"
-    if not isinstance(spec, dict) or "run_id" not in spec:
-        return "spec.json does not say which run this is"
-    return None
+    return _json_problem(run_dir / "spec.json", "run_id", "does not say which run this is")
 
 
 def _kpis_problem(run_dir: Path) -> str | None:
+    return _json_problem(run_dir / "kpis.json", "throughput_per_hour", "holds no KPIs")
+
+
+def _json_problem(path: Path, key: str, without_key: str) -> str | None:
+    """What is wrong with a run's JSON file that must be an object holding `key`, or None."""
     try:
-        figures = json.loads((run_dir / "kpis.json").read_text(encoding="utf-8"))
+        data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        return "kpis.json is missing"
+        return f"{path.name} is missing"
     except (OSError, ValueError):
-        return "kpis.json is damaged (not JSON)"
-    if not isinstance(figures, dict) or "throughput_per_hour" not in figures:
-        return "kpis.json holds no KPIs"
+        return f"{path.name} is damaged (not JSON)"
+    if not isinstance(data, dict) or key not in data:
+        return f"{path.name} {without_key}"
     return None
 
 

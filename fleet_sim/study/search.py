@@ -44,13 +44,15 @@ class RunBudget:
     """The distinct runs a search has used, at most `limit` of them."""
 
     def __init__(self, limit: int = MAX_RUNS, study: str = "sizing search",
-                 output: str = "sizing.json", advice: str = "") -> None:
+                 output: str = "sizing.json", advice: str = "",
+                 error: type[RunLimit] = RunLimit) -> None:
         self.limit = limit
         self.study = study
         self.output = output
         self.advice = advice
+        self.error = error
+        """What taking too many raises (the study's own kind of RunLimit)."""
         self.used: set[str] = set()
-        self.error: type[RunLimit] = RunLimit
 
     def take(self, runs: Sequence[RunSpec]) -> None:
         """Count `runs` in, or raise the budget's RunLimit (counting none of them) if they

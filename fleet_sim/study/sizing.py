@@ -130,8 +130,7 @@ class RunBudget(SearchBudget):
     def __init__(self, limit: int = MAX_RUNS) -> None:
         super().__init__(limit, "sizing search", "sizing.json",
                          "Narrow sizing.min_agvs / sizing.max_agvs or lower "
-                         "sizing.max_replications")
-        self.error = SizingLimit
+                         "sizing.max_replications", SizingLimit)
 
 
 @dataclass
