@@ -41,8 +41,8 @@ Decisions, where the issue is silent:
   guarantee (fleet_sim.analysis.feasibility).
 
 fleet_sim.config.experiment reads the ``optimise:`` section with the models here and checks it
-with `design_space` when the file is loaded, so what this module needs of that one (run ids,
-seeds, the layout cache) it imports inside its functions.
+with `design_space` when the file is loaded; what both need (run ids, seeds, the layout cache)
+is fleet_sim.config.runs, and the experiment is known here by type only.
 """
 
 from __future__ import annotations
@@ -59,6 +59,14 @@ from pydantic import Field, Strict, field_validator, model_validator
 
 from agv_model.inputs import Items, NonNegative, Positive, Problem, StrictModel, Text
 from fleet_sim.config.layout_changes import Change, ChangeSite, LayoutChange, parse_changes
+from fleet_sim.config.runs import (
+    MAX_RUNS,
+    changed_layout_for,
+    check_path,
+    layout_for,
+    level_text,
+    run_id,
+)
 from fleet_sim.config.scenario import MAX_FLEET_SIZE, VEHICLE_TYPES
 from fleet_sim.errors import InputError
 
@@ -135,8 +143,6 @@ class ScenarioDecision(StrictModel):
         if count_path(key):
             kind = "" if key == "fleet.size" else key.split(".")[2] + " "
             return f"{value} {kind}AGV{'' if value == 1 else 's'}"
-        from fleet_sim.config.experiment import level_text
-
         return f"{key} = {level_text(value)}"
 
     def price(self, value: Any, horizon_years: float) -> float:
@@ -244,8 +250,6 @@ class Design:
 
     def label(self) -> str:
         """The design in a line: ``fleet.size=16, charging.opportunity=true, chargers=fifth``."""
-        from fleet_sim.config.experiment import level_text
-
         return ", ".join(f"{k.removeprefix(LAYOUT_PREFIX)}={level_text(v)}"
                          for k, v in self.choices)
 
@@ -310,8 +314,6 @@ def design_run(experiment: Experiment, design: Design, replication: int) -> RunS
     base = experiment.run(factors, replication)
     if not design.changes:
         return base
-    from fleet_sim.config.experiment import run_id
-
     named = {**factors, **{f"{LAYOUT_PREFIX}{g}": o for g, o in design.options_changing()}}
     return dataclasses.replace(
         base, run_id=run_id(named, replication),
@@ -339,8 +341,6 @@ def design_space(experiment: Experiment) -> DesignSpace:
         raise InputError(file, "optimise", f"{total} designs",
                          f"a design space of at most {MAX_DESIGNS} designs (fewer levels, or "
                          "split the question)")
-    from fleet_sim.config.experiment import MAX_RUNS
-
     if total * config.min_replications > MAX_RUNS:
         raise InputError(file, "optimise", f"{total} designs x {config.min_replications} "
                          "first replications", f"at most {MAX_RUNS} runs in one experiment "
@@ -400,8 +400,6 @@ def _fit_problem(experiment: Experiment, design: Design) -> str | None:
 
 def design_layout(experiment: Experiment, scenario: Scenario, design: Design) -> Layout:
     """The layout a design's runs drive on (cached per process), checked against `scenario`."""
-    from fleet_sim.config.experiment import changed_layout_for, layout_for
-
     if not design.changes:
         return layout_for(scenario, str(experiment.scenario_file))
     return changed_layout_for(scenario, str(experiment.scenario_file), design.changes,
@@ -424,8 +422,6 @@ def _check_against_experiment(experiment: Experiment, config: OptimiseConfig) ->
         raise InputError(file, "variants", list(spec.variants),
                          "no variants with optimise (layout_decisions choose between layouts)")
     for key, decision in config.decisions.items():
-        from fleet_sim.config.experiment import check_path
-
         check_path(file, f"{at}.{key}", key)
         if key == "layout":
             raise InputError(file, f"{at}.layout", key, "a scenario field other than layout "
@@ -508,8 +504,6 @@ def _check_layout_options(experiment: Experiment, config: OptimiseConfig,
             changes += option.changes
             parts += [(group, name, i) for i in range(len(option.changes))]
         return tuple(changes), DecisionSite(file, "optimise", tuple(parts))
-
-    from fleet_sim.config.experiment import changed_layout_for
 
     for group, options in groups:
         for name, option in options:
