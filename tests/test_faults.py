@@ -26,8 +26,6 @@ from typing import Any
 import pandas as pd
 import pytest
 
-from fleet_sim.study.runner import MANIFEST
-
 from .conftest import ROOT, write_yaml
 
 TINY = str(ROOT / "experiments" / "tiny_loop.yaml")
@@ -211,8 +209,9 @@ def test_a_damaged_finished_run_is_named_and_made_again(tmp_path: Path, undistur
 def test_deleting_any_file_of_a_finished_run_makes_the_resume_make_it_again(
         tmp_path: Path, undisturbed: Path) -> None:
     """Each file of a finished run deleted in turn (spec.json included: that run used to
-    vanish from the summary with exit 0): the resume names it or finds it unfinished, makes
-    it again, and the summary is the undisturbed one."""
+    vanish from the summary with exit 0; manifest.json included: that run used to be kept
+    unchecked): the resume names the run and the missing file in one line, makes it again,
+    and the summary is the undisturbed one."""
     names = sorted(p.name for p in sorted((undisturbed / "runs").iterdir())[1].iterdir()
                    if p.is_file())
     assert {"spec.json", "kpis.json", "manifest.json", "events.parquet"} <= set(names)
@@ -222,11 +221,12 @@ def test_deleting_any_file_of_a_finished_run_makes_the_resume_make_it_again(
         shutil.copytree(undisturbed, out)
         victim = sorted((out / "runs").iterdir())[1]
         (victim / name).unlink()
-        again = fleet_sim("sweep", experiment, "--out", out, "--workers", "1", "--quiet",
-                          cwd=tmp_path)
+        again = fleet_sim("sweep", experiment, "--out", out, "--workers", "1", cwd=tmp_path)
         assert again.returncode == 0, (name, again.stderr)
-        if name != MANIFEST:  # without its manifest a run is read as an older one: kept
-            assert "1 runs made, 3 already finished" in again.stdout, (name, again.stdout)
+        named = [line for line in again.stderr.splitlines() if victim.name in line]
+        assert [line.strip() for line in named] == \
+            [f"run {victim.name}: {name} is missing; it is run again"], (name, again.stderr)
+        assert "1 runs made, 3 already finished" in again.stdout, (name, again.stdout)
         pd.testing.assert_frame_equal(summary_kpis(out), summary_kpis(undisturbed))
 
 

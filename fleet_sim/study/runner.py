@@ -21,8 +21,10 @@ Decisions, where the issues are silent:
   the manifest last (``os.replace``), so a study killed at any moment leaves either a
   finished run or one that is run again; re-running skips finished runs, retries failed ones
   and makes again, with one line naming it and what was wrong, a run whose files were
-  damaged, truncated or removed since (a run of an older fleet_sim, without a manifest, is
-  trusted if its kpis.json holds KPIs and its Parquet files open). Checking costs a read of
+  damaged, truncated or removed since, the manifest included: a run's spec.json says the
+  manifest checks it (``checked_by``), so a run without one is not finished (a run of an
+  older fleet_sim, whose spec.json does not say so, is trusted if its kpis.json holds KPIs
+  and its Parquet files open). Checking costs a read of
   the run's files (SHA-256 runs at several hundred MB/s; a warehouse shift's run is 1-3 MB).
 * The temporaries a killed study left (``.*.tmp``, ``.partial``) are removed by the next study
   that takes the folder. A run that finishes after its study stopped (a Dask worker that
@@ -234,7 +236,7 @@ def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
     for stale in (MANIFEST, "kpis.json", "error.json"):  # a damaged run is made again
         (run_dir / stale).unlink(missing_ok=True)
     info = {**spec.as_json(), "pid": os.getpid(), "host": socket.gethostname(),
-            "started": time.strftime("%Y-%m-%dT%H:%M:%S")}
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S"), CHECKED_BY: MANIFEST}
     write_json_atomic(run_dir / "spec.json", info)
     partial = run_dir / ".partial"
     try:
@@ -288,6 +290,9 @@ def machine_fault(exc: BaseException) -> bool:
 
 MANIFEST = "manifest.json"
 """Written last into a finished run's folder: each file's size and SHA-256."""
+CHECKED_BY = "checked_by"
+"""The key of spec.json that says the run is finished only with its manifest (absent in the
+runs of an older fleet_sim, which wrote none)."""
 CHECKED_ASIDE = ("spec.json", "error.json", MANIFEST)
 """Files of a run folder the manifest does not cover (written before, or instead of, it)."""
 HASH_CHUNK = 1 << 20
@@ -314,10 +319,13 @@ def run_problem(run_dir: Path) -> str | None:
     kpis.json), in a few words; None when every file it should hold is there, whole and
     readable. A run of an older fleet_sim (kpis.json, no manifest) is checked by reading:
     its kpis.json must hold KPIs and every Parquet file must open."""
-    spec_problem = _spec_problem(run_dir)
+    spec, spec_problem = _read_json(run_dir / "spec.json", "run_id",
+                                    "does not say which run this is")
     if spec_problem is not None:  # the summary could not place the run: it would vanish
         return spec_problem
     manifest_file = run_dir / MANIFEST
+    if not manifest_file.exists() and spec.get(CHECKED_BY) == MANIFEST:
+        return f"{MANIFEST} is missing"
     if manifest_file.exists():
         try:
             manifest = json.loads(manifest_file.read_text(encoding="utf-8"))
@@ -344,27 +352,22 @@ def run_problem(run_dir: Path) -> str | None:
                                       else _tables_problem(run_dir))
 
 
-def _spec_problem(run_dir: Path) -> str | None:
-    """spec.json (which run this is: its factors, replication and seed) is missing or cannot
-    be read."""
-    return _json_problem(run_dir / "spec.json", "run_id", "does not say which run this is")
-
-
 def _kpis_problem(run_dir: Path) -> str | None:
-    return _json_problem(run_dir / "kpis.json", "throughput_per_hour", "holds no KPIs")
+    return _read_json(run_dir / "kpis.json", "throughput_per_hour", "holds no KPIs")[1]
 
 
-def _json_problem(path: Path, key: str, without_key: str) -> str | None:
-    """What is wrong with a run's JSON file that must be an object holding `key`, or None."""
+def _read_json(path: Path, key: str, without_key: str) -> tuple[dict[str, Any], str | None]:
+    """A run's JSON file that must be an object holding `key`, and what is wrong with it:
+    None when nothing is (when something is, the object is empty)."""
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        return f"{path.name} is missing"
+        return {}, f"{path.name} is missing"
     except (OSError, ValueError):
-        return f"{path.name} is damaged (not JSON)"
+        return {}, f"{path.name} is damaged (not JSON)"
     if not isinstance(data, dict) or key not in data:
-        return f"{path.name} {without_key}"
-    return None
+        return {}, f"{path.name} {without_key}"
+    return data, None
 
 
 def _tables_problem(run_dir: Path) -> str | None:
