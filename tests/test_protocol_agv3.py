@@ -343,3 +343,169 @@ def test_quoted_junk_is_cut_to_the_quote_limit(line: str, start: str) -> None:
     quoted = reply[reply.index("'"):reply.rindex("'") + 1]
     assert len(quoted) == QUOTE_LIMIT_CHARS and quoted.endswith("...'")
     assert len(reply) + 2 <= ERROR_LINE_MAX_BYTES
+
+
+# -- STATus from the vehicle's own state (agv_model.protocols.agv3_vehicle) -------------------
+# Default world: the line is found 2 s after STArt, half a gap before station 0's turn-off;
+# turn-offs 10 s apart; 3 s ramps; 5 s at the platform; a follower catches up in 5 s; the AGV
+# ahead shows id 1. STArt sent at 0 acts at 0.01 (reply delay), so the line is found at 2.01.
+
+
+def changes(device: Agv3Device, until_s: float, *, line: str = "NAV:STAT?",
+            from_s: float = 0.25, step_s: float = 0.5) -> list[tuple[float, str]]:
+    """`line` asked every `step_s` (answered 0.01 s later); each new answer with the time of
+    the question that first got it. The samples fall between the model's changes, which come
+    at whole hundredths past 0.01."""
+    seen: list[tuple[float, str]] = []
+    at_s = from_s
+    while at_s <= until_s:
+        answer = ";".join(ask(device, line, at_s))
+        if not seen or seen[-1][1] != answer:
+            seen.append((at_s, answer))
+        at_s = round(at_s + step_s, 6)
+    return seen
+
+
+def test_a_station_order_takes_it_through_enter_stopped_exit_by_itself() -> None:
+    """Station 1 is 1.5 gaps (15 s) past where the line is found: it turns off at 17.01, stands
+    at the platform 20.01-25.01 (where the pick-up is carried out) and is back on the main
+    road at 28.01, with no call but the commands a host sends."""
+    device = Agv3Device()
+    assert ask(device, "NAV:STA;PICKU 1 2", 0.0) == ["Starting...", ""]
+    assert changes(device, 40.0, line="NAV:STAT?;PICKU?;PASS?") == [
+        (0.25, "STARTED;1 2;0"),
+        (2.25, "LEADING;1 2;0"),
+        (17.25, "STATION ENTER;1 2;0"),
+        (20.25, "STATION STOPPED;0 0;2"),
+        (25.25, "STATION EXIT;0 0;2"),
+        (28.25, "LEADING;0 0;2"),
+    ]
+
+
+def test_without_an_order_it_drives_past_every_station() -> None:
+    device = Agv3Device()
+    ask(device, "NAV:STA", 0.0)
+    assert changes(device, 60.0) == [(0.25, "STARTED"), (2.25, "LEADING")]
+
+
+def test_the_first_ordered_station_ahead_comes_first() -> None:
+    """Drop-off at 3, pick-up at 1 (its turn-off first, 15 s after the line is found): the
+    pick-up is done at station 1, the drop-off two gaps on from there (back on the main road
+    at 28.01): turn-off at 48.01, platform at 51.01."""
+    device = Agv3Device()
+    ask(device, "NAV:STA;DROPO 3 1;PICKU 1 2", 0.0)
+    assert ask(device, "NAV:PICKU?;DROPO?;PASS?", 24.0) == ["0 0", "3 1", "2"]
+    assert ask(device, "NAV:STAT?", 47.5) == ["LEADING"]
+    assert ask(device, "NAV:STAT?", 48.5) == ["STATION ENTER"]
+    assert ask(device, "NAV:STAT?;PICKU?;DROPO?;PASS?", 51.5) == [
+        "STATION STOPPED", "0 0", "0 0", "1"]
+
+
+def test_an_order_for_a_station_just_passed_waits_a_lap() -> None:
+    """The line is found at 2.01 half a gap before station 0's turn-off (passed at 7.01); an
+    order for station 0 comes at 10.0, 0.3 gap past it: 3.7 gaps to go, the turn-off at
+    47.01."""
+    device = Agv3Device()
+    ask(device, "NAV:STA", 0.0)
+    ask(device, "NAV:PICKU 0 1", 9.99)
+    assert ask(device, "NAV:STAT?", 46.5) == ["LEADING"]
+    assert ask(device, "NAV:STAT?", 47.5) == ["STATION ENTER"]
+
+
+def test_a_follower_reads_minus_one_until_it_has_caught_up_with_its_leader() -> None:
+    """FOLLOWING -1 from the line found (2.01) until it has caught up (7.01), then the id on
+    the leader's sign; a station visit loses the leader: -1 again from the main road (28.01)
+    to 33.01."""
+    device = Agv3Device()
+    ask(device, "NAV:ROL FOLLOW;STA;PICKU 1 1", 0.0)
+    assert changes(device, 40.0) == [
+        (0.25, "STARTED"),
+        (2.25, "FOLLOWING -1"),
+        (7.25, "FOLLOWING 1"),
+        (17.25, "STATION ENTER"),
+        (20.25, "STATION STOPPED"),
+        (25.25, "STATION EXIT"),
+        (28.25, "FOLLOWING -1"),
+        (33.25, "FOLLOWING 1"),
+    ]
+
+
+@pytest.mark.parametrize(("leader_id", "after"), [(7, "FOLLOWING 7"), (None, "FOLLOWING -1")])
+def test_the_leader_id_is_the_one_ahead_or_minus_one_with_nobody_ahead(
+        leader_id: int | None, after: str) -> None:
+    device = Agv3Device(leader_id=leader_id)
+    ask(device, "NAV:STA", 0.0)
+    assert ask(device, "NAV:STAT?;ROL FOLLOW;STAT?", 3.0) == ["LEADING", "", "FOLLOWING -1"]
+    assert ask(device, "NAV:STAT?", 7.5) == ["FOLLOWING -1"]  # ROLe at 3.01, caught up 8.01
+    assert ask(device, "NAV:STAT?", 8.5) == [after]
+    assert ask(device, "NAV:ROL LEAD;STAT?", 9.0) == ["", "LEADING"]
+
+
+def test_an_empty_battery_is_a_fault_it_finds_itself() -> None:
+    """0.01 Wh at 8 W is 4.5 s of driving: from 200.01 to 204.51. The reading falls from full to
+    0.75 x full; standing (before STArt, in FAULT) draws nothing; a new STArt faults at once."""
+    device = Agv3Device(battery_v=8.0, battery_wh=0.01)
+    assert ask(device, ":SYS:BAT?", 100.0) == ["8.000000V"]  # standing: no draw
+    ask(device, "NAV:STA", 200.0)
+    assert ask(device, "NAV:STAT?", 201.0) == ["STARTED"]
+    assert ask(device, ":SYS:BAT?", 202.25) == ["7.000000V"]  # 2.25 s of 4.5 driven: halfway
+    assert ask(device, "NAV:STAT?", 204.0) == ["LEADING"]
+    assert ask(device, "NAV:STAT?;:SYS:BAT?", 204.6) == ["FAULT battery low", "6.000000V"]
+    assert ask(device, "NAV:STAT?;:SYS:BAT?", 300.0) == ["FAULT battery low", "6.000000V"]
+    assert ask(device, "NAV:STO;STAT?;STA;STAT?", 301.0) == [
+        "Stopping...", "STOPPED", "Starting...", "FAULT battery low"]
+
+
+def test_the_default_battery_lasts_two_hours_of_driving() -> None:
+    """16 Wh at 8 W: STArt at 0.01, empty at 7200.01, reading 0.75 x 1.092556 V."""
+    device = Agv3Device()
+    ask(device, "NAV:STA", 0.0)
+    assert ask(device, "NAV:STAT?", 7199.5) == ["LEADING"]
+    assert ask(device, "NAV:STAT?;:SYS:BAT?", 7200.5) == ["FAULT battery low", "0.819417V"]
+
+
+@pytest.mark.parametrize("line_search_s", [None, 12.0])
+def test_a_line_not_found_within_the_limit_is_a_fault(line_search_s: float | None) -> None:
+    """The search gives up after line_search_limit_s (10 s): STArt at 0.01, FAULT at 10.01."""
+    device = Agv3Device(line_search_s=line_search_s)
+    ask(device, "NAV:STA", 0.0)
+    assert ask(device, "NAV:STAT?", 9.7) == ["STARTED"]
+    assert ask(device, "NAV:STAT?", 10.1) == ["FAULT line not found"]
+    assert ask(device, "NAV:STAT?", 20.0) == ["FAULT line not found"]
+    assert ask(device, "NAV:STO;STAT?", 21.0) == ["Stopping...", "STOPPED"]
+
+
+def test_stop_and_start_again_drive_on_from_where_it_stopped() -> None:
+    """Stopped at 10.01 (0.8 gap past where the line was found), started at 20.01, line found
+    at 22.01: station 1 is 0.7 gap on, its turn-off at 29.01."""
+    device = Agv3Device()
+    ask(device, "NAV:STA;PICKU 1 1", 0.0)
+    assert ask(device, "NAV:STO;STAT?", 10.0) == ["Stopping...", "STOPPED"]
+    assert ask(device, "NAV:STAT?", 19.0) == ["STOPPED"]
+    ask(device, "NAV:STA", 20.0)
+    assert ask(device, "NAV:STAT?", 28.5) == ["LEADING"]
+    assert ask(device, "NAV:STAT?", 29.5) == ["STATION ENTER"]
+
+
+def test_the_owners_status_is_a_starting_point_it_drives_on_from() -> None:
+    device = Agv3Device()
+    ask(device, "NAV:STA", 0.0)
+    device.set_status("FOLLOWING", "4")  # at 0.25, the device's time
+    assert ask(device, "NAV:STAT?;ROL?", 1.0) == ["FOLLOWING 4", "FOLLOW"]
+    device.set_status("STATION", "STOPPED")  # at 1.25, at the next turn-off ahead
+    assert ask(device, "NAV:STAT?", 6.0) == ["STATION STOPPED"]
+    assert ask(device, "NAV:STAT?", 6.5) == ["STATION EXIT"]  # 5 s at the platform
+    assert ask(device, "NAV:STAT?", 9.5) == ["FOLLOWING -1"]  # main road at 9.25
+    with pytest.raises(ValueError, match="STATION info 'PARKED'"):
+        device.set_status("STATION", "PARKED")
+    with pytest.raises(ValueError, match="FOLLOWING info 'x'"):
+        device.set_status("FOLLOWING", "x")
+
+
+def test_world_settings_are_checked() -> None:
+    with pytest.raises(ValueError, match=r"station_gap_s \(0\) must be greater than 0"):
+        Agv3Device(station_gap_s=0)
+    with pytest.raises(ValueError, match=r"battery_empty_v \(9.0\) must be between 0"):
+        Agv3Device(battery_v=8.0, battery_empty_v=9.0)
+    with pytest.raises(TypeError, match="station_gap"):
+        Agv3Device(station_gap=3.0)

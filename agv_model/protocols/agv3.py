@@ -29,9 +29,13 @@ Decisions where the document is silent or contradicts itself:
 6. STATus answers "<state>" alone when the info column is empty, "<state> <info>" otherwise.
 7. EStop set latches the stop; the document has no command to release it, so the simulation
    calls `Agv3Device.release_estop`. While latched, STArt answers an error.
-8. After STArt the AGV looks for the line for ``line_search_s`` (assumed 2 s), then LEADING or
-   FOLLOWING -1 by its role. BATtery answers "<volts with six decimals>V", the example's form
-   "1.092556V"; that figure is also the default reading.
+8. STATus, BATtery, PICKUp?, DROPOff? and PASSengers? read the emulated vehicle's own state,
+   which changes by itself as it drives: STARTED while it looks for the line, LEADING or
+   FOLLOWING <leader id | -1> on the main road, STATION ENTER, STOPPED and EXIT at a station
+   it has an order for, FAULT line not found or FAULT battery low; the world it drives in and
+   the readings of the STATus table are in `agv_model.protocols.agv3_vehicle`. BATtery answers
+   "<volts with six decimals>V", the example's form "1.092556V"; that figure is also the full
+   battery's reading.
 9. The 0.25 s reply limit ("Om inget returneras inom 0.25s") is ``REPLY_TIMEOUT_S`` for hosts;
    the device's assumed ``reply_delay_s`` (0.01 s) stays well inside it.
 10. Line and reply length: the document states neither; its only bound is that 0.25 s. A
@@ -53,9 +57,15 @@ Decisions where the document is silent or contradicts itself:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 from agv_model.protocols._sim import Outbox, SimClock, earliest
+from agv_model.protocols.agv3_vehicle import (
+    PASSENGERS_DEFAULT,
+    Agv3Vehicle,
+    Agv3World,
+    Order,
+)
 from agv_model.protocols.base import (
     Codec,
     Command,
@@ -73,9 +83,7 @@ IDENTITY = "AGV-3"  # *IDN
 ERROR_PREFIX = "ERROR: "
 STATION_MAX = 3  # PICKUp <station, 0-3 = 0>
 COUNT_MAX = 10  # PICKUp <antal, 0-10 = 0>
-PASSENGERS_DEFAULT = 10  # PASSengers <max antal=10>
 ROLES = ("LEAD", "FOLLOW")  # ROLe <roll, LEAD|FOLLOW=LEAD>
-STATES = ("STOPPED", "STARTED", "FOLLOWING", "LEADING", "STATION", "FAULT")  # STATus table
 # Decision 10. The document sets no line or reply length; its only bound is time: "Om inget
 # returneras inom 0.25s så får det antas som ett fel" (Syntax).
 LINE_LIMIT_BYTES = 256  # longest line read, terminator not counted; longer ones are dropped
@@ -294,21 +302,14 @@ class LineReader:
         return 0
 
 
-@dataclass
-class _Order:
-    station: int = 0
-    count: int = 0
-
-    def text(self) -> str:
-        return f"{self.station} {self.count}"
-
-
 class Agv3Device(Device):
     """A virtual AGV-3 answering lines in simulated time.
 
-    Settings (assumed defaults): ``reply_delay_s`` 0.01 s per line; ``line_search_s`` 2 s from
-    STArt to finding the line (None: until `set_status`); ``battery_v`` 1.092556 (the document's
-    example); ``reply_terminator`` "\\r\\n" (decision 2).
+    The vehicle behind it (`Agv3Vehicle`, its own module) drives, stops at stations, follows
+    and faults by itself; STATus, PICKUp?, DROPOff?, PASSengers? and BATtery? read its state
+    at the time of the answer (decision 8). Settings (assumed defaults): ``reply_delay_s``
+    0.01 s per line; ``reply_terminator`` "\\r\\n" (decision 2); any other keyword is a field
+    of `Agv3World` (``line_search_s``, ``battery_v``, ``station_gap_s``, ``leader_id``...).
     """
 
     name = PROTOCOL
@@ -317,24 +318,14 @@ class Agv3Device(Device):
         self,
         *,
         reply_delay_s: float = 0.01,
-        line_search_s: float | None = 2.0,
-        battery_v: float = 1.092556,
         reply_terminator: bytes = TERMINATOR,
+        **world: Any,
     ) -> None:
         self.reply_delay_s = reply_delay_s
-        self.line_search_s = line_search_s
-        self.battery_v = battery_v
+        self.vehicle = Agv3Vehicle(Agv3World(**world))
         self.codec = Agv3Codec()
         self.reply_codec = Agv3Codec(reply_terminator)
-        self.role = "LEAD"
-        self.max_passengers = PASSENGERS_DEFAULT
-        self.passengers = 0
-        self.pickup = _Order()
-        self.dropoff = _Order()
         self.estop = False
-        self.state = "STOPPED"
-        self.info = ""
-        self._line_found_s: float | None = None
         self._clock = SimClock(PROTOCOL)
         self._outbox = Outbox()
         self._lines = LineReader()
@@ -346,7 +337,6 @@ class Agv3Device(Device):
         self._clock.advance(now_s)
         for line in self._lines.feed(data):
             done_s = max(now_s, self._busy_until_s) + self.reply_delay_s
-            self._advance(done_s)
             parsed: list[Command | ProtocolError]
             if isinstance(line, LineTooLongError):
                 parsed = [line]
@@ -364,7 +354,7 @@ class Agv3Device(Device):
 
     def poll(self, now_s: float) -> list[tuple[float, bytes]]:
         self._clock.advance(now_s)
-        self._advance(now_s)
+        self.vehicle.advance(now_s)
         return self._outbox.due(now_s)
 
     def next_output_s(self) -> float | None:
@@ -373,40 +363,21 @@ class Agv3Device(Device):
     # -- simulation-facing -----------------------------------------------------------------
 
     def set_status(self, state: str, info: str = "") -> None:
-        """Put the AGV in a STATus state (the driving model decides, e.g. FOLLOWING 4)."""
-        if state not in STATES:
-            raise ValueError(f"state {state!r} must be one of {', '.join(STATES)}")
-        self.state, self.info = state, info
-        self._line_found_s = None
+        """Put the AGV in a STATus state (e.g. FOLLOWING 4, FAULT line lost); it drives on
+        from there by itself (`Agv3Vehicle.set_status`)."""
+        self.vehicle.set_status(state, info)
 
     def release_estop(self) -> None:
         self.estop = False
 
     def arrive_at_station(self, station: int) -> None:
         """Carry out the drop-off and pick-up orders for `station`, then pause there."""
-        if self.dropoff.count and self.dropoff.station == station:
-            self.passengers -= min(self.dropoff.count, self.passengers)
-            self.dropoff = _Order()
-        if self.pickup.count and self.pickup.station == station:
-            room = max(0, self.max_passengers - self.passengers)
-            self.passengers += min(self.pickup.count, room)
-            self.pickup = _Order()
-        self.set_status("STATION", "STOPPED")
+        self.vehicle.arrive_at_station(station)
 
     # -- internals -------------------------------------------------------------------------
 
-    def _advance(self, now_s: float) -> None:
-        if self._line_found_s is not None and self._line_found_s <= now_s:
-            self._line_found_s = None
-            self._on_main_road()
-
-    def _on_main_road(self) -> None:
-        if self.role == "LEAD":
-            self.state, self.info = "LEADING", ""
-        else:
-            self.state, self.info = "FOLLOWING", "-1"
-
     def _run(self, parsed: Command | ProtocolError, at_s: float) -> Reply:
+        self.vehicle.advance(at_s)
         if isinstance(parsed, LineTooLongError):
             return _error("", f"line longer than {LINE_LIMIT_BYTES} bytes {_quote(parsed.data)}")
         if isinstance(parsed, ProtocolError):
@@ -418,56 +389,53 @@ class Agv3Device(Device):
         if not allowed:
             return _error(command.name, f"{command.name} has no {command.kind}")
         try:
-            text = (self._get(command.name) if command.kind == "get"
+            text = (self._get(command.name, at_s) if command.kind == "get"
                     else self._set(command.name, command.args, at_s))
         except ValueError as err:
             return _error(command.name, f"{command.name}: {err}")
         return Reply(command.name, "value" if text else "ok", (text,) if text else ())
 
-    def _get(self, name: str) -> str:
+    def _get(self, name: str, at_s: float) -> str:
+        vehicle = self.vehicle
+        if name == "NAVigation:STATus":
+            return " ".join(vehicle.status(at_s)).rstrip()
+        if name == "SYStem:BATtery":
+            return f"{vehicle.battery_v(at_s):.6f}V"
         values = {
-            "NAVigation:PICKUp": self.pickup.text(),
-            "NAVigation:DROPOff": self.dropoff.text(),
-            "NAVigation:ROLe": self.role,
-            "NAVigation:PASSengers": str(self.passengers),
-            "NAVigation:STATus": f"{self.state} {self.info}".rstrip(),
+            "NAVigation:PICKUp": vehicle.pickup.text(),
+            "NAVigation:DROPOff": vehicle.dropoff.text(),
+            "NAVigation:ROLe": vehicle.role,
+            "NAVigation:PASSengers": str(vehicle.passengers),
             "SYStem:EStop": "TRUE" if self.estop else "FALSE",
-            "SYStem:BATtery": f"{self.battery_v:.6f}V",
             "*IDN": IDENTITY,
         }
         return values[name]
 
     def _set(self, name: str, args: tuple[str, ...], at_s: float) -> str:
+        vehicle = self.vehicle
         if name == "NAVigation:STArt":
             if self.estop:
                 raise ValueError("emergency stop is active")
-            self.set_status("STARTED")
-            if self.line_search_s is not None:
-                self._line_found_s = at_s + self.line_search_s
+            vehicle.start(at_s)
             return "Starting..."
         if name == "NAVigation:STOp":
-            self.set_status("STOPPED")
+            vehicle.stop(at_s)
             return "Stopping..."
         if name in ("NAVigation:PICKUp", "NAVigation:DROPOff"):
             station = _whole(args, 0, 0, STATION_MAX, "station")
             count = _whole(args, 1, 0, COUNT_MAX, "count")
-            order = _Order(station, count) if count else _Order()
-            if name == "NAVigation:PICKUp":
-                self.pickup = order
-            else:
-                self.dropoff = order
+            order = Order(station, count) if count else Order()
+            vehicle.set_order("pickup" if name == "NAVigation:PICKUp" else "dropoff", order, at_s)
         elif name == "NAVigation:ROLe":
             role = args[0] if args else "LEAD"
             if role not in ROLES:
                 raise ValueError(f"role {_quote(role)} must be LEAD or FOLLOW (case-sensitive)")
-            self.role = role
-            if self.state in ("LEADING", "FOLLOWING"):
-                self._on_main_road()
+            vehicle.set_role(role, at_s)
         elif name == "NAVigation:PASSengers":
-            self.max_passengers = _whole(args, 0, 0, None, "max", PASSENGERS_DEFAULT)
+            vehicle.max_passengers = _whole(args, 0, 0, None, "max", PASSENGERS_DEFAULT)
         elif name == "SYStem:EStop":
             self.estop = True
-            self.set_status("STOPPED")
+            vehicle.stop(at_s)
         return ""
 
 
