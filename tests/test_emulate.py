@@ -213,3 +213,76 @@ def test_reply_bytes_are_never_early() -> None:
     finally:
         os.close(master)
         os.close(slave)
+
+
+class SteppedAgv3:
+    """`fleet-sim emulate agv3` as `serve` builds it (default profile, its device and wire) on
+    a real pseudo-terminal, stepped in simulated time; the host talks through pyserial with
+    the profile's port settings."""
+
+    def __init__(self) -> None:
+        profile = choose_profile("agv3")
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        os.set_blocking(self.master, False)
+        device = get_device("agv3", **device_settings("agv3", profile.link))
+        self.emu = Emulator(profile, device, self.master, np.random.default_rng(0))
+        self.port = profile_port(os.ttyname(self.slave), "agv3")
+
+    def ask(self, line: str, at_s: float) -> list[str]:
+        """Write `line` at `at_s`; the reply lines that have reached the host 0.25 s later (the
+        AGV-3 reply limit)."""
+        self.port.write(line.encode("ascii") + b"\r\n")
+        self.port.flush()
+        sent = b""
+        while not sent.endswith(b"\r\n"):
+            assert select.select([self.master], [], [], GUARD_S)[0], "the host's line is lost"
+            sent += os.read(self.master, 4096)
+        self.emu.heard(sent, at_s)
+        self.emu.step(at_s + 0.25)
+        replies = [self.port.readline() for _ in range(line.count(";") + 1)]
+        assert all(r.endswith(b"\r\n") for r in replies), replies
+        return [r[:-2].decode("ascii") for r in replies]
+
+    def statuses(self, until_s: float, from_s: float = 0.5) -> list[str]:
+        """STATus? every 0.5 s up to `until_s`: each answer that differs from the one before."""
+        seen: list[str] = []
+        for i in range(round((until_s - from_s) / 0.5) + 1):
+            (status,) = self.ask("NAV:STAT?", from_s + 0.5 * i)
+            if not seen or seen[-1] != status:
+                seen.append(status)
+        return seen
+
+    def close(self) -> None:
+        self.port.close()
+        os.close(self.master)
+        os.close(self.slave)
+
+
+@pytest.fixture
+def agv3() -> Iterator[SteppedAgv3]:
+    emulated = SteppedAgv3()
+    yield emulated
+    emulated.close()
+
+
+def test_agv3_status_follows_its_own_drive_through_a_station(agv3: SteppedAgv3) -> None:
+    """Started with a pick-up order, the emulated AGV-3 finds the line, drives to the station,
+    enters, stops, exits and drives on; the host only asks."""
+    assert agv3.ask("NAV:STA;PICKU 2 3", 0.0) == ["Starting...", ""]
+    assert agv3.statuses(45.0) == ["STARTED", "LEADING", "STATION ENTER", "STATION STOPPED",
+                                   "STATION EXIT", "LEADING"]
+    assert agv3.ask("NAV:PICKU?;PASS?", 45.5) == ["0 0", "3"]
+
+
+def test_agv3_follower_reports_its_leader_once_caught_up(agv3: SteppedAgv3) -> None:
+    agv3.ask("NAV:ROL FOLLOW;STA", 0.0)
+    assert agv3.statuses(10.0) == ["STARTED", "FOLLOWING -1", "FOLLOWING 1"]
+
+
+def test_agv3_faults_by_itself_when_its_battery_runs_out(agv3: SteppedAgv3) -> None:
+    """16 Wh at 8 W (the AGV-3 profile's figures): two hours of driving, then FAULT battery low."""
+    agv3.ask("NAV:STA", 0.0)
+    assert agv3.ask("NAV:STAT?", 7199.0) == ["LEADING"]
+    assert agv3.ask("NAV:STAT?;:SYS:BAT?", 7201.0) == ["FAULT battery low", "0.819417V"]
+    assert agv3.ask("NAV:STA;STAT?", 7202.0) == ["Starting...", "FAULT battery low"]
