@@ -266,8 +266,10 @@ def test_compare_killed_midway_resumes_and_recomputes_nothing(tmp_path: Path) ->
     assert result.returncode == 0, result.stderr
     assert f"{12 - len(finished)} runs made, {len(finished)} already finished" in result.stdout
     assert {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in finished} == finished
-    again = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    again = subprocess.run([c for c in command if c != "--quiet"], cwd=tmp_path,
+                           capture_output=True, text=True, timeout=300)
     assert "0 runs made, 12 already finished" in again.stdout
+    assert "all 12 planned runs are in the summary (12 finished)" in again.stderr
 
 
 @pytest.mark.parametrize(("compare_section", "variants", "element"), [

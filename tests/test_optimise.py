@@ -4,6 +4,7 @@ with fast handling beats a second AGV at 33 orders/h on the tiny loop)."""
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import shutil
@@ -238,9 +239,13 @@ def test_the_known_answer_on_real_runs_in_nine_of_ten_master_seeds(tmp_path: Pat
 
 def test_optimise_writes_the_answer_and_every_design(tmp_path: Path) -> None:
     out = tmp_path / "o"
-    outcome = optimise(load_experiment(DESIGN), out, workers=2, quiet=True)
+    stream = io.StringIO()
+    outcome = optimise(load_experiment(DESIGN), out, workers=2, stream=stream)
     doc = json.loads((out / "optimise.json").read_text(encoding="utf-8"))
     assert doc == outcome.document
+    # every run the search asked for is in the summary, and it says so
+    assert stream.getvalue().rstrip().endswith(f"all {doc['runs_used']} planned runs are in "
+                                               f"the summary ({doc['runs_used']} finished)")
     assert doc["answer"]["price"] == 130
     assert doc["statement"].startswith("The cheapest system that meets both targets")
     assert "1 AGV, 2 s handling at both stations: 130 kEUR" in doc["statement"]

@@ -4,6 +4,7 @@ needs 2 x 32.6267 s of travel + 20 s pick + 30 s drop = 115.2533 s per order, so
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 from typing import Any
@@ -22,7 +23,8 @@ EXPERIMENT = ROOT / "experiments" / "tiny_loop_sizing.yaml"
 def test_size_search_finds_the_known_answer(tmp_path: Path) -> None:
     experiment = load_experiment(EXPERIMENT)
     out = tmp_path / "sizing"
-    (result,) = size_fleet(experiment, out, workers=2, quiet=True)
+    stream = io.StringIO()
+    (result,) = size_fleet(experiment, out, workers=2, stream=stream)
     assert result.recommended == 2
     assert result.evaluations[2].verdict == "meets"
     assert result.evaluations[1].verdict == "fails"  # and one AGV is shown to fail
@@ -40,6 +42,9 @@ def test_size_search_finds_the_known_answer(tmp_path: Path) -> None:
     assert {f"fleet.size=1__r{r:02d}" for r in range(2)} <= runs
     assert "fleet.size=1__r02" not in runs
     assert not any(name.startswith("fleet.size=3") for name in runs)
+    # every run the search asked for is in the summary, and it says so
+    assert stream.getvalue().rstrip().endswith(
+        f"all {len(runs)} planned runs are in the summary ({len(runs)} finished)")
 
 
 def variant(tmp_path: Path, source: Path, name: str, **changes: Any) -> Path:
@@ -136,7 +141,8 @@ def test_sizing_a_mixed_fleet_varies_one_type_and_keeps_the_others(tmp_path: Pat
     experiment = load_experiment(mixed_experiment(tmp_path, vary_type="heavy"))
     assert experiment.fleet_factor == "fleet.vehicles.heavy.count"
     out = tmp_path / "sizing"
-    (result,) = size_fleet(experiment, out, workers=2, quiet=True)
+    stream = io.StringIO()
+    (result,) = size_fleet(experiment, out, workers=2, stream=stream)
     assert result.recommended == 2
     assert result.evaluations[1].verdict != "meets"
     assert set(result.evaluations) == {1, 2}  # from the estimate (2 AGVs) less the carrier

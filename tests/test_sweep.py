@@ -96,6 +96,49 @@ def test_a_planned_run_that_left_no_record_is_not_passed_over(tmp_path: Path) ->
     assert len(pd.read_parquet(out / "summary.parquet")) == 6
 
 
+def test_a_planned_run_missing_from_the_summary_ends_the_sweep_naming_it(
+        tmp_path: Path) -> None:
+    """Every planned run accounted for at the end: run FAIL finishes but its spec.json names
+    another run, so the summary files it under that name and has no row for FAIL; the sweep
+    ends with an error naming FAIL instead of exit 0 with 5 of its 6 runs, and keeps the
+    tables and every run folder."""
+    exp = tiny_experiment(tmp_path)
+    out = tmp_path / "out"
+    with pytest.raises(SweepError, match=r"summary.parquet: 1 of the 6 planned runs is not "
+                                         r"in the summary as finished or failed with a "
+                                         rf"reason: {sweep_helpers.FAIL} \(no row\); the "
+                                         "tables and every run folder are kept"):
+        sweep(exp, out, workers=2, run_fn=sweep_helpers.misnamed_run, quiet=True)
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert sweep_helpers.FAIL not in set(summary["run_id"])
+    assert sweep_helpers.MISNAMED in set(summary["run_id"])
+    assert len(list((out / "runs").glob("*/kpis.json"))) == 6
+
+
+def test_the_sweep_command_exits_non_zero_when_its_summary_lacks_a_planned_run(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The summary writer loses a row (a bug of the gather step): `fleet-sim sweep` names
+    the run in one line and exits 2, never 0 with fewer runs than it planned."""
+    from fleet_sim.cli import main
+    from fleet_sim.study import results
+
+    tiny_experiment(tmp_path, factors={"fleet.size": [1, 2]}, replications=1)
+    gather = results.collect_summary
+    monkeypatch.setattr(results, "collect_summary",
+                        lambda *args, **kwargs: gather(*args, **kwargs).iloc[1:])
+    code = main(["sweep", str(tmp_path / "tiny.yaml"), "--out", str(tmp_path / "out"),
+                 "--workers", "2"])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("fleet-sim: error: ") and \
+        "1 of the 2 planned runs is not in the summary" in last and \
+        "fleet.size=1__r00 (no row)" in last, err
+    assert (tmp_path / "out" / "runs" / "fleet.size=1__r00" / "kpis.json").is_file()
+
+
 def test_failing_and_crashing_runs_are_recorded_and_resume_completes(tmp_path: Path) -> None:
     exp = tiny_experiment(tmp_path)
     out = tmp_path / "out"
@@ -113,10 +156,14 @@ def test_failing_and_crashing_runs_are_recorded_and_resume_completes(tmp_path: P
     assert len(summary) == 6
     assert summary.loc[sweep_helpers.CRASH, "status"] == CRASHED
     assert "1 failed" in stream.getvalue() and "runs 6/6 done, 2 failed" in stream.getvalue()
+    assert stream.getvalue().rstrip().endswith(
+        "all 6 planned runs are in the summary (4 finished, 2 failed)")
     finished = {p: p.stat().st_mtime_ns for p in (out / "runs").glob("*/kpis.json")}
     assert len(finished) == 4
 
-    again = sweep(exp, out, workers=2, stream=io.StringIO())
+    stream = io.StringIO()
+    again = sweep(exp, out, workers=2, stream=stream)
+    assert "all 6 planned runs are in the summary (6 finished)" in stream.getvalue()
     assert again.skipped == 4 and {r.run_id for r in again.results} == {
         sweep_helpers.CRASH, sweep_helpers.FAIL}
     assert all(r.status == OK for r in again.results)

@@ -435,7 +435,8 @@ def compare(experiment: Experiment, out_dir: Path, workers: int = 0,
     outcome = CompareOutcome(out_dir, experiment, kpis, correction, planned)
     n_workers = workers or os.cpu_count() or 1
     check_extras(experiment, scheduler)
-    with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
+    with folder_lock(out_dir, stream), \
+            tables_written(experiment, out_dir, stream=stream, quiet=quiet) as plan:
         own = pool is None
         if pool is None:
             pool = make_pool(scheduler, n_workers, run_fn, dask_timeout_s)
@@ -452,6 +453,7 @@ def compare(experiment: Experiment, out_dir: Path, workers: int = 0,
             earlier = 0
             for n in planned:
                 specs = specs_for(experiment, n)
+                plan.add(spec.run_id for spec in specs)
                 if not quiet:
                     print(f"  look {len(outcome.looks_done) + 1} of at most {len(planned)}: "
                           f"{n} replications x {len(experiment.variant_names)} variants x "

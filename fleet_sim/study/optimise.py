@@ -121,7 +121,8 @@ def optimise(experiment: Experiment, out_dir: Path, workers: int = 0,
     kpis = [t.kpi for t in targets]
     columns = [*experiment.factor_names, *(k for k in space.config.decisions),
                *(f"{LAYOUT_PREFIX}{g}" for g in space.config.layout_decisions)]
-    with folder_lock(out_dir, stream), tables_written(experiment, out_dir, columns):
+    with folder_lock(out_dir, stream), \
+            tables_written(experiment, out_dir, columns, stream, quiet) as plan:
         pool = make_pool(scheduler, workers, dask_timeout_s=dask_timeout_s)
         budget = RunBudget(max_runs, "design search", OPTIMISE_FILE,
                            "Fewer decisions or levels, or a lower optimise.max_replications",
@@ -174,6 +175,7 @@ def optimise(experiment: Experiment, out_dir: Path, workers: int = 0,
                 stopped = str(exc)
             document = _document(experiment, space, search, h2, beta, len(budget.used),
                                  checks, stopped, energy)
+        plan.add(sorted(budget.used))
         write_json_atomic(out_dir / OPTIMISE_FILE, document)
         if stopped is not None:
             raise OptimiseLimit(stopped)

@@ -16,6 +16,14 @@ Decisions, where the issues are silent:
   rebuilds the summary from the folders (in memory: a reader never writes the folder) when
   they differ, so a report never counts 24 runs when 28 exist. A study ended by an exception
   (Ctrl-C included) still rewrites the tables on its way out (`tables_written`).
+* Every run a study planned is accounted for: the study tells `tables_written` the runs it
+  asks for as it asks (`PlannedRuns`: a sweep its design, a comparison each look's runs, a
+  search the runs its budget took), and once the tables are written each of them must have
+  its row in the summary, finished or failed with its reason. One that has not (no row, or a
+  row incomplete, damaged or without a reason) ends the study with one line naming it and a
+  non-zero exit, the tables and every run folder kept; when all have, one line says so
+  ("all 12 planned runs are in the summary (11 finished, 1 failed)"). A study ended by an
+  exception is not checked (its own error says what happened).
 * DuckDB views read the Parquet files by absolute path: the database works from any folder;
   after moving a results folder, run the study again (nothing is recomputed) to rebuild it.
 """
@@ -26,31 +34,100 @@ import contextlib
 import errno
 import json
 import os
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import pandas as pd
 
 from fleet_sim.config.experiment import BASE_VARIANT, Experiment
 from fleet_sim.config.writing import atomic_path, fsync_path, temp_path
-from fleet_sim.study.runner import DAMAGED, FAILED, MANIFEST, OK, run_problem
+from fleet_sim.study.progress import Progress
+from fleet_sim.study.runner import (
+    CRASHED,
+    DAMAGED,
+    FAILED,
+    MANIFEST,
+    OK,
+    SweepError,
+    run_problem,
+)
 
 
 @contextmanager
 def tables_written(experiment: Experiment, out_dir: Path,
-                   columns: Sequence[str] | None = None) -> Iterator[None]:
+                   columns: Sequence[str] | None = None, stream: IO[str] | None = None,
+                   quiet: bool = False) -> Iterator[PlannedRuns]:
     """Write the summary tables when the block ends, also when an exception (Ctrl-C, a run
-    function that fails to report) ends it, so the tables keep up with the runs finished.
-    `columns`: what sets a run apart (default: the experiment's factors)."""
+    function that fails to report) ends it, so the tables keep up with the runs finished;
+    then account for every run the block planned (see the module docstring): a line on
+    `stream` (unless `quiet`) when each is in the summary, else SweepError naming those that
+    are not. `columns`: what sets a run apart (default: the experiment's factors)."""
+    planned = PlannedRuns()
     try:
-        yield
+        yield planned
     except BaseException:
         with contextlib.suppress(Exception):  # the exception that ended the block matters more
             write_tables(experiment, out_dir, columns)
         raise
-    write_tables(experiment, out_dir, columns)
+    summary = write_tables(experiment, out_dir, columns)
+    verdict = planned.account(summary, out_dir)
+    if verdict:
+        Progress(stream=stream, quiet=quiet).note(verdict)
+
+
+MAX_NAMED = 10
+"""How many runs missing from a summary its error names (then how many more)."""
+
+
+class PlannedRuns:
+    """The runs a study asked for, in the order it asked, and the one check that each is in
+    the summary it wrote (`account`)."""
+
+    def __init__(self) -> None:
+        self.run_ids: dict[str, None] = {}
+
+    def add(self, run_ids: Iterable[str]) -> None:
+        self.run_ids.update(dict.fromkeys(run_ids))
+
+    def account(self, summary: pd.DataFrame, out_dir: Path) -> str:
+        """The line that says every planned run is in `summary`, finished or failed with its
+        reason ("" when none was planned); SweepError naming each that is not."""
+        rows: dict[str, tuple[str, str]] = {}
+        if len(summary):
+            errors = summary["error"] if "error" in summary.columns \
+                else pd.Series([None] * len(summary), index=summary.index)
+            rows = {str(run): (str(status), "" if pd.isna(error) else str(error))
+                    for run, status, error in zip(summary["run_id"], summary["status"],
+                                                  errors, strict=True)}
+        finished = failed = 0
+        missing: list[str] = []
+        for run_id in self.run_ids:
+            status, error = rows.get(run_id, ("", ""))
+            if status == OK:
+                finished += 1
+            elif status in (FAILED, CRASHED) and error.strip():
+                failed += 1
+            elif not status:
+                missing.append(f"{run_id} (no row)")
+            else:
+                missing.append(f"{run_id} ({status}{'' if error.strip() else ', no reason'})")
+        total = len(self.run_ids)
+        if missing:
+            named = ", ".join(missing[:MAX_NAMED]) + (
+                f" and {len(missing) - MAX_NAMED} more" if len(missing) > MAX_NAMED else "")
+            raise SweepError(
+                f"{out_dir / 'summary.parquet'}: {len(missing)} of the {total} planned runs "
+                f"{'is' if len(missing) == 1 else 'are'} not in the summary as finished or "
+                f"failed with a reason: {named}; the tables and every run folder are kept, "
+                "run the study again to make or read them again")
+        if not total:
+            return ""
+        counts = f"{finished} finished" + (f", {failed} failed" if failed else "")
+        if total == 1:
+            return f"the one planned run is in the summary ({counts})"
+        return f"all {total} planned runs are in the summary ({counts})"
 
 
 

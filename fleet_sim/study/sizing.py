@@ -434,7 +434,8 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
     if hi_limit < lo_limit:
         raise InputError(str(experiment.file), "sizing.max_agvs", hi_limit,
                          f"at least the smallest fleet searched ({lo_limit})")
-    with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
+    with folder_lock(out_dir, stream), \
+            tables_written(experiment, out_dir, stream=stream, quiet=quiet) as plan:
         results: list[GroupResult] = []
         pool = make_pool(scheduler, workers, dask_timeout_s=dask_timeout_s)
         budget = RunBudget(max_runs)
@@ -448,6 +449,7 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
                 [_size_group(experiment, out_dir, fixed, lo_limit, hi_limit, pool, progress,
                              budget) for fixed in groups(experiment)], out_dir, pool)
             stopped = next((r.stopped for r in results if r.stopped is not None), None)
+        plan.add(sorted(budget.used))
         document = {"experiment": experiment.name, "confidence": 0.95,
                     "stopping": spec.sizing.stopping,
                     "warmup_h": experiment.scenario().warmup_h,

@@ -39,7 +39,8 @@ def sweep(experiment: Experiment, out_dir: Path, workers: int = 0, scheduler: st
           dask_timeout_s: float = DEFAULT_NO_WORKERS_TIMEOUT_S) -> SweepOutcome:
     """Run the experiment's design into `out_dir` and write its summary, statistics and DB."""
     check_extras(experiment, scheduler)
-    with folder_lock(out_dir, stream), tables_written(experiment, out_dir):
+    with folder_lock(out_dir, stream), \
+            tables_written(experiment, out_dir, stream=stream, quiet=quiet) as plan:
         if experiment.spec.warmup.method != "fixed":
             with make_pool(scheduler, workers, run_fn, dask_timeout_s) as pilot_pool, \
                     Progress(stream=stream, quiet=quiet) as progress:
@@ -47,6 +48,7 @@ def sweep(experiment: Experiment, out_dir: Path, workers: int = 0, scheduler: st
                                            largest_fleet(experiment), pilot_pool, progress)
         prepare(experiment, out_dir)
         write_plan(out_dir, "sweep", [spec.run_id for spec in experiment.runs()])
+        plan.add(spec.run_id for spec in experiment.runs())
         outcome = execute(experiment.runs(), out_dir, workers, scheduler, quiet, run_fn, stream,
                           dask_timeout_s=dask_timeout_s)
     return outcome
