@@ -82,7 +82,7 @@ def hand_made_recorder() -> Recorder:
     rec.error(2500.0, 0, "E_101", "Error")
     rec.error(2600.0, 0, "E_101", "Error")
     rec.warnings = Counter({"E_002": 3})
-    rec.obstacle_pauses, rec.comm_losses = 4, 1
+    rec.obstacle_pauses, rec.comm_losses, rec.agv_obstacle_pauses = 4, 1, 3
     rec.commands_sent, rec.command_retries = 7, 1
     # state of charge at state changes: AGV 0 falls 10 points inside the window, rises, then
     # falls 10 over 2500-4000 s (1100 of its 1500 s inside); AGV 1 falls 20 in the warm-up,
@@ -138,6 +138,7 @@ def test_every_kpi_of_a_hand_made_run() -> None:
         "charges": 2, "charging_queue_wait_mean_s": 40.0,  # (60 + 20) / 2
         "charger_waits_open_at_end": 0,
         "commands_sent": 7, "command_retries": 1, "obstacle_pauses": 4, "comm_losses": 1,
+        "agv_obstacle_pauses": 3,
         "errors_by_code": {"E_101": 2, "E_999": 1}, "warnings_by_code": {"E_002": 3},
         "demand_per_hour": 5.333333,  # orders 2, 3, 4, 5 created in 0.75 h
         "throughput_pct_of_demand": 75.0,  # 4 of 5.33 per hour

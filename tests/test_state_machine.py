@@ -30,7 +30,7 @@ SPEC_4_2 = [
     ("4.2.6", S.LOADING, "Event_Load_Complete", S.MOVING),
     ("4.2.7", S.MOVING, "Event_Arrived_Dropoff", S.UNLOADING),
     ("4.2.8", S.UNLOADING, "Event_Unload_Complete", S.IDLE),
-    # 4.2.9 Idle -> Charging: travel to the charger is recorded as Moving (DESIGN reading)
+    # 4.2.9 Idle -> Charging: travel to the charger is recorded as Moving (fleet_sim's reading)
     ("4.2.9", S.IDLE, "Event_Go_Charge", S.MOVING),
     ("4.2.9", S.IDLE, "Event_Low_Battery", S.MOVING),
     ("4.2.10", S.CHARGING, "Event_Charge_Complete", S.IDLE),
@@ -80,6 +80,7 @@ def satisfy(agv: Vehicle, event: str) -> None:
     agv._obstacle_near_s = 0.3
     agv._obstacle_clear_s = 2.0
     agv.error_code = None
+    agv._position_known = True
     agv.rssi_override = -55.0  # type: ignore[attr-defined]
     agv.links_down, agv.in_dead_spot, agv.docked = 0, False, False
     agv.loaded = event == "Event_Load_Complete"
@@ -127,6 +128,7 @@ BREAK_GUARD: dict[str, Callable[[Vehicle], None]] = {
     "Event_Switch_Auto": lambda a: setattr(a, "error_code", "E_999"),
     "Event_NetLoss_LowBat": lambda a: a.battery.set_soc(a.env.now, 15.0),
     "Event_Heartbeat_Restored": lambda a: a.battery.set_soc(a.env.now, 19.0),
+    "Event_Located": lambda a: setattr(a, "_position_known", False),
 }
 
 

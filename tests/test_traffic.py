@@ -40,6 +40,9 @@ class Client:
     def on_deadlock_victim(self, cause: DeadlockVictim) -> None:
         self.causes.append(cause)
 
+    def began_waiting(self, lock: object) -> None:
+        pass
+
 
 def make_traffic(layout: Layout, clients: int = 0, **kwargs: object) -> Traffic:
     """Traffic on `layout`, with stand-in clients 0 .. clients-1 registered."""

@@ -173,7 +173,10 @@ CATALOGUE: tuple[Kpi, ...] = (
         "part inside the window; none without a battery model)"),
     Kpi("commands_sent", "count", "commands the fleet manager sent, whole run"),
     Kpi("command_retries", "count", "commands sent again after no answer, whole run"),
-    Kpi("obstacle_pauses", "count", "obstacle pauses (RSS-AGV-001 4.2.3), whole run"),
+    Kpi("obstacle_pauses", "count", "obstacle pauses (RSS-AGV-001 4.2.3) for people, "
+        "forklifts and blocks, whole run"),
+    Kpi("agv_obstacle_pauses", "count", "pauses behind an AGV standing ahead in a queue "
+        "(4.2.3, rules.agv_ahead: lds), whole run"),
     Kpi("comm_losses", "count", "FMS and internal link losses noticed, whole run"),
     *_code_kpis(),
     Kpi("demand_per_hour", "orders/h", "orders created in the window, per hour"),
@@ -571,6 +574,7 @@ class KpiSums:
             "commands_sent": recorder.commands_sent,
             "command_retries": recorder.command_retries,
             "obstacle_pauses": recorder.obstacle_pauses,
+            "agv_obstacle_pauses": recorder.agv_obstacle_pauses,
             "comm_losses": recorder.comm_losses,
             "errors_by_code": dict(sorted(self.errors_by_code.items())),
             "warnings_by_code": dict(sorted(recorder.warnings.items())),
@@ -912,7 +916,8 @@ def summary_text(figures: Mapping[str, Any]) -> str:
         + _reasons_text(figures[BY_REASON]),
         f"  charges / queue wait        {figures['charges']} / "
         f"{fmt(figures['charging_queue_wait_mean_s'], ' s')}",
-        f"  incidents                   {figures['obstacle_pauses']} obstacle pauses, "
+        f"  incidents                   {figures['obstacle_pauses']} obstacle pauses "
+        f"(+ {figures['agv_obstacle_pauses']} behind AGVs), "
         f"{figures['comm_losses']} link losses, errors {figures['errors_by_code'] or 'none'}, "
         f"{figures['orders_failed']} orders failed",
     ]

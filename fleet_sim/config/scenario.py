@@ -53,6 +53,7 @@ from typing import Annotated, Any, Final, Literal, NamedTuple
 
 import networkx as nx
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
+from pydantic.config import JsonDict
 
 from agv_model.inputs import (
     HourOfDay,
@@ -67,6 +68,8 @@ from agv_model.inputs import (
     read_yaml,
     validate,
 )
+from agv_model.link import LinkSettings
+from agv_model.profile import Profile as AgvModelProfile
 from agv_model.profile import load_profile, profile_names, read_profile
 from fleet_sim.config.chains import MAX_STOPS, MIN_STOPS, check_chain
 from fleet_sim.config.distributions import ExponentialTime, TimeDistribution, TriangularTime
@@ -95,6 +98,19 @@ def folder_name(name: str) -> str:
     return safe if is_folder_name(safe) else safe.replace(".", "_") or "scenario"
 
 
+class CommandLink(NamedTuple):
+    """What an AGV's commands go over: the protocol and link of an agv_model profile."""
+
+    profile: str
+    protocol: str | None
+    """None: the generic RSS-AGV-001 vehicle, whose messages have no stated bytes."""
+    link: LinkSettings
+
+
+def _command_link(name: str, profile: AgvModelProfile) -> CommandLink:
+    return CommandLink(name, profile.protocol, profile.link)
+
+
 class VehicleType(StrictModel):
     """One type of a mixed fleet (`fleet.vehicles`): `count` AGVs of one vehicle profile."""
 
@@ -108,6 +124,21 @@ class VehicleType(StrictModel):
     factsheet, relative to the scenario file. Fields given under `vehicle` win over it."""
     vehicle: VehicleProfile = VehicleProfile()
     """The type's kinematics, body, station times and battery (as `fleet.vehicle`)."""
+    _command_link: CommandLink | None = PrivateAttr(default=None)
+    """The protocol and link of `profile` (none without one); not a key of the file."""
+
+    @property
+    def command_link(self) -> CommandLink | None:
+        """The protocol and link the type's profile names; None without a profile."""
+        return self._command_link
+
+    @model_validator(mode="after")
+    def _link_of_profile(self, info: ValidationInfo) -> VehicleType:
+        if self.profile is not None:
+            base_dir = (info.context or {}).get("base_dir", ".")
+            self._command_link = _command_link(self.profile,
+                                               _read_agv_profile(self.profile, base_dir))
+        return self
 
     @model_validator(mode="before")
     @classmethod
@@ -124,6 +155,11 @@ class VehicleType(StrictModel):
 
 def _profile_fields(name: str, base_dir: str) -> dict[str, Any]:
     """The vehicle fields of profile `name` (bundled, or a file relative to `base_dir`)."""
+    return vehicle_from_profile(_read_agv_profile(name, base_dir))
+
+
+def _read_agv_profile(name: str, base_dir: str) -> AgvModelProfile:
+    """Profile `name`: a bundled one, or a file relative to `base_dir`."""
     try:
         if name in profile_names():
             profile = load_profile(name)
@@ -136,7 +172,7 @@ def _profile_fields(name: str, base_dir: str) -> dict[str, Any]:
             profile = read_profile(path)
     except InputError as exc:
         raise Problem("profile", name, f"a valid profile file ({exc})") from None
-    return vehicle_from_profile(profile)
+    return profile
 
 
 def _deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
@@ -149,6 +185,13 @@ def _deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _off_schema(schema: JsonDict) -> None:
+    """Publish ``false`` (YAML ``off``) beside the switch's words."""
+    words = schema.pop("enum", None)
+    schema.pop("type", None)
+    schema["anyOf"] = [{"enum": words, "type": "string"}, {"const": False}]
+
+
 class FleetConfig(StrictModel):
     size: int = Field(default=4, ge=1, le=MAX_FLEET_SIZE)
     """Number of AGVs; with `vehicles`, the sum of their counts (may be left out)."""
@@ -159,12 +202,25 @@ class FleetConfig(StrictModel):
     this order); empty: `size` AGVs of `vehicle`."""
     start_nodes: Items[Text] = ()
     """Where AGVs start, one node each; empty: inside the parking areas, filled in file order."""
+    command_timing: Literal["auto", "off"] = Field(default="auto",
+                                                   json_schema_extra=_off_schema)
+    """auto: the fleet manager's commands to an AGV, its boot report and (granted hop by hop,
+    `traffic.grants`) its route permissions take the time its type's profile's protocol and
+    link take to carry them, for every type of `vehicles` that names a profile with a
+    protocol (fleet_sim.sim.commands); other AGVs' take none. off (false): none take time."""
     command_profile: Text | None = None
-    """agv_model vehicle profile whose protocol and link carry the fleet manager's commands
-    (rss-agv-001, carriro-ad-plus, ktm-02, tabo, agv-3); none: commands take no time."""
+    """A one-type fleet: the agv_model vehicle profile whose protocol and link carry every
+    command (rss-agv-001, carriro-ad-plus, ktm-02, tabo, agv-3); none: commands take no time.
+    A mixed fleet's types name their own (`vehicles[].profile`)."""
     status_poll_s: NonNegative = 0.0
     """The fleet manager polls each AGV this often and learns it is free at the next poll;
     0: AGVs report at once."""
+
+    @field_validator("command_timing", mode="before")
+    @classmethod
+    def _timing_off(cls, value: Any) -> Any:
+        """YAML reads `off` as false."""
+        return "off" if value is False else value
 
     @model_validator(mode="before")
     @classmethod
@@ -205,6 +261,23 @@ class FleetConfig(StrictModel):
         return {t.type: t.vehicle for t in self.vehicles}
 
     @property
+    def agv_command_links(self) -> tuple[CommandLink | None, ...]:
+        """What each AGV's commands go over, in AGV order; None: they take no time.
+        `command_profile`: its link for every AGV. Else, `command_timing: auto`: each type's
+        profile's, if the profile has a protocol (the generic RSS-AGV-001 profile has none:
+        its messages have no stated bytes, so they are timed only when named by
+        command_profile)."""
+        if self.command_profile is not None:
+            name = self.command_profile
+            return (_command_link(name, load_profile(name)),) * self.size
+        if self.command_timing == "off" or not self.vehicles:
+            return (None,) * self.size
+        links = [t.command_link if t.command_link is not None
+                 and t.command_link.protocol is not None else None for t in self.vehicles]
+        return tuple(link for t, link in zip(self.vehicles, links, strict=True)
+                     for _ in range(t.count))
+
+    @property
     def max_speed_mps(self) -> float:
         """The fastest type's top speed (segment limits above it are refused)."""
         return max(p.max_speed_mps for p in self.type_profiles.values())
@@ -228,6 +301,15 @@ class FleetConfig(StrictModel):
         if self.command_profile is not None and self.command_profile not in profile_names():
             raise Problem("command_profile", self.command_profile,
                           f"one of {', '.join(profile_names())}")
+        if self.command_profile is not None and self.vehicles:
+            raise Problem("command_profile", self.command_profile,
+                          "no command_profile with fleet.vehicles: each type's commands go "
+                          "over its own profile's protocol and link (fleet.vehicles[].profile;"
+                          " fleet.command_timing: off for commands that take no time)")
+        if self.command_profile is not None and self.command_timing == "off":
+            raise Problem("command_timing", "off",
+                          "auto with fleet.command_profile (which times every command on its "
+                          "link); leave command_profile out for commands that take no time")
         if len(set(self.start_nodes)) != len(self.start_nodes):
             raise Problem("start_nodes", list(self.start_nodes),
                           "distinct nodes (one AGV per node)")
@@ -335,6 +417,14 @@ class DispatchConfig(StrictModel):
 
 
 class TrafficConfig(StrictModel):
+    grants: Literal["auto", "per_hop", "whole_route"] = "auto"
+    """How the fleet manager gives an AGV whose commands take time (fleet.command_timing,
+    fleet.command_profile) its route: `per_hop`, each hop traffic grants is a permission
+    message (the protocol's resume) the AGV must have before it drives the hop; `whole_route`,
+    the order carries the route and traffic's grants cost no message; `auto` (default): as
+    its protocol's document has it, hop by hop for KTM-02 and TABO (motion commands only, no
+    route), the whole route for CarriRo AD+, AGV-3 and RSS-AGV-001
+    (agv_model.fleet_commands.GRANTS_PER_HOP)."""
     policy: Literal["reactive", "avoiding"] = "reactive"
     """How traffic control keeps the fleet from locking solid. `reactive` (default): locks are
     granted when free, wait-for cycles are found and broken (one AGV reroutes or backs off).
@@ -390,8 +480,19 @@ class Rules(StrictModel):
     """6.1 E_101: paused for 5 minutes."""
     obstacle_slow_speed_mps: Positive = 0.3
     """Assumed: creep speed inside the detection zone."""
+    lds_stop_m: Positive = 1.0
+    """4.2.3: the LDS pauses the AGV for an obstacle closer than this."""
+    lds_clear_m: Positive = 1.2
+    """4.2.4: the way counts as clear beyond this."""
+    lds_slow_m: Positive = 1.5
+    """P_005: the LDS's detection (slowing) zone."""
+    agv_ahead: Literal["lds", "held_back"] = "lds"
+    """The AGV ahead in a queue: ``lds`` (default, the document as written) closes up to
+    `min_gap_m` (P_006) and is paused by its LDS like any obstacle (4.2.3/4.2.4, E_101 after
+    5 minutes); ``held_back``: the fleet manager keeps AGVs `lds_slow_m` apart, so the LDS
+    never sees one (fleet_sim.sim.agents.lds)."""
     comm_policy: Literal["req_err_011", "timeout_60s"] = "req_err_011"
-    """FMS heartbeat loss: Req.Err.011 (default, DESIGN reading) or 4.2.11's 60 s to Error."""
+    """FMS heartbeat loss: Req.Err.011 (default, fleet_sim's reading) or 4.2.11's 60 s to Error."""
     comm_timeout_s: NonNegative = 60.0
     """4.2.11: communication timeout to Error (policy timeout_60s; internal links always)."""
     reconnect_timeout_s: NonNegative = 600.0
@@ -478,6 +579,11 @@ class IncidentsConfig(StrictModel):
     line_search_s: float = 2.0
     """Assumed: time lost finding the tape again."""
     faults: Items[Fault] = ()
+    cpu_reset: Literal["reboot", "operator"] = "reboot"
+    """E_999 (CPU exception, watchdog reset; RSS-AGV-001 6.1): ``reboot`` (default) restarts
+    the AGV through Booting (POST, the start-up report) where it stands, its position unknown
+    until it reads a TYPE_LOC tag; ``operator``: like any Error, an operator and
+    Maintenance."""
     operator_response: TimeDistribution = TriangularTime(dist="triangular", low_s=60.0,
                                                          mode_s=180.0, high_s=600.0)
     """Assumed: time until an operator reaches a failed AGV and turns it to MANUAL."""

@@ -46,6 +46,10 @@ Decisions:
   collection) no longer adds to them.
 * Gridlock (fleet_sim.sim.gridlock): the first time the fleet locks solid is kept in
   `gridlock` (a `Gridlock`), and recorded as a `gridlock` event.
+* Stalls that are not traffic (charging starvation, a fleet out of service): the engine gives
+  the recorder a `StallMeter` (fleet_sim.model.stalls), which it hands what it records anyway
+  (state changes, SOC samples, charger requests, waiting orders, not_dispatched notes); the
+  meter keeps their spells. It records nothing of its own.
 """
 
 from __future__ import annotations
@@ -54,6 +58,8 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Final, NamedTuple, Protocol, TypeVar
+
+from fleet_sim.model.stalls import StallMeter
 
 BATCH_ROWS: Final = 10_000
 """Rows of one kind a streaming recorder holds before it hands them to its sink, and the rows of
@@ -334,6 +340,9 @@ class Recorder:
     """Node holds and segment traversals, when traced (record_occupancy); never streamed."""
     charge_waits: list[ChargeWait] = field(default_factory=list)
     obstacle_pauses: int = 0
+    """Pauses for people, forklifts and scripted blocks (not other AGVs)."""
+    agv_obstacle_pauses: int = 0
+    """Pauses behind an AGV standing ahead in a queue (fleet_sim.sim.agents.lds)."""
     comm_losses: int = 0
     commands_sent: int = 0
     command_retries: int = 0
@@ -359,6 +368,8 @@ class Recorder:
     moved_s: float = 0.0
     """When the latest hop ended (fleet_sim.sim.gridlock: nothing moving)."""
     gridlock: Gridlock | None = None
+    stalls: StallMeter | None = None
+    """Charging starvation and a fleet out of service (fleet_sim.model.stalls), if metered."""
     ended: bool = False
     """`end_of_run` has closed the open spells: the totals are final."""
     _full: float = field(init=False, repr=False)
@@ -388,6 +399,8 @@ class Recorder:
 
     def charger_asked(self, agv: int, asked_s: float) -> None:
         self.charger_asked_s[agv] = asked_s
+        if self.stalls is not None:
+            self.stalls.charger_asked(asked_s, agv)
 
     def charger_wait_over(self, agv: int) -> None:
         """The AGV got its charger, or stopped waiting for one (it failed first)."""
@@ -406,6 +419,8 @@ class Recorder:
         self.charger_waits_open = [self.charger_asked_s[agv]
                                    for agv in sorted(self.charger_asked_s)]
         self.charger_asked_s.clear()
+        if self.stalls is not None:
+            self.stalls.end(self.end_s)
         self.ended = True
 
     def warning(self, code: str) -> None:
@@ -414,11 +429,19 @@ class Recorder:
     def event(self, time_s: float, agv: int, event: str, from_state: str, to_state: str,
               node: str, detail: str = "") -> None:
         self.events.append(EventRecord(time_s, agv, event, from_state, to_state, node, detail))
+        stalls = self.stalls
+        if stalls is not None:
+            if from_state != to_state:
+                stalls.state_changed(time_s, agv, from_state, to_state)
+            else:
+                stalls.note(time_s, agv, event, detail)
         if len(self.events) >= self._full:
             self._hand(self.events, self._sink.events)
 
     def soc(self, time_s: float, agv: int, soc_pct: float) -> None:
         self.soc_samples.append(SocSample(time_s, agv, soc_pct))
+        if self.stalls is not None:
+            self.stalls.soc(time_s, agv, soc_pct)
         if len(self.soc_samples) >= self._full:
             self._hand(self.soc_samples, self._sink.soc_samples)
 
@@ -436,6 +459,8 @@ class Recorder:
 
     def queue_length(self, time_s: float, orders: int) -> None:
         self.queue_lengths.append(QueueLength(time_s, orders))
+        if self.stalls is not None:
+            self.stalls.orders_waiting(time_s, orders)
         if len(self.queue_lengths) >= self._full:
             self._hand(self.queue_lengths, self._sink.queue_lengths)
 

@@ -118,10 +118,10 @@ TRANSITIONS: tuple[Transition, ...] = (
       "chain's last, drive on to its next pickup without passing through Idle"),
     T(S.IDLE, "Event_Go_Charge", S.MOVING, lambda f, p: f.charger_assigned,
       "a charger is free (FMS)", "drive to the charger", "4.2.9",
-      "travel to the charger is recorded as Moving (DESIGN reading)"),
+      "travel to the charger is recorded as Moving (reading)"),
     T(S.IDLE, "Event_Low_Battery", S.MOVING, lambda f, p: f.charger_assigned,
       "a charger is free (FMS)", "drive to the charger", "4.2.9",
-      "travel to the charger is recorded as Moving (DESIGN reading)"),
+      "travel to the charger is recorded as Moving (reading)"),
     T(S.MOVING, "Event_Arrived_Charger", S.CHARGING, None, "at the charger node",
       "docking sequence", None, "second half of 4.2.9: docking at the charger"),
     T(S.CHARGING, "Event_Charge_Complete", S.IDLE,
@@ -151,6 +151,16 @@ TRANSITIONS: tuple[Transition, ...] = (
       "Req.Err.011 steps 1-3"),
     T(S.IDLE, "Event_Heartbeat_Restored", S.MOVING, _soc_above_low, "link back, SOC > 20 %",
       "resume the interrupted trip", None, "Req.Err.011: resume after reconnecting"),
+    T(S.ERROR, "Event_Watchdog_Reset", S.BOOTING, None, "E_999: CPU exception",
+      "the watchdog resets the CPU: POST, then the start-up report (4.2.1)", None,
+      "6.1 E_999 'Watchdog Reset', read as a reboot (incidents.cpu_reset: reboot)"),
+    T(S.IDLE, "Event_Locate", S.MOVING, None, "position unknown after a reset",
+      "creep along the tape to the nearest TYPE_LOC tag (not a transport order: 4.2.2's "
+      "guard does not apply)", None,
+      "5.3 TYPE_LOC corrects the position; reading: the AGV finds it by itself"),
+    T(S.MOVING, "Event_Located", S.IDLE, lambda f, p: f.position_known,
+      "a TYPE_LOC tag read (position known)", "wait for orders", None,
+      "5.3 TYPE_LOC: the end of the run to find the position"),
 )
 
 TABLE: dict[tuple[VehicleState | None, str], Transition] = {

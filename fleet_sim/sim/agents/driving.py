@@ -40,10 +40,11 @@ from fleet_sim.errors import SimulationError
 from fleet_sim.model.kinematics import Piece, traverse
 from fleet_sim.model.records import MoveRecord, Recorder
 from fleet_sim.model.states import VehicleState
+from fleet_sim.sim.agents.lds import AgvAhead, Ahead
 from fleet_sim.sim.traffic.allocation import Hop
 from fleet_sim.sim.traffic.control import Traffic
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim
-from fleet_sim.sim.traffic.locks import Claim
+from fleet_sim.sim.traffic.locks import Claim, Lock
 
 Proc = Generator[simpy.Event, Any, Any]
 
@@ -60,6 +61,9 @@ class Held:
     since_s: float
     behind_m: float = 0.0
     """How far the AGV has driven past this node."""
+    ready_s: float = 0.0
+    """When the fleet manager's permission to drive to this node reaches the AGV (a route
+    granted hop by hop, fleet_sim.sim.commands); 0: traffic's grant is the permission."""
 
 
 class DriverHost(Protocol):
@@ -100,7 +104,10 @@ class Driver:
 
     def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
                  recorder: Recorder, profile: VehicleProfile, config: TrafficConfig,
-                 rng: np.random.Generator, host: DriverHost) -> None:
+                 rng: np.random.Generator, host: DriverHost,
+                 permission: Callable[[], float] | None = None) -> None:
+        """`permission`: its route granted hop by hop, sends a hop's permission and says
+        when it arrives (fleet_sim.sim.commands.CommandPath.permission); None: not."""
         self.id = agv_id
         self.env = env
         self.traffic = traffic
@@ -109,7 +116,11 @@ class Driver:
         self.config = config
         self.rng = rng
         self.host = host
-        self.clear_m = profile.length_m + profile.min_gap_m
+        self.permission = permission
+        self.body_m = profile.length_m + profile.min_gap_m
+        """Its length and the minimum gap behind it (the way into a parking bay)."""
+        self.clear_m = self.body_m
+        """How far past a node it drives before it lets go of it (TrafficClient)."""
         self.node = ""
         self.prev: str | None = None
         self.speed_mps = 0.0
@@ -126,6 +137,13 @@ class Driver:
         """With moves recorded: the hop under way's pieces, entry and exit speed and time."""
         self._drive_open: tuple[str, str, float, float] | None = None
         """With moves recorded: the stretch being driven (u, v, since_s, driven_s)."""
+        self._in_hop = False
+        self.halted_mid_hop = False
+        """Stopped by a fault on the way to `next_node` (until it drives again)."""
+        self.departed_s = 0.0
+        """When it last set off on a hop (or left the track)."""
+        self.lds: AgvAhead | None = None
+        """Its LDS's watch over the AGV ahead in a queue (`rules.agv_ahead: lds`), if on."""
         traffic.register(self)
         self.routes = traffic.routes_of(agv_id)
         """Routes and hop kinematics of this AGV's vehicle type."""
@@ -149,6 +167,52 @@ class Driver:
     def past_m(self) -> dict[str, float]:
         """Node -> how far the AGV has driven past it, for the nodes behind it it holds."""
         return {h.node: h.behind_m for h in self.held}
+
+    def began_waiting(self, lock: Lock) -> None:
+        """Traffic makes the AGV wait for `lock`: on a drive, its LDS may see the AGV ahead."""
+        if self.lds is not None and self.next_node is not None:
+            self.lds.began_waiting(self._agv_ahead)
+
+    def _agv_ahead(self) -> tuple[int, Ahead] | None:
+        """The AGV standing on (or with its body over) the node this one waits for, if any."""
+        found = self.traffic.node_holder(self.id)
+        if found is None:
+            return None
+        ahead, node = found
+        if not isinstance(ahead, Driver) or not ahead.covers(node):
+            return None
+        return ahead.id, ahead
+
+    def covers(self, node: str) -> bool:
+        """Whether the AGV stands on `node` or its body is still over it."""
+        return any(h.node == node for h in self.held)
+
+    @property
+    def standing(self) -> bool:
+        """Not driving a hop (Ahead)."""
+        return not self._in_hop
+
+    @property
+    def accel_mps2(self) -> float:
+        return self.routes.motion.accel_mps2
+
+    def hold_back(self, distance_m: float) -> None:
+        """Let go of a node only once the rear is `distance_m` past it (not `min_gap_m`): the
+        AGV behind stays out of the LDS's range (`rules.agv_ahead: held_back`)."""
+        self.clear_m = self.profile.length_m + max(self.profile.min_gap_m, distance_m)
+
+    def _allocate(self, hop: Hop) -> Generator[simpy.Event, Any, Claim | None]:
+        """`Traffic.allocate`, with the LDS's pause behind the AGV ahead while it waits."""
+        lds = self.lds
+        if lds is None:
+            return (yield from self.traffic.allocate(self, hop))
+        try:
+            claim = yield from self.traffic.allocate(self, hop)
+            yield from lds.wait_over()
+        except BaseException:  # a fault (E_101 among them): the pause is over
+            lds.stop()
+            raise
+        return claim
 
     @property
     def in_parking(self) -> bool:
@@ -193,9 +257,26 @@ class Driver:
             if backend is not None:
                 backend.release(self.id)
 
+    def stop_where_it_is(self) -> bool:
+        """A reset stops the AGV where it is, on the track: what it was granted ahead is given
+        back, what its body stands on is kept. True if it stopped on the way to `next_node`
+        (which stays set: the tag ahead of it)."""
+        mid_hop = self.halted_mid_hop
+        self.halt()
+        keep = 1 if mid_hop else 0  # the node it was driving to
+        for held in self.ahead[keep:]:
+            self._release(held)
+        del self.ahead[keep:]
+        if not mid_hop:  # (mid-hop, the corridor it drives into is kept with the node)
+            self.traffic.drop_pending(self.id)
+            self.next_node = None
+        return mid_hop
+
     def halt(self) -> None:
         """A fault stops the AGV where it is."""
         self.speed_mps = 0.0
+        self.halted_mid_hop = self.halted_mid_hop or self._in_hop
+        self._in_hop = False
         if self.traffic.motion_backend is not None:
             self.traffic.motion_backend.halt(self.id)
 
@@ -218,6 +299,7 @@ class Driver:
         for held in self.held:
             self._release(held)
         self.held = []
+        self.departed_s = self.env.now
         self.traffic.let_go(self.id)
         self.parked_in = place
         self.prev = None
@@ -231,6 +313,7 @@ class Driver:
             self._release(held)
         self.held = []
         self.ahead.clear()  # the same list: a drive holds it
+        self.departed_s = self.env.now
         self.traffic.let_go(self.id)
         self.prev, self.speed_mps = None, 0.0
         if self.traffic.motion_backend is not None:
@@ -265,7 +348,6 @@ class Driver:
         pass_speed_mps = self.routes.pass_speed_mps
         try_allocate = traffic.try_allocate
         ahead = self.ahead
-        env = self.env
         agv = self.id
         i = 0
         while self.node != self.goal:
@@ -273,19 +355,19 @@ class Driver:
             self.next_node = nxt
             if not ahead:
                 after = path[i + 2] if i + 2 < len(path) else None
-                claim = yield from traffic.allocate(self, Hop(self.node, nxt, after))
+                claim = yield from self._allocate(Hop(self.node, nxt, after))
                 if claim is None:
                     path = yield from self._get_out()
                     i = 0
                     continue
-                ahead.append(Held(nxt, claim, env.now))
+                ahead.append(self._granted(nxt, claim))
             v_end_max = 0.0
             if nxt != self.goal and i + 2 < len(path) and markers.get(nxt) not in STOP_MARKERS:
                 w = path[i + 2]
                 # the look-ahead (`_look_ahead`, written out)
                 claim = try_allocate(agv, Hop(nxt, w, path[i + 3] if i + 3 < len(path) else None))
                 if claim is not None:
-                    ahead.append(Held(w, claim, env.now))
+                    ahead.append(self._granted(w, claim))
                     v_end_max = pass_speed_mps(self.node, nxt, w)
             yield from self._hop(nxt, v_end_max)
             i += 1
@@ -312,12 +394,12 @@ class Driver:
                     on_plan = True
                     continue
                 self.next_node = nxt
-                claim = yield from traffic.allocate(
-                    self, Hop(self.node, nxt, traffic.plan_step(self.id, 2)))
+                claim = yield from self._allocate(
+                    Hop(self.node, nxt, traffic.plan_step(self.id, 2)))
                 if claim is None:  # blocked long: it took another way (a new plan)
                     on_plan = True
                     continue
-                self.ahead.append(Held(nxt, claim, self.env.now))
+                self.ahead.append(self._granted(nxt, claim))
             nxt = self.ahead[0].node
             self.next_node = nxt
             v_end_max = 0.0
@@ -350,7 +432,7 @@ class Driver:
                                   "parking access")
         self.note("through_parking", f"{place.id} on the way to {goal}")
         self.next_node = None
-        yield self.env.timeout(self.clear_m / self.profile.turn_speed_mps)
+        yield self.env.timeout(self.body_m / self.profile.turn_speed_mps)
         self.enter_parking(place)
         accepted = self.traffic.declare(self, goal)
         assert accepted
@@ -362,10 +444,21 @@ class Driver:
         claim = self.traffic.try_allocate(self.id, hop)
         if claim is None:
             return False
-        self.ahead.append(Held(hop.node, claim, self.env.now))
+        self.ahead.append(self._granted(hop.node, claim))
         return True
 
+    def _granted(self, node: str, claim: Claim) -> Held:
+        """A hop traffic has granted; granted hop by hop, its permission is sent now."""
+        now = self.env.now
+        if self.permission is None:
+            return Held(node, claim, now)
+        return Held(node, claim, now, ready_s=self.permission())
+
     def _hop(self, nxt: str, v_end_max: float) -> Proc:
+        ready_s = self.ahead[0].ready_s
+        if ready_s > self.env.now:  # its permission is on its way: it stands until it comes
+            self.speed_mps = 0.0
+            yield self.env.timeout(ready_s - self.env.now)
         u = self.node
         agv = self.id
         traffic = self.traffic
@@ -392,7 +485,11 @@ class Driver:
             self._plan = (self._pieces(u, nxt, cap), self.speed_mps, v_end, time_s)
         env = self.env
         start = env.now
+        self._in_hop = True
+        self.halted_mid_hop = False
+        self.departed_s = start
         yield from host.travel(u, nxt, time_s)
+        self._in_hop = False
         self._plan = None
         if self._leg is not None:
             if self._moved < 1.0:  # a travel hook that did not drive to the end

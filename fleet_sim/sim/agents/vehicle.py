@@ -61,6 +61,7 @@ from fleet_sim.model.records import MoveRecord, Order, Recorder
 from fleet_sim.model.state_machine import transition_for
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.agents.driving import Driver, Proc
+from fleet_sim.sim.agents.lds import AgvAhead
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.traffic.control import Traffic
 
@@ -81,6 +82,8 @@ class FleetManagerLink(Protocol):
     def status_changed(self, agv: Vehicle) -> None: ...
 
     def resume(self, agv: Vehicle) -> Generator[simpy.Event, Any, None]: ...
+
+    def boot_report(self, agv: Vehicle) -> Generator[simpy.Event, Any, None]: ...
 
     def requeue(self, agv: Vehicle, order: Order) -> None: ...
 
@@ -140,12 +143,15 @@ class Vehicle:
         self.failing = False
         self.process: simpy.Process | None = None
         self.driver = Driver(agv_id, env, traffic, recorder, profile, scenario.traffic, rng,
-                             host=self)
+                             host=self, permission=fleet.commands.permission(agv_id))
         """Moves the AGV from node to node under traffic control."""
-        self.routes = self.driver.routes
-        self.clear_m = self.driver.clear_m
-        self.fleet = fleet
         self.rules: Rules = scenario.rules
+        if self.rules.agv_ahead == "lds":
+            self.driver.lds = AgvAhead(env, self.rules, profile.min_gap_m, self)
+        else:
+            self.driver.hold_back(self.rules.lds_slow_m)
+        self.routes = self.driver.routes
+        self.fleet = fleet
         self.charging: ChargingConfig = scenario.charging
         self.incidents: IncidentsConfig = scenario.incidents
         self.incident_rng = incident_rng
@@ -320,6 +326,7 @@ class Vehicle:
     def run(self) -> Proc:
         yield self.env.timeout(self.profile.boot_s)
         self.fire("Event_Init_Complete")
+        yield from self.fleet.boot_report(self)  # 4.2.1: it reports to the FMS
         while True:
             try:
                 if self.order is None:
@@ -366,7 +373,7 @@ class Vehicle:
                 yield from self.drive(access, stop_early=self._stop_parking_trip)
                 if self.node == access and self.order is None and not self.charge_due:
                     # drive off the tape into a bay, at turn speed, before letting go of it
-                    yield self.env.timeout(self.clear_m / self.profile.turn_speed_mps)
+                    yield self.env.timeout(self.driver.body_m / self.profile.turn_speed_mps)
                     self.driver.enter_parking(place)
                     if self.order is None:  # not one assigned while it drove in
                         self.fleet.parked(self)
@@ -741,6 +748,22 @@ class Vehicle:
         self._obstacle_clear_s = rules.obstacle_clear_s
         self.fire("Event_Obstacle_Cleared", f"paused {wait:.2f} s")
 
+    def pause_for_agv(self, ahead: int, gap_m: float) -> bool:
+        """PausedHost: the AGV ahead stands within the LDS's stop distance (4.2.3)."""
+        if self.state is not VehicleState.MOVING or self.failing:
+            return False
+        self._obstacle_near_s = self.rules.obstacle_pause_s
+        self.fire("Event_Obstacle_Detected",
+                  f"AGV {ahead} {gap_m:.2f} m ahead for >= "
+                  f"{self.rules.obstacle_pause_s * 1000:.0f} ms")
+        self.recorder.agv_obstacle_pauses += 1
+        return True
+
+    def resume_after_agv(self, paused_s: float) -> None:
+        """PausedHost: the way has been clear long enough (4.2.4)."""
+        self._obstacle_clear_s = self.rules.obstacle_clear_s
+        self.fire("Event_Obstacle_Cleared", f"paused {paused_s:.2f} s behind an AGV")
+
     def arrived(self, v: str, length_m: float) -> Proc | None:
         """DriverHost: battery use and markers at `v`; a spin or a pause marker is a stop,
         returned to be driven (None: none)."""
@@ -812,6 +835,53 @@ class Vehicle:
         self.battery.draw(self.env.now, self.battery.profile.idle_w)
         self.fire("Event_Operator_Rescue")
 
+    def _reboot(self) -> Proc:
+        """E_999 under `incidents.cpu_reset: reboot`: the watchdog resets the CPU where the AGV
+        stands (Error -> Booting), POST takes the boot time, the start-up report goes to the
+        fleet manager (4.2.1), and the AGV, its position unknown (4.2.2's guard), creeps along
+        the tape to the nearest TYPE_LOC tag (5.3) before it takes orders again. A charge
+        under way is lost (the charger is let go of); in a parking bay or at a tag, with a
+        layout that has no TYPE_LOC tags, the tag it stands on tells it where it is."""
+        self.fire("Event_Watchdog_Reset", "E_999: CPU exception, the watchdog resets the CPU")
+        mid_hop = self.driver.stop_where_it_is()
+        if self.charger is not None:
+            self.docked = False
+            self.fleet.release_charger(self.charger)
+            self.charger = None
+        self.marker_speed_mps = None
+        locating = self.traffic.layout.markers
+        self._position_known = self.parked_in is not None or (
+            not mid_hop and "location" not in locating.values())
+        yield self.env.timeout(self.profile.boot_s)  # POST
+        self.error_code = None
+        self.failing = False
+        self.fire("Event_Init_Complete", "after the watchdog reset")
+        yield from self.fleet.boot_report(self)
+        if not self._position_known:
+            yield from self._locate()
+
+    def _locate(self) -> Proc:
+        """Position unknown: creep (rules.obstacle_slow_speed_mps) to the nearest TYPE_LOC
+        tag, or, on a layout without any, to the next tag ahead."""
+        markers = self.traffic.layout.markers
+        graph = self.traffic.graph
+        with_loc = any(m == "location" for m in markers.values())
+        if with_loc:
+            times = nx.single_source_dijkstra_path_length(graph, self.node,
+                                                          weight=self.routes.weight)
+            found = sorted((t, n) for n, t in times.items() if markers.get(n) == "location")
+            goal = found[0][1] if found else self.node
+        else:
+            goal = self.driver.next_node or min(graph.successors(self.node), default=self.node)
+        self.fire("Event_Locate", f"position unknown after the reset: to {goal}")
+        self.marker_speed_mps = self.rules.obstacle_slow_speed_mps
+        if goal != self.node:
+            yield from self.drive(goal)
+        self.marker_speed_mps = None
+        self._position_known = True
+        self.fire("Event_Located", f"TYPE_LOC tag read at {goal}" if with_loc
+                  else f"the tag at {goal} read (the layout has no TYPE_LOC tags)")
+
     def _recover(self, failure: Failure) -> Proc:
         """Error -> (operator) -> Maintenance -> (repair) -> Idle, or SafeMode -> rescue."""
         env = self.env
@@ -835,6 +905,9 @@ class Vehicle:
         if self.charger is not None and not self.docked:
             self.fleet.release_charger(self.charger)
             self.charger = None
+        if failure.code == "E_999" and self.incidents.cpu_reset == "reboot":
+            yield from self._reboot()
+            return
         safe = self.fire("Event_NetLoss_LowBat", "4.2.14: no link, low battery, no charger")
         if safe or (yield from self._wait_in_error()):
             yield from self._safe_mode()

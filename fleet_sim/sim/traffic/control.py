@@ -144,6 +144,10 @@ class TrafficClient(Protocol):
     def on_deadlock_victim(self, cause: DeadlockVictim) -> None:
         """The AGV was chosen to break a wait-for cycle: stop waiting and take `cause.escape`."""
 
+    def began_waiting(self, lock: Lock) -> None:
+        """Traffic makes the AGV wait for `lock` (the AGV ahead may now be in its LDS's
+        range: fleet_sim.sim.agents.lds)."""
+
     @property
     def clear_m(self) -> float:
         """How far past a node the AGV drives before it lets go of it (its length plus the
@@ -417,6 +421,17 @@ class Traffic:
         del self.waiting[client_id]
         self._suspects.discard(client_id)
         self.version += 1
+
+    def node_holder(self, client_id: int) -> tuple[TrafficClient, str] | None:
+        """The client holding the node `client_id` waits for, and that node (None: it waits
+        for no node, or for a free one)."""
+        lock = self.waiting.get(client_id)
+        if lock is None or not isinstance(lock.key, NodeLock):
+            return None
+        holder = lock.holder
+        if holder is None or holder == client_id:
+            return None
+        return self._clients[holder], lock.key.node
 
     def holders(self) -> Iterator[tuple[str, int]]:
         """(node, client id) for every held node lock (for invariant checks)."""
@@ -889,6 +904,7 @@ class Traffic:
                     if client_id in self.waiting:
                         self.stop_waiting(client_id)
                     self.start_waiting(client_id, shown)
+                    client.began_waiting(shown)
                     self._record_cycle(client)
                 wake = self._wake_on(blocker)
                 if needs_of is None:  # driving: blocked long, another way (checked as a plan)
@@ -987,6 +1003,7 @@ class Traffic:
         client_id = client.id
         start = env.now
         self.start_waiting(client_id, lock)
+        client.began_waiting(lock)
         self.recorder.wait_began(client_id, start,
                                  lock.key.zone_id if isinstance(lock.key, ZoneLock) else None)
         if self.recorder.record_moves:

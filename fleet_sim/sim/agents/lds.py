@@ -1,0 +1,155 @@
+"""The AGV ahead as an obstacle to the LDS (RSS-AGV-001 4.2.3, 4.2.4, 6.1 E_101; P_005, P_006).
+
+The laser scanner does not know an AGV from a person: an AGV queued behind another that
+stands still sees it within range. Which reading holds is `rules.agv_ahead`:
+
+* ``lds`` (default, the document as written): an AGV that traffic makes wait for the node a
+  standing AGV holds closes up behind it to the minimum gap (`min_gap_m`, P_006). When that gap
+  is under `rules.lds_stop_m` (1.0 m, 4.2.3) the AGV is Paused `obstacle_pause_s` (300 ms)
+  after it began to wait (`Event_Obstacle_Detected`, counted in `agv_obstacle_pauses`, apart
+  from other obstacles). It moves on (`Event_Obstacle_Cleared`) once traffic grants the node
+  and the way has been clear by more than `rules.lds_clear_m` (1.2 m, 4.2.4) for
+  `obstacle_clear_s` (2000 ms): counted from when the AGV ahead set off and opened the gap
+  from standstill at its acceleration. Paused `obstacle_timeout_s` (5 minutes) it raises
+  E_101: behind an AGV that broke down, the queue's AGVs fail one by one, as on the floor.
+* ``held_back``: the fleet manager holds each AGV far enough back that the LDS never sees the
+  one ahead (not even in the P_005 slowing zone, `rules.lds_slow_m`, 1.5 m): an AGV lets go
+  of a node only once its rear is `lds_slow_m` past it (not `min_gap_m`), so queues need more
+  track. On layouts whose segments are longer than an AGV plus `lds_slow_m` (every bundled
+  one) this is exactly the model before the reading existed.
+
+Where the documents are silent (see docs/background/spec-readings.md):
+
+* A waiting AGV's place in the lock table and the time of its next hop stay those of its tag:
+  the closing up is not credited (the AGV sets off from its tag when granted), so the reading
+  adds the pauses, their restart and E_101, and takes nothing away.
+* The AGV ahead counts while it stands (waiting, at a station, down, charging on the track);
+  one driving away is followed, not paused for. A wait that began behind a moving AGV is
+  looked at again every `LOOK_AGAIN_S` while it lasts (the AGV ahead may stop, or break down).
+* Only waits for a node (the queue on the track) are LDS waits; a corridor, zone or the
+  avoiding policy's safety check holds the AGV at its tag with nobody in front.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Generator
+from typing import Any, Protocol
+
+import simpy
+
+from fleet_sim.config.scenario import Rules
+
+LOOK_AGAIN_S = 1.0
+"""While an AGV waits behind one that is driving, how often it looks whether that one has
+stopped (assumed; a pause starts at most this late after the AGV ahead stopped)."""
+
+
+class Ahead(Protocol):
+    """What the AGV behind can see of the one ahead (a `Driver`)."""
+
+    @property
+    def standing(self) -> bool:
+        """Not driving a hop (waiting, handling a load, down, charging)."""
+        ...
+
+    @property
+    def departed_s(self) -> float:
+        """When it last set off (or left the track)."""
+        ...
+
+    @property
+    def accel_mps2(self) -> float: ...
+
+
+class PausedHost(Protocol):
+    """What the watch needs of the AGV behind (its `Vehicle`)."""
+
+    def pause_for_agv(self, ahead: int, gap_m: float) -> bool:
+        """Enter Paused (Event_Obstacle_Detected) for AGV `ahead`; False if the state
+        machine refuses (not Moving)."""
+        ...
+
+    def resume_after_agv(self, paused_s: float) -> None:
+        """Event_Obstacle_Cleared after a pause behind an AGV."""
+        ...
+
+    def fail(self, code: str, detail: str = "") -> bool: ...
+
+
+class AgvAhead:
+    """One AGV's watch over the AGV ahead while traffic makes it wait (``lds`` reading)."""
+
+    def __init__(self, env: simpy.Environment, rules: Rules, min_gap_m: float,
+                 host: PausedHost) -> None:
+        self.env = env
+        self.rules = rules
+        self.gap_m = min_gap_m
+        """How close it closes up (P_006)."""
+        self.host = host
+        self.waiting = False
+        """Traffic makes the AGV wait now."""
+        self._wait_no = 0
+        """Counts the waits: a watch ends when the wait it was started for does."""
+        self.paused_since: float | None = None
+        self.paused_behind: Ahead | None = None
+        self._pause_no = 0
+
+    @property
+    def sees_agvs(self) -> bool:
+        """Whether the LDS can see the AGV ahead at all: closed up to the minimum gap, it is
+        within the stop distance."""
+        return self.gap_m < self.rules.lds_stop_m
+
+    def began_waiting(self, find: Any) -> None:
+        """Traffic made the AGV wait; `find()` names the AGV ahead holding what it waits for
+        (id and `Ahead`), or None."""
+        if self.waiting or not self.sees_agvs:  # (the same wait, told again)
+            return
+        self.waiting = True
+        self._wait_no += 1
+        self.env.process(self._watch(find, self._wait_no))
+
+    def _watch(self, find: Any, wait_no: int) -> Generator[simpy.Event, Any, None]:
+        yield self.env.timeout(self.rules.obstacle_pause_s)
+        while self.waiting and self._wait_no == wait_no and self.paused_since is None:
+            found = find()
+            if found is not None and found[1].standing:
+                agv, ahead = found
+                if self.host.pause_for_agv(agv, self.gap_m):
+                    self.paused_since = self.env.now
+                    self.paused_behind = ahead
+                    self._pause_no += 1
+                    self.env.process(self._time_out(self._pause_no, agv))
+                break
+            yield self.env.timeout(LOOK_AGAIN_S)
+
+    def _time_out(self, pause_no: int, agv: int) -> Generator[simpy.Event, Any, None]:
+        yield self.env.timeout(self.rules.obstacle_timeout_s)
+        if self._pause_no == pause_no and self.paused_since is not None:
+            self.host.fail("E_101", f"paused {self.rules.obstacle_timeout_s:.0f} s behind "
+                                    f"AGV {agv}")
+
+    def wait_over(self) -> Generator[simpy.Event, Any, None]:
+        """The wait has ended (granted, or given up): if paused, stay so until the way has
+        been clear long enough, then move on."""
+        self.waiting = False
+        if self.paused_since is None:
+            return
+        ahead = self.paused_behind
+        assert ahead is not None
+        rules = self.rules
+        open_m = max(0.0, rules.lds_clear_m - self.gap_m)
+        since = ahead.departed_s if ahead.departed_s >= self.paused_since else self.env.now
+        clear_at = since + math.sqrt(2 * open_m / ahead.accel_mps2) + rules.obstacle_clear_s
+        if clear_at > self.env.now:
+            yield self.env.timeout(clear_at - self.env.now)
+        paused = self.env.now - self.paused_since
+        self.stop()
+        self.host.resume_after_agv(paused)
+
+    def stop(self) -> None:
+        """Forget the pause (moved on, or a fault took the AGV)."""
+        self.paused_since = None
+        self.paused_behind = None
+        self.waiting = False

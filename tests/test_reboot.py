@@ -1,0 +1,79 @@
+"""E_999 (RSS-AGV-001 6.1, CPU exception, watchdog reset) read as a reboot through Booting
+(4.2.1), the position unknown (4.2.2's guard) until a TYPE_LOC tag is read (5.3); and the
+switch back to an operator and Maintenance (`incidents.cpu_reset: operator`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from fleet_sim.config.scenario import Rules
+from fleet_sim.model.state_machine import transition_for
+from fleet_sim.model.states import VehicleState
+
+from .test_incidents import ONE_ORDER, events, run, tiny
+
+FAULT_AT_S = 30.0
+"""AGV 0 is on its way to the pickup, between SW and S1 (tiny loop)."""
+
+
+def reset_run(tmp_path: Path, cpu_reset: str = "reboot", **layout: object):
+    return run(tiny(tmp_path, **layout), ONE_ORDER, duration_h=0.5,
+               incidents={"faults": [{"agv": 0, "at_s": FAULT_AT_S, "code": "E_999"}],
+                          "cpu_reset": cpu_reset})
+
+
+def states(out, since_s: float) -> list[tuple[str, str, str]]:
+    return [(e.event, e.from_state, e.to_state) for e in out.recorder.events
+            if e.time_s >= since_s and e.from_state != e.to_state and e.from_state]
+
+
+def test_e999_reboots_through_booting_and_finds_its_position_at_the_next_tag(
+        tmp_path: Path) -> None:
+    out = reset_run(tmp_path)
+    flow = states(out, FAULT_AT_S)
+    assert flow[:5] == [("Event_Critical_Error", "Moving", "Error"),
+                        ("Event_Watchdog_Reset", "Error", "Booting"),
+                        ("Event_Init_Complete", "Booting", "Idle"),
+                        ("Event_Locate", "Idle", "Moving"),
+                        ("Event_Located", "Moving", "Idle")]
+    booted = events(out, "Event_Init_Complete")[-1]
+    assert booted.time_s == pytest.approx(FAULT_AT_S + 5.0)  # POST: the profile's boot_s
+    locate, located = events(out, "Event_Locate")[0], events(out, "Event_Located")[0]
+    # it stopped between SW and S1: it creeps on to S1, the tag ahead, at 0.3 m/s
+    assert located.node == "S1" and located.time_s - locate.time_s > 4.0 / 0.3 * 0.5
+    assert not events(out, "Event_Switch_Manual")  # no operator, no Maintenance
+    assert out.recorder.errors[0].code == "E_999"
+    order = out.recorder.orders[0]
+    assert order.delivered_s is not None and order.delivered_s < 200.0
+
+
+def test_with_type_loc_tags_it_creeps_to_the_nearest_one(tmp_path: Path) -> None:
+    out = reset_run(tmp_path, markers={"E1": "location"})
+    located = events(out, "Event_Located")[0]
+    assert located.node == "E1" and "TYPE_LOC" in located.detail
+    locate = events(out, "Event_Locate")[0]
+    # S1 -> P -> S3 -> SE -> E1 (16 m and the rest of the hop it was on) at creep speed
+    assert located.time_s - locate.time_s > 16.0 / 0.3
+    assert out.recorder.orders[0].delivered_s is not None
+
+
+def test_the_operator_reading_sends_it_to_maintenance(tmp_path: Path) -> None:
+    out = reset_run(tmp_path, cpu_reset="operator")
+    flow = [event for event, _, _ in states(out, FAULT_AT_S)]
+    assert flow[:3] == ["Event_Critical_Error", "Event_Switch_Manual", "Event_Switch_Auto"]
+    assert not events(out, "Event_Watchdog_Reset") and not events(out, "Event_Locate")
+
+
+def test_an_agv_that_does_not_know_where_it_is_may_not_take_an_order() -> None:
+    """4.2.2: SOC > 20 % and position known; the second half can now fail."""
+    guard = transition_for(0, VehicleState.IDLE, "Event_Transport_Order").guard
+    assert guard is not None
+    rules = Rules()
+    assert guard(SimpleNamespace(soc_pct=80.0, position_known=True), rules)
+    assert not guard(SimpleNamespace(soc_pct=80.0, position_known=False), rules)
+    located = transition_for(0, VehicleState.MOVING, "Event_Located").guard
+    assert located is not None
+    assert not located(SimpleNamespace(position_known=False), rules)
