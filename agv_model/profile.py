@@ -1,13 +1,14 @@
 """Vehicle profiles: one YAML file per vehicle type in `agv_model/profiles/`, loaded strictly.
 
-A profile holds a vehicle's kinematics (the document's units: mm, mm/s, mm/s2), its battery
-(Wh, W), its protocol name (`agv_model.protocols`) and its link settings (`agv_model.link`).
-Each section carries a `source` mapping with one entry per figure: a citation that starts with
-the document's tag (`DOCUMENTS`) and names the section, or text starting with `assumed` that
-says why. A figure without a source, a source without a figure, an unknown key, a wrong type or
-an impossible value is an `InputError` naming the file, the key, the value and what was
-expected (`ProfileFile` is the file as written, `fleet-sim schema profile` its JSON Schema). A
-profile's name is its file name without `.yaml`.
+A profile holds a vehicle's kinematics (the document's units: mm, mm/s, mm/s2), its battery (Wh,
+W), its protocol name (`agv_model.protocols`) and its link settings (`agv_model.link`). A
+profile names its source document by title (`document`, one of `DOCUMENTS`' titles; the
+documents are not part of this repository). Each section carries a `source` mapping with one
+entry per figure: a citation that starts with the document's tag (`DOCUMENTS`' keys) and names
+the section, or text starting with `assumed` that says why. A figure without a source, a source
+without a figure, an unknown key, a wrong type or an impossible value is an `InputError` naming
+the file, the key, the value and what was expected (`ProfileFile` is the file as written,
+`fleet-sim schema profile` its JSON Schema). A profile's name is its file name without `.yaml`.
 
 A profile imported from a VDA 5050 factsheet (`fleet-sim profile import`) names the factsheet as
 its document (``VDA 5050 factsheet: <file name>``) and cites it as ``VDA 5050 factsheet, <JSON
@@ -40,12 +41,15 @@ from agv_model.protocols import names as protocol_names
 PROFILE_DIR: Final = Path(__file__).resolve().parent / "profiles"
 ASSUMED: Final = "assumed"
 DOCUMENTS: Final[Mapping[str, str]] = {
-    "RSS-AGV-001": "rss-agv-001-core-logic.ja.md",
-    "CarriRo API v1.4": "carriro-ad-plus-serial-api-v1.4.ja.md",
-    "KTM-02 commands": "ktm-02-commands.ja.md",
-    "TABO commands": "tabo-commands.ja.tsv",
-    "AGV-3 protocol": "agv-3-protocol.sv.md",
+    "RSS-AGV-001": "RSS-AGV-001 core logic and state management, version 1.0.0",
+    "CarriRo API v1.4": "CarriRo AD+ External Serial Interface API Reference, version 1.4",
+    "KTM-02 commands": "KTM-02 command list, last update 2011-02-08",
+    "TABO commands": "TABO robot command sheet",
+    "AGV-3 protocol": "Grupp 3 AGV protokoll, revision 1.1",
 }
+"""The source documents: the tag a citation starts with -> the document's title, which a
+profile's `document` names. The documents are not part of this repository; they are cited by
+title and section (docs/background/spec-readings.md lists them)."""
 FACTSHEET: Final = "VDA 5050 factsheet"
 """The tag of citations of a VDA 5050 factsheet, and of a `document` that is one
 (``VDA 5050 factsheet: acme-tug.json``)."""
@@ -155,10 +159,10 @@ class ProfileFile(StrictModel):
     """A vehicle profile file (`agv_model/profiles/<name>.yaml`)."""
 
     title: Annotated[str, Field(min_length=1)]
-    document: str
-    """Which source document the vehicle comes from (the name of one of the four protocol
-    documents or the core-logic spec), or ``VDA 5050 factsheet: <file name>`` for a profile
-    imported from a factsheet."""
+    document: Annotated[str, Field(description=(
+        "Which source document the vehicle comes from, by title: "
+        + "; ".join(f"'{title}'" for title in DOCUMENTS.values())
+        + f"; or '{FACTSHEET}: <file name>' for a profile imported from a factsheet."))]
     protocol: str | None
     """The wire protocol (agv_model.protocols); null: the document defines none."""
     kinematics: KinematicsSection
@@ -170,7 +174,8 @@ class ProfileFile(StrictModel):
     def _known_document(cls, document: str) -> str:
         if document not in DOCUMENTS.values() and not (
                 document.startswith(f"{FACTSHEET}: ") and len(document) > len(FACTSHEET) + 2):
-            raise Problem("", document, f"one of {', '.join(DOCUMENTS.values())}, or "
+            titles = ", ".join(repr(title) for title in DOCUMENTS.values())
+            raise Problem("", document, f"a source document's title, one of {titles}; or "
                                         f"'{FACTSHEET}: <file name>'")
         return document
 

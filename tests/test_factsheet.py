@@ -14,7 +14,14 @@ import pytest
 import yaml
 
 from agv_model.inputs import read_yaml, validate
-from agv_model.profile import FACTSHEET, PROFILE_DIR, ProfileFile, load_profile, read_profile
+from agv_model.profile import (
+    DOCUMENTS,
+    FACTSHEET,
+    PROFILE_DIR,
+    ProfileFile,
+    load_profile,
+    read_profile,
+)
 from fleet_sim.cli import main
 from fleet_sim.config.factsheet import read_factsheet
 from fleet_sim.config.profile_factsheet import import_factsheet
@@ -140,11 +147,12 @@ def test_a_bad_factsheet_is_named_by_its_json_path(change: Any, message: str,
 
 def test_a_profile_names_a_factsheet_as_its_document_or_a_spec() -> None:
     data = read_yaml(PROFILE_DIR / "tabo.yaml")
-    for document in (f"{FACTSHEET}: a.json", "tabo-commands.ja.tsv"):
+    for document in (f"{FACTSHEET}: a.json", DOCUMENTS["TABO commands"]):
         assert validate(ProfileFile, {**data, "document": document}, "p.yaml").document == \
             document
     for document in (f"{FACTSHEET}: ", "acme.pdf"):
-        with pytest.raises(InputError, match=r"p.yaml: document: got .*; expected one of "):
+        with pytest.raises(InputError,
+                           match=r"p.yaml: document: got .*; expected a source document's title"):
             validate(ProfileFile, {**data, "document": document}, "p.yaml")
 
 

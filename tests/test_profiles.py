@@ -38,6 +38,11 @@ def test_all_five_profiles_load() -> None:
         "tabo": "tabo"}
     for profile in profiles.values():
         assert profile.document in DOCUMENTS.values()
+    # each names its document by title, never by a file name (the documents are not in the repo)
+    assert {name: p.document for name, p in profiles.items()} == {
+        "agv-3": DOCUMENTS["AGV-3 protocol"], "carriro-ad-plus": DOCUMENTS["CarriRo API v1.4"],
+        "ktm-02": DOCUMENTS["KTM-02 commands"], "rss-agv-001": DOCUMENTS["RSS-AGV-001"],
+        "tabo": DOCUMENTS["TABO commands"]}
 
 
 def test_generic_profile_carries_rss_agv_001_7_1_defaults() -> None:
@@ -77,7 +82,7 @@ def test_every_figure_cites_a_document_or_says_assumed(name: str) -> None:
     for key, text in profile.sources.items():
         assert text.startswith(ASSUMED) or any(text.startswith(tag) for tag in DOCUMENTS), key
     # a figure from another vehicle's document would be a mistake
-    own = {tag for tag, file in DOCUMENTS.items() if file == profile.document}
+    own = {tag for tag, title in DOCUMENTS.items() if title == profile.document}
     for text in profile.sources.values():
         cited = {tag for tag in DOCUMENTS if text.startswith(tag)}
         assert cited <= own
@@ -168,7 +173,9 @@ def deleter(section: str, key: str) -> Any:
     (setter("battery", "idle_w", -1), "battery.idle_w", "a number >= 0"),
     (setter("kinematics", "turn_speed_mmps", 900), "kinematics.turn_speed_mmps", "at most"),
     (setter("", "protocol", "modbus"), "protocol", "null or one of carriro"),
-    (setter("", "document", "brochure.pdf"), "document", "one of rss-agv-001"),
+    (setter("", "document", "brochure.pdf"), "document",
+     "a source document's title, one of 'RSS-AGV-001 core logic"),
+    (setter("", "document", "RSS-AGV-001"), "document", "a source document's title"),
     (deleter("battery", "charge_w"), "battery.charge_w", "a value for required key 'charge_w'"),
     (deleter("link.source", "baud"), "link.source.baud", "a citation or 'assumed ...'"),
     (setter("link.source", "baud", "the brochure"), "link.source.baud", "'assumed ...' or a"),
