@@ -9,7 +9,7 @@ profile's link settings and the jitter left out, and then draws each command's c
 Messages per protocol (the choice and its source; values that only change a digit or two are
 named, each character costs `LinkSettings.char_s`):
 
-CarriRo AD+ (carriro-ad-plus-serial-api-v1.4.ja.md)
+CarriRo AD+ (CarriRo AD+ External Serial Interface API Reference, version 1.4)
 - assign: `ad_pattern: 1` then `mode: 11`. The vehicle follows landmarks along a route taught as
   a landmark pattern (ad_pattern: "アクティブなランドマークパターン", IDs 1-90, pattern 1 here);
   mode 11 自律 (Appendix G, Get / Set) starts autonomous driving from parking or any other
@@ -21,13 +21,13 @@ CarriRo AD+ (carriro-ad-plus-serial-api-v1.4.ja.md)
 - status: `status?` with the default status_cmd list (status?: mode, speed, dist, battery,
   ad_status, ad_pattern, ad_action, ad_landmark). The reply is timed while driving after assign;
   its length follows the values (the document's example reply is 4 characters, 2.3 ms, longer).
-KTM-02 (ktm-02-commands.ja.md, コントローラからKTM-02へ送信するコマンド)
+KTM-02 (KTM-02 command list, コントローラからKTM-02へ送信するコマンド)
 - assign: GoStraightAlongLineCmd (0x06) at speed 255 (全速力); the robot follows the line.
 - stop: StopCmd (0x16), not EmergencyStopCmd (0x09). The device's reply holds its ACK and the
   MovingFinishCmd sent at the same instant (see `agv_model.protocols.ktm02`, decision 9).
 - resume: GoStraightAlongLineCmd at 255 again: the document has no resume command.
 - status: RequestStatusCmd (0x0d); the reply is ACK + SendStatusCmd (ロボットの状態).
-TABO (tabo-commands.ja.tsv)
+TABO (TABO robot command sheet)
 - assign: `MLL:205,1000` then `MLL:410,1000` (距離指定直進, MLL row). The メモ says a target 300
   mm/s or more from the current speed is not followed and to step 0 -> 205 -> 410 for full speed
   (the profile's 410 mm/s), so two exchanges, times summed. 1000 mm is the sheet's example
@@ -37,7 +37,7 @@ TABO (tabo-commands.ja.tsv)
 - resume: the two MLL steps of assign again (the robot stands after X).
 - status: `GBI` (バッテリー残量取得, gbi:NNN): the sheet has no motion-state getter; GBI is the
   cheapest "are you there and how is your battery" poll. Motion ends are pushed as FIN:m.
-AGV-3 (agv-3-protocol.sv.md, Kommandon)
+AGV-3 ("Grupp 3 AGV protokoll", revision 1.1, Kommandon)
 - assign: `NAV:PICKU 1 1;DROPO 2 1;STA`, one line: PICKUp and DROPOff set the order (station,
   count), STArt starts the AGV ("Startar AGV:n och börjar att köra framåt"). Chaining with ';'
   keeps the level (Syntax), so one exchange answers three lines. Short forms (the required
