@@ -1,4 +1,4 @@
-"""AGV-3 codec and virtual device (specs/agv-3-protocol.sv.md)."""
+"""AGV-3 codec and virtual device ("Grupp 3 AGV protokoll", revision 1.1)."""
 
 from __future__ import annotations
 

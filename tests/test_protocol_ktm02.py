@@ -1,4 +1,4 @@
-"""KTM-02 codec and virtual device (specs/ktm-02-commands.ja.md)."""
+"""KTM-02 codec and virtual device (KTM-02 command list, last update 2011-02-08)."""
 
 from __future__ import annotations
 

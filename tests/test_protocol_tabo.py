@@ -1,4 +1,4 @@
-"""TABO codec and virtual device (specs/tabo-commands.ja.tsv)."""
+"""TABO codec and virtual device (TABO robot command sheet)."""
 
 from __future__ import annotations
 
