@@ -164,3 +164,38 @@ def test_the_site_builds_strict_with_the_generated_reference(tmp_path: Path) -> 
         assert keys and [k for k in sorted(keys) if f"<code>{k}</code>" not in page] == [], kind
     index = json.loads((site / "search" / "search_index.json").read_text(encoding="utf-8"))
     assert any(doc["location"].startswith("studies/") for doc in index["docs"])
+
+
+SOURCE_FILES = ("rss-agv-001-core-logic.ja.md", "carriro-ad-plus-serial-api-v1.4.ja.md",
+                "ktm-02-commands.ja.md", "tabo-commands.ja.tsv", "agv-3-protocol.sv.md")
+"""The source documents' file names, outside this repository: a reader cannot open them."""
+FILE_CITATION = re.compile("|".join(
+    [*(re.escape(name) for name in SOURCE_FILES), r"\bspecs/", r"\.\./shared/",
+     r"\bDESIGN\.md\b", r"\bDESIGN reading\b"]))
+CITING = ("fleet_sim", "agv_model", "bench", "tools", "docs", "experiments", "layouts", "tests",
+          ".ci", "README.md", "Makefile", "mkdocs.yml", "pyproject.toml")
+
+
+def _project_files() -> list[Path]:
+    files = []
+    for top in (ROOT / name for name in CITING):
+        for path in [top] if top.is_file() else sorted(top.rglob("*")):
+            if path.is_file() and "__pycache__" not in path.parts and path.suffix != ".png" \
+                    and path != Path(__file__):
+                files.append(path)
+    return files
+
+
+def test_the_source_documents_are_cited_by_title_never_by_file() -> None:
+    """The source documents and the design file are not in the repository: code, profiles, docs
+    and tests cite them by title and section (RSS-AGV-001, 4.2.9; the CarriRo AD+ External
+    Serial Interface API Reference, version 1.4, Appendix E; docs/background/spec-readings.md
+    for fleet_sim's readings), never by file name, specs/ path or DESIGN.md."""
+    files = _project_files()
+    assert len(files) > 100 and ROOT / "agv_model" / "profiles" / "tabo.yaml" in files
+    found = [f"{path.relative_to(ROOT)}:{number}: {match.group()}"
+             for path in files
+             for number, line in enumerate(
+                 path.read_bytes().decode("utf-8", errors="replace").splitlines(), 1)
+             for match in FILE_CITATION.finditer(line)]
+    assert found == []
