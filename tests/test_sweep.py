@@ -101,7 +101,7 @@ def test_a_planned_run_missing_from_the_summary_ends_the_sweep_naming_it(
     """Every planned run accounted for at the end: run FAIL finishes but its spec.json names
     another run, so the summary files it under that name and has no row for FAIL; the sweep
     ends with an error naming FAIL instead of exit 0 with 5 of its 6 runs, and keeps the
-    tables and every run folder."""
+    tables and every run folder. Run again, it makes FAIL again with a line naming it."""
     exp = tiny_experiment(tmp_path)
     out = tmp_path / "out"
     with pytest.raises(SweepError, match=r"summary.parquet: 1 of the 6 planned runs is not "
@@ -113,6 +113,14 @@ def test_a_planned_run_missing_from_the_summary_ends_the_sweep_naming_it(
     assert sweep_helpers.FAIL not in set(summary["run_id"])
     assert sweep_helpers.MISNAMED in set(summary["run_id"])
     assert len(list((out / "runs").glob("*/kpis.json"))) == 6
+    stream = io.StringIO()
+    again = sweep(exp, out, workers=2, stream=stream)
+    assert again.skipped == 5 and [r.run_id for r in again.results] == [sweep_helpers.FAIL]
+    assert f"run {sweep_helpers.FAIL}: spec.json names another run " \
+           f"({sweep_helpers.MISNAMED}); it is run again" in stream.getvalue()
+    assert "all 6 planned runs are in the summary (6 finished)" in stream.getvalue()
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert sorted(summary["run_id"]) == sorted(s.run_id for s in exp.runs())
 
 
 def test_the_sweep_command_exits_non_zero_when_its_summary_lacks_a_planned_run(

@@ -24,8 +24,9 @@ Decisions, where the issues are silent:
   damaged, truncated or removed since, the manifest included: a run's spec.json says the
   manifest checks it (``checked_by``), so a run without one is not finished (a run of an
   older fleet_sim, whose spec.json does not say so, is trusted if its kpis.json holds KPIs
-  and its Parquet files open). Checking costs a read of
-  the run's files (SHA-256 runs at several hundred MB/s; a warehouse shift's run is 1-3 MB).
+  and its Parquet files open), or whose spec.json names another run (the summary would file
+  it under that run's name). Checking costs a read of the run's files (SHA-256 runs at
+  several hundred MB/s; a warehouse shift's run is 1-3 MB).
 * The temporaries a killed study left (``.*.tmp``, ``.partial``) are removed by the next study
   that takes the folder. A run that finishes after its study stopped (a Dask worker that
   outlived a lost scheduler) sees that the folder's lock no longer names its study and
@@ -323,6 +324,8 @@ def run_problem(run_dir: Path) -> str | None:
                                     "does not say which run this is")
     if spec_problem is not None:  # the summary could not place the run: it would vanish
         return spec_problem
+    if spec["run_id"] != run_dir.name:  # the summary would file it under another run's name
+        return f"spec.json names another run ({spec['run_id']})"
     manifest_file = run_dir / MANIFEST
     if not manifest_file.exists() and spec.get(CHECKED_BY) == MANIFEST:
         return f"{MANIFEST} is missing"
