@@ -69,6 +69,26 @@ Timing rules:
   times are computed, the host waits for a late reply before its next message, so no message
   takes another's stale reply as its answer (`Link` keeps late replies on the wire).
 - Polling: `mean_notice_delay_s(P)` = P / 2 + the status reply time; see there.
+
+How each vehicle is given its route (`GRANTS_PER_HOP`; the fleet simulator's
+`traffic.grants: auto`), a reading of each document:
+- CarriRo AD+ (API Reference v1.4): the whole route. The vehicle drives a taught landmark
+  pattern (ad_pattern) on its own once mode 11 (自律) is set (Appendix G); the host only pauses
+  (ad_action 9) and resumes (ad_action 14) it (Appendix C). Permission node by node would need
+  a pause landmark (fixed landmark 8, 一時停止; Appendix F) at every node and an
+  `ad_action: 14` to let it on.
+- KTM-02 (command list, コントローラからKTM-02へ送信するコマンド): hop by hop. It has motions
+  only (GoStraightAlongLineCmd, RotateRight/LeftAlongLineCmd, each ending with MovingFinishCmd,
+  移動終了) and no route or destination: the controller commands each stretch of line.
+- TABO (command sheet, MLL and MTL rows): hop by hop. Distance-specified straights and turns,
+  each ending with FIN:m; no route command.
+- AGV-3 ("Grupp 3 AGV protokoll", Kommandon, NAVigation): the whole route. PICKUp and DROPOff
+  name the stations and STArt drives the line until them.
+- Generic RSS-AGV-001 (4.2.2): the whole route: the transport order carries it and the AGV
+  loads the route plan (経路計画をロードし).
+A permission to drive one hop is the protocol's `resume` message (the one that sets a standing
+vehicle going again): CarriRo `ad_action: 14`, KTM-02 GoStraightAlongLineCmd (a turn along the
+line is a frame of the same length), TABO the two MLL steps, AGV-3 `NAV:STA`.
 """
 
 from __future__ import annotations
@@ -88,6 +108,10 @@ Kind = Literal["assign", "stop", "resume", "status"]
 Message = Command | bytes
 
 KINDS: Final[tuple[Kind, ...]] = ("assign", "stop", "resume", "status")
+PERMISSION: Final[Kind] = "resume"
+"""The message that lets a vehicle granted its route hop by hop drive its next hop."""
+GRANTS_PER_HOP: Final[frozenset[str]] = frozenset({"ktm02", "tabo"})
+"""Protocols whose vehicle has no route command: the host grants its route hop by hop."""
 # The order the kinds are timed in on one link: each meets the vehicle in its usual state.
 TIMING_ORDER: Final[tuple[Kind, ...]] = ("assign", "status", "stop", "resume")
 

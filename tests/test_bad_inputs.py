@@ -363,7 +363,14 @@ def _cases() -> Iterator[Case]:
                          ("demand.flows", [{"stops": ["PICK", "DROP", "ZZ", "DROP"]}]),
                          ("demand.flows", [{"from": "PICK", "stops": ["PICK", "DROP"]}]),
                          ("demand.flows", [{"from": "PICK"}]),
-                         ("demand.flows", [{"stops": "PICK>DROP"}])]:
+                         ("demand.flows", [{"stops": "PICK>DROP"}]),
+                         ("fleet.command_timing", "sometimes"), ("fleet.command_timing", True),
+                         ("traffic.grants", "always"),
+                         ("fleet", {"size": 2, "command_profile": "ktm-02",
+                                    "command_timing": False}),
+                         ("fleet", {"vehicles": [{"type": "a", "count": 2,
+                                                  "profile": "ktm-02"}],
+                                    "command_profile": "ktm-02"})]:
         yield Case(f"scenario-{field}-{value!r}", "scenario",
                    lambda _d, f=field, v=value: _yaml(_set(_scenario(), f, v)))
     for field, value in [("nodes.0.x", NAN), ("nodes.0.x", INF), ("nodes.0.y", "north"),

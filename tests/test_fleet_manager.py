@@ -63,7 +63,7 @@ def fleet_manager(layout: Layout, config: DispatchConfig | None = None) -> Fleet
     env = simpy.Environment()
     recorder = Recorder(0.0, 3600.0)
     traffic = Traffic(env, layout, Motion(1.0, 0.5, 0.5, 0.3), recorder)
-    commands = CommandPath(env, None, 0.0, np.random.default_rng(0), recorder)
+    commands = CommandPath.for_profile(env, None, 0.0, np.random.default_rng(0), recorder)
     return FleetManager(env, layout, traffic, config or DispatchConfig(), recorder, commands)
 
 
@@ -188,7 +188,8 @@ def test_a_charger_given_to_an_agv_that_gave_up_goes_back(spurs_layout: Layout) 
     env = simpy.Environment()  # the assign command takes its time on the CarriRo link
     recorder = Recorder(0.0, 3600.0)
     traffic = Traffic(env, spurs_layout, Motion(1.0, 0.5, 0.5, 0.3), recorder)
-    commands = CommandPath(env, "carriro-ad-plus", 0.0, np.random.default_rng(0), recorder)
+    commands = CommandPath.for_profile(env, "carriro-ad-plus", 0.0, np.random.default_rng(0),
+                                       recorder)
     fm = FleetManager(env, spurs_layout, traffic, DispatchConfig(), recorder, commands)
     on_its_way = fm.request_charger(agv)
     assert [c.id for c in fm.chargers_free] == ["CHG_S"] and not on_its_way.triggered

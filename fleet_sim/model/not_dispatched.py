@@ -59,8 +59,8 @@ MEANINGS: Final[dict[NotDispatched, str]] = {
         "it is free, but the fleet manager learns it only at its next status poll "
         "(fleet.status_poll_s)",
     NotDispatched.COMMAND_IN_TRANSIT:
-        "an order or a resume command is on its way over the command link "
-        "(fleet.command_profile)",
+        "an order or a resume command is on its way over the command link, or the AGV's "
+        "boot report (its type's profile's protocol, or fleet.command_profile)",
     NotDispatched.TYPE_NOT_ALLOWED:
         "its vehicle type may not serve the stations of any waiting order (mixed fleets, "
         "`allowed_types` in the layout)",

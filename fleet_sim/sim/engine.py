@@ -100,8 +100,7 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
 
         traffic.motion_backend = SumoMotion(env, layout, scenario)
     arrivals, handling, backoff, incident, link = np.random.SeedSequence(scenario.seed).spawn(5)
-    commands = CommandPath(env, scenario.fleet.command_profile, scenario.fleet.status_poll_s,
-                           np.random.default_rng(link), recorder)
+    commands = CommandPath.for_scenario(env, scenario, np.random.default_rng(link), recorder)
     limit, neck = admission_limit(scenario, layout, trace)
     dispatch = scenario.dispatch if limit == scenario.dispatch.max_active_agvs \
         else scenario.dispatch.model_copy(update={"max_active_agvs": limit})

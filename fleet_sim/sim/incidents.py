@@ -120,6 +120,6 @@ def _charging_call(env: simpy.Environment, scenario: Scenario, vehicles: list[Ve
     while True:
         for vehicle in vehicles:
             if vehicle.has_battery:  # a type without a battery model never charges
-                fleet.commands.send("stop", vehicle.call_to_charge)
+                fleet.commands.send(vehicle.id, "stop", vehicle.call_to_charge)
         yield env.timeout(24 * 3600.0)
 

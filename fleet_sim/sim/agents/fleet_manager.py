@@ -63,6 +63,7 @@ from typing import Any, Protocol
 import simpy
 from simpy.events import EventPriority
 
+from agv_model.fleet_commands import Kind
 from fleet_sim.config.layout import Layout, Place
 from fleet_sim.config.scenario import DispatchConfig
 from fleet_sim.errors import SimulationError
@@ -175,7 +176,7 @@ class FleetManager:
         self.polling: set[int] = set()
         """AGVs that are free but not yet noticed (the next status poll)."""
         self.resuming: set[int] = set()
-        """AGVs a resume command is on its way to."""
+        """AGVs a resume command is on its way to, or whose boot report is on its way."""
         self.charger_wait: set[int] = set()
         """AGVs that asked for a charger and do not have it yet."""
         self.not_dispatched: dict[int, tuple[FleetAgv, NotDispatched]] = {}
@@ -270,12 +271,23 @@ class FleetManager:
     def resume(self, agv: FleetAgv) -> Generator[simpy.Event, Any, None]:
         """Send the AGV the resume command after its link is back (for its process to yield
         from); it stands Idle until the command arrives."""
-        if self.commands.immediate:
+        yield from self._command_from(agv, "resume")
+
+    def boot_report(self, agv: FleetAgv) -> Generator[simpy.Event, Any, None]:
+        """The AGV has booted and reports it (RSS-AGV-001 4.2.1), for its process to yield
+        from: one status round trip on its link (fleet_sim.sim.commands); it stands Idle
+        meanwhile."""
+        yield from self._command_from(agv, "status")
+
+    def _command_from(self, agv: FleetAgv, kind: Kind) -> Generator[simpy.Event, Any, None]:
+        """A command exchange the AGV waits for, Idle and not dispatched (command_in_transit);
+        nothing when its commands take no time."""
+        if self.commands.immediate(agv.id):
             return
         self.resuming.add(agv.id)
         self._changed()
         try:
-            yield from self.commands.wait("resume")
+            yield from self.commands.wait(agv.id, kind)
         finally:
             self.resuming.discard(agv.id)
             self._changed()
@@ -371,7 +383,8 @@ class FleetManager:
             place = min(self.chargers_free, key=lambda c: (
                 self.traffic.travel_time_s(agv.dispatch_node, c.nodes[0], agv.id), c.id))
             self.chargers_free.remove(place)
-            self.commands.send("assign", partial(self._charger_delivered, agv, event, place))
+            self.commands.send(agv.id, "assign",
+                               partial(self._charger_delivered, agv, event, place))
 
     def _charger_delivered(self, agv: FleetAgv, event: simpy.Event, place: Place) -> None:
         """The charger's assign command has reached the AGV (or, if it gave up meanwhile, the
@@ -420,7 +433,7 @@ class FleetManager:
             order.agv = agv.id
             order.assigned_s = self.env.now
             self.assigning.add(agv.id)
-            self.commands.send("assign", partial(self._deliver, agv, order))
+            self.commands.send(agv.id, "assign", partial(self._deliver, agv, order))
             changed = True
         if changed or self.queue_recorded != len(self.waiting):
             self.queue_recorded = len(self.waiting)
