@@ -146,6 +146,10 @@ def test_every_kpi_of_a_hand_made_run() -> None:
         "open_order_age_mean_s": 100.0, "open_order_age_p95_s": 100.0,  # 3600 - 3500
         "open_order_age_max_s": 100.0, "orders_unassigned_at_end": 1,
         "gridlock_at_h": None, "gridlock_where": None,
+        # no StallMeter on a hand-made recorder: the stalls are not measured
+        "charging_starvation_h": None, "charging_starvation_at_h": None,
+        "charging_starvation_peak_agvs": None, "charging_starvation_worst": None,
+        "out_of_service_h": None, "out_of_service_at_h": None,
         # (10 + 10 x 1100/1500 + 10 x 900/1200) % of 960 Wh
         "energy_used_kwh": pytest.approx((10 + 10 * 1100 / 1500 + 7.5) / 100 * 0.96),
     }

@@ -40,6 +40,13 @@ Decisions, where the issue is silent:
   flattens it as it does errors_by_code, to ``by_type.heavy.throughput_per_hour``. Type names
   are the scenario's, so these names are not in `CATALOGUE`; `is_kpi_name` accepts them. A
   one-type fleet's kpis.json has no `by_type` (it stays as it was).
+* Stalls (issue 33, item 7): `gridlock_at_h` is traffic only; a standstill behind AGVs
+  held by their batteries or out of service is not one (fleet_sim.sim.gridlock). Charging
+  starvation (`charging_starvation_h`, `_at_h`, `_peak_agvs`, the note
+  `charging_starvation_worst`) and a fleet out of service (`out_of_service_h`, `_at_h`) are
+  read from the spells the run's `StallMeter` kept (fleet_sim.model.stalls, which says why
+  starvation is measured by the AGVs waiting for a charger); hand-made records have no meter
+  and none of these figures.
 * A layout with mutex or same-direction zones adds `zone_wait_s` last: zone id -> AGV-seconds
   spent in the window waiting to enter it (``zone_wait_s.<zone>``, s; also counted in
   blocked_time_pct).
@@ -84,6 +91,8 @@ from fleet_sim.model.records import (
     Recorder,
     SocSample,
 )
+from fleet_sim.model.stalls import Spell as StallSpell
+from fleet_sim.model.stalls import Stall
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.engine import RunOutput
 
@@ -94,9 +103,11 @@ RUN_FIELDS = ("scenario", "layout", "agvs", "seed", "duration_h", "warmup_h",
               "setup_warnings")
 """What kpis.json says about the run before its KPIs (not KPIs themselves)."""
 
-NOTE_FIELDS = ("gridlock_where",)
+NOTE_FIELDS = ("gridlock_where", "charging_starvation_worst")
 """What kpis.json says beside a KPI, as text, not a KPI: gridlock_where (after gridlock_at_h:
-``agvs 3 5 at nodes M007 M008 (wait-for cycle)``, none if no gridlock)."""
+``agvs 3 5 at nodes M007 M008 (wait-for cycle)``, none if no gridlock) and
+charging_starvation_worst (``9 of 10 AGVs: 3 charging, 4 waiting for a charger or on the way
+to one, 2 at or below the 30 % threshold``: the starvation at its deepest, none if none)."""
 
 
 @dataclass(frozen=True)
@@ -192,7 +203,22 @@ CATALOGUE: tuple[Kpi, ...] = (
         "AGV"),
     Kpi("gridlock_at_h", "h", "when the fleet locked solid (an unresolved wait-for cycle, or "
         "no AGV moving while orders waited and AGVs waited for locks, for "
-        "traffic.gridlock_after_s), hours from the start; none if it never did"),
+        "traffic.gridlock_after_s), hours from the start; none if it never did. A standstill "
+        "behind AGVs held by their batteries or out of service is not a gridlock: see the two "
+        "stalls below"),
+    Kpi("charging_starvation_h", "h", "time in the window during which orders waited for an "
+        "AGV while AGVs stood waiting for a charger (every charger taken): no AGV was free to "
+        "take an order and those that could were held by their batteries (synchronised "
+        "charging); 0 if never"),
+    Kpi("charging_starvation_at_h", "h", "when the first such time in the window began, hours "
+        "from the start; none if there was none"),
+    Kpi("charging_starvation_peak_agvs", "AGVs", "most AGVs held by their batteries at once "
+        "during it (charging, waiting for a charger or on the way to one, at or below the "
+        "charging threshold); none if there was none"),
+    Kpi("out_of_service_h", "h", "time in the window during which orders waited while every "
+        "AGV was in Error, Maintenance or SafeMode; 0 if never"),
+    Kpi("out_of_service_at_h", "h", "when the first such time in the window began, hours from "
+        "the start; none if there was none"),
     Kpi("wall_s", "s", "wall-clock time of the run (sweeps only; not a result)"),
 )
 """Every KPI a run reports, in the order of kpis.json (per-code ones flattened)."""
@@ -220,7 +246,7 @@ BETTER: Mapping[str, Literal["higher", "lower"]] = {
     "idle_with_orders_waiting_pct": "lower", "orders_failed": "lower",
     "orders_reassigned": "lower", "charging_queue_wait_mean_s": "lower",
     "command_retries": "lower", "orders_open_at_end": "lower", "distance_km": "lower",
-    "energy_used_kwh": "lower",
+    "energy_used_kwh": "lower", "charging_starvation_h": "lower", "out_of_service_h": "lower",
 }
 """Which way a KPI is better, where a planner would agree without knowing the study
 (utilisation, charges, time per state: neither); `kpi_better` adds the per-code counts
@@ -587,6 +613,7 @@ class KpiSums:
             "gridlock_at_h": None if recorder.gridlock is None
             else _round(recorder.gridlock.since_s / 3600.0),
             "gridlock_where": None if recorder.gridlock is None else recorder.gridlock.where(),
+            **stall_figures(recorder, start, end),
         })
         if scenario.fleet.vehicles:
             out["by_type"] = self.by_type(scenario)
@@ -849,6 +876,34 @@ def compute_kpis(recorder: Recorder, scenario: Scenario, layout_name: str,
     return sums.figures(recorder, scenario, layout_name, warnings)
 
 
+def stall_figures(recorder: Recorder, start_s: float, end_s: float) -> dict[str, Any]:
+    """charging_starvation_h, _at_h, _peak_agvs, _worst (a note) and out_of_service_h, _at_h
+    from the recorder's `StallMeter` (fleet_sim.model.stalls), over the window [start_s,
+    end_s]; every figure none for a recorder without one (hand-made records)."""
+    meter = recorder.stalls
+    keys = ("charging_starvation_h", "charging_starvation_at_h", "charging_starvation_peak_agvs",
+            "charging_starvation_worst", "out_of_service_h", "out_of_service_at_h")
+    if meter is None:
+        return dict.fromkeys(keys)
+    starved = _in_window(meter.spells_to(Stall.CHARGING_STARVATION, end_s), start_s, end_s)
+    down = _in_window(meter.spells_to(Stall.OUT_OF_SERVICE, end_s), start_s, end_s)
+    worst = max(starved, key=lambda s: s.agvs_held(), default=None)
+    return dict(zip(keys, (
+        _round(sum(s.end_s - s.start_s for s in starved) / 3600.0),
+        _round(starved[0].start_s / 3600.0) if starved else None,
+        None if worst is None else worst.agvs_held(),
+        None if worst is None else meter.words(worst.held),
+        _round(sum(s.end_s - s.start_s for s in down) / 3600.0),
+        _round(down[0].start_s / 3600.0) if down else None), strict=True))
+
+
+def _in_window(spells: Sequence[StallSpell], start_s: float, end_s: float
+               ) -> list[StallSpell]:
+    """The spells' parts inside [start_s, end_s] (none of no length)."""
+    return [StallSpell(max(s.start_s, start_s), min(s.end_s, end_s), s.held) for s in spells
+            if min(s.end_s, end_s) > max(s.start_s, start_s)]
+
+
 def _charge_wait_mean(closed_sum_s: float, closed: int, open_asked_s: Sequence[float],
                       end_s: float) -> float | None:
     """Mean wait for a charger: the charges made, then the requests open at the end, counted
@@ -923,6 +978,7 @@ def summary_text(figures: Mapping[str, Any]) -> str:
     ]
     by_type = figures.get("by_type") or {}
     lines += gridlock_text(figures)
+    lines += stall_text(figures)
     for kind in dict.fromkeys(key.rpartition(".")[0] for key in by_type):
         lines.append(
             f"  type {kind:<22}{by_type[f'{kind}.agvs']} AGVs, "
@@ -951,6 +1007,54 @@ def gridlock_text(figures: Mapping[str, Any]) -> list[str]:
     return [f"  WARNING: gridlock at {at_h:.2f} h: {figures.get('gridlock_where') or ''}; "
             "nothing moved there from then on. Limit the AGVs on the floor (admission, "
             "dispatch.max_active_agvs) or run fewer AGVs."]
+
+
+CHARGING_ADVICE = ("Spread the charging: more chargers, opportunity charging "
+                   "(charging.opportunity) or staggered charge thresholds.")
+"""What to do about charging starvation (the summary's, the sweep's and the report's)."""
+
+OUT_OF_SERVICE_ADVICE = ("Bring AGVs back sooner or lose fewer: operators and repairs "
+                         "(incidents.operator_response, incidents.repair, incidents.rescue), "
+                         "the faults behind it (errors_by_code), or spare AGVs.")
+"""What to do about a fleet out of service."""
+
+
+def stall_text(figures: Mapping[str, Any]) -> list[str]:
+    """The summary's lines for charging starvation and a fleet out of service (none when the
+    run had neither)."""
+    lines = []
+    if starved(figures):
+        worst = figures.get("charging_starvation_worst")
+        lines.append(
+            f"  CHARGING STARVATION for {_hours(figures['charging_starvation_h'])} from "
+            f"{figures['charging_starvation_at_h']:.2f} h: orders waited, no AGV free to take "
+            "them, while AGVs waited for a charger"
+            + (f" (at worst {worst})" if worst else "") + f". {CHARGING_ADVICE}")
+    if out_of_service(figures):
+        lines.append(
+            f"  OUT OF SERVICE for {_hours(figures['out_of_service_h'])} from "
+            f"{figures['out_of_service_at_h']:.2f} h: orders waited while every AGV was in "
+            f"Error, Maintenance or SafeMode. {OUT_OF_SERVICE_ADVICE}")
+    return lines
+
+
+def starved(figures: Mapping[str, Any]) -> bool:
+    """Did orders wait while AGVs waited for a charger? (kpis.json, or a summary row.)"""
+    return _positive(figures.get("charging_starvation_h"))
+
+
+def out_of_service(figures: Mapping[str, Any]) -> bool:
+    """Did orders wait while every AGV was out of service? (kpis.json, or a summary row.)"""
+    return _positive(figures.get("out_of_service_h"))
+
+
+def _hours(value: float) -> str:
+    """``0.61 h``; under 36 s, in seconds (``12 s``), so that a short spell does not read 0."""
+    return f"{value:.2f} h" if value >= 0.01 else f"{value * 3600:.0f} s"
+
+
+def _positive(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not math.isnan(value) and value > 0
 
 
 def gridlocked(figures: Mapping[str, Any]) -> bool:

@@ -73,6 +73,15 @@ class Held(Enum):
     """In Error, Maintenance or SafeMode."""
 
 
+HELD_WORDS: Final = {
+    Held.CHARGING: "charging",
+    Held.CHARGER: "waiting for a charger or on the way to one",
+    Held.LOW: "at or below the {pct:g} % threshold",
+    Held.DOWN: "out of service",
+}
+"""Each reason in a planner's words, after a count (``{pct}``: the threshold)."""
+
+
 class Stall(Enum):
     CHARGING_STARVATION = "charging_starvation"
     OUT_OF_SERVICE = "out_of_service"
@@ -173,6 +182,20 @@ class StallMeter:
         """What keeps AGV `agv` from taking an order now, if its battery or a fault does."""
         return self._held.get(agv)
 
+    def spells_to(self, kind: Stall, end_s: float) -> list[Spell]:
+        """The spells of `kind`, one still open lasting to `end_s` (the meter is unchanged)."""
+        spells = list(self.spells[kind])
+        if self._open is kind:
+            _add(spells, kind, self._open_s, end_s, self._worst)
+        return spells
+
+    def words(self, held: tuple[tuple[Held, int], ...]) -> str:
+        """``9 of 10 AGVs: 3 charging, 4 waiting for a charger or on the way to one, 2 at or
+        below the 30 % threshold``: what held how many AGVs."""
+        parts = ", ".join(f"{n} {HELD_WORDS[reason].format(pct=self.low_pct)}"
+                          for reason, n in held)
+        return f"{sum(n for _, n in held)} of {self.agvs} AGVs: {parts}"
+
     def stalled(self) -> Stall | None:
         """The stall under way now, if any."""
         if self._ended or self._orders_waiting <= 0:
@@ -220,22 +243,28 @@ class StallMeter:
         kind = self._open
         if kind is None:
             return
-        start_s, worst = self._open_s, self._worst
         self._open = None
-        spells = self.spells[kind]
-        if spells and spells[-1].end_s == start_s:  # touching: one spell
-            last = spells.pop()
-            start_s = last.start_s
-            if kind is Stall.OUT_OF_SERVICE or _battery_held(last.held) >= _battery_held(worst):
-                worst = last.held
-        if time_s > start_s:
-            spells.append(Spell(start_s, time_s, worst))
+        _add(self.spells[kind], kind, self._open_s, time_s, self._worst)
 
     def _counts(self) -> tuple[tuple[Held, int], ...]:
         counts = dict.fromkeys(Held, 0)
         for reason in self._held.values():
             counts[reason] += 1
         return tuple((reason, n) for reason, n in counts.items() if n)
+
+
+def _add(spells: list[Spell], kind: Stall, start_s: float, end_s: float,
+         worst: tuple[tuple[Held, int], ...]) -> None:
+    """Add the spell [start_s, end_s] to `spells`: joined to the last if they touch, dropped if
+    it has no length; the worst of the two kept."""
+    if end_s <= start_s:
+        return
+    if spells and spells[-1].end_s == start_s:
+        last = spells.pop()
+        start_s = last.start_s
+        if kind is Stall.OUT_OF_SERVICE or _battery_held(last.held) >= _battery_held(worst):
+            worst = last.held
+    spells.append(Spell(start_s, end_s, worst))
 
 
 def _battery_held(held: tuple[tuple[Held, int], ...]) -> int:

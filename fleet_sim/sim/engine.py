@@ -17,7 +17,9 @@ What a run records stays in its `Recorder` (in memory) unless `simulate` is hand
 the run has reached its end (fleet_sim.model.records). A run that raises leaves the sink open:
 its owner decides what a half-written sink becomes. At the end, before the sink is closed, the
 recorder closes the spells still open (lock and charger waits: `Recorder.end_of_run`). A
-watcher process (fleet_sim.sim.gridlock) tells when the fleet locks solid.
+watcher process (fleet_sim.sim.gridlock) tells when the fleet locks solid; a `StallMeter`
+(fleet_sim.model.stalls) on the recorder keeps the spells of charging starvation and of a fleet
+out of service.
 
 Admission `auto` (dispatch.max_active_agvs, the default under `traffic.policy: avoiding`) is
 resolved here, once per run, to the layout's critical fleet (`admission_limit`).
@@ -37,6 +39,7 @@ from fleet_sim.config.scenario import Scenario
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.model.kinematics import Motion, MotionBackend
 from fleet_sim.model.records import BATCH_ROWS, Recorder, RecordSink
+from fleet_sim.model.stalls import StallMeter
 from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.agents.vehicle import SegmentFacts, Vehicle
 from fleet_sim.sim.commands import CommandPath
@@ -95,6 +98,7 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
                        scenario.rules.weak_rssi_dbm)
     traffic = Traffic(env, layout, motion, recorder, costs=costs, config=scenario.traffic)
     recorder.zone_wait_s = {z: 0.0 for z in traffic.zone_ids}
+    recorder.stalls = StallMeter(scenario.fleet.size, stall_threshold_pct(scenario))
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
         from fleet_sim.sim.motion.sumo import SumoMotion
 
@@ -147,6 +151,14 @@ def admission_limit(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrd
     if scenario.fleet.start_nodes:
         limit = max(limit, scenario.fleet.size)
     return limit, neck
+
+
+def stall_threshold_pct(scenario: Scenario) -> float:
+    """The SOC at or below which an AGV counts as held by its battery (fleet_sim.model.stalls):
+    the threshold it goes to charge at, or P_050 with charging off."""
+    rules, charging = scenario.rules, scenario.charging
+    return max(charging.threshold_pct, rules.bat_low_pct) if charging.enabled \
+        else rules.bat_low_pct
 
 
 def _set_types(scenario: Scenario, traffic: Traffic, fleet: FleetManager) -> None:

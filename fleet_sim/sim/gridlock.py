@@ -14,6 +14,17 @@ run, and the AGVs queued behind it stop too. A watcher process looks every tenth
   wait's start. A fleet standing still for other reasons (charging, Idle for want of
   admission, down) has no lock waits that long and is not called locked.
 
+A standstill is a traffic gridlock only if traffic explains it (issue 33, item 7): when every
+chain of those waits ends at an AGV held by its battery or out of service (charging, waiting
+for or on its way to a charger, at or below the charging threshold; Error, Maintenance,
+SafeMode: fleet_sim.model.stalls), the AGVs behind stand for the charger queue or the repair,
+not for traffic, and it is not recorded: the stall is measured as what it is (the KPIs
+charging_starvation_h and out_of_service_h), and the watcher goes on looking. Found in the
+warehouse shift under fcfs: the whole fleet reaches the threshold together, the AGVs queued
+for the four chargers stand at their last drop-off in single-track corridors, and the AGVs
+with orders behind them wait there until a charger frees; once charges complete, work
+resumes. A wait-for cycle is traffic whoever its members are.
+
 What it records: a `gridlock` event (at the moment it is told, on the first AGV named; the
 detail says since when, which AGVs and the nodes they stand at) and `Recorder.gridlock`, from
 which the KPIs take `gridlock_at_h` and the summary its warning.
@@ -38,7 +49,7 @@ Decisions, where the issue is silent:
 
 from __future__ import annotations
 
-from collections.abc import Generator, Sequence
+from collections.abc import Generator, Iterator, Mapping, Sequence
 from typing import Any
 
 import simpy
@@ -46,6 +57,10 @@ import simpy
 from fleet_sim.model.records import Gridlock, Recorder
 from fleet_sim.sim.traffic.control import Traffic
 from fleet_sim.sim.traffic.deadlock import find_cycle
+from fleet_sim.sim.traffic.locks import Lock
+
+NOBODY = -1
+"""No AGV (ids count from 0)."""
 
 CHECKS_PER_THRESHOLD = 10
 """The watcher looks every `gridlock_after_s / 10`: told at most that late (the time it
@@ -86,7 +101,66 @@ def locked(now_s: float, traffic: Traffic, vehicles: Sequence[Any], recorder: Re
         if now_s - since >= after_s:
             return Gridlock(since, tuple(cycle), tuple(vehicles[m].node for m in cycle),
                             "cycle")
-    if recorder.open_orders and now_s - recorder.moved_s >= after_s:
+    if recorder.open_orders and now_s - recorder.moved_s >= after_s \
+            and not held_up_off_traffic(old, waiting, recorder):
         since = max(recorder.moved_s, min(waits[agv][0] for agv in old))
         return Gridlock(since, tuple(old), tuple(vehicles[m].node for m in old), "standstill")
     return None
+
+
+def held_up_off_traffic(agvs: Sequence[int], waiting: Mapping[int, Lock],
+                        recorder: Recorder) -> bool:
+    """Does every chain of lock waits from `agvs` end at an AGV held by its battery or out of
+    service (fleet_sim.model.stalls)? False if any ends elsewhere, or at a lock nobody holds,
+    or runs round a cycle."""
+    stalls = recorder.stalls
+    if stalls is None:
+        return False
+    heads = chain_heads(agvs, waiting)
+    return heads is not None and all(stalls.held(agv) is not None for agv in heads)
+
+
+def chain_heads(agvs: Sequence[int], waiting: Mapping[int, Lock]) -> set[int] | None:
+    """The AGVs at the front of the chains of lock waits from `agvs`: those they wait for, and
+    those these wait for, ..., up to AGVs that wait for no lock. None if a chain runs round a
+    cycle or reaches a lock that names nobody."""
+    def ahead(agv: int) -> tuple[int, ...] | None:  # None: it waits for no lock
+        lock = waiting.get(agv)
+        return None if lock is None else lock.blockers(agv)
+
+    heads: set[int] = set()
+    done: set[int] = set()
+    for start in agvs:
+        if start in done:
+            continue
+        first = ahead(start)
+        if first is None:
+            heads.add(start)
+            done.add(start)
+            continue
+        if not first:
+            return None
+        on_path = {start}
+        stack: list[tuple[int, Iterator[int]]] = [(start, iter(first))]
+        while stack:
+            agv, rest = stack[-1]
+            nxt = next(rest, NOBODY)
+            if nxt == NOBODY:
+                stack.pop()
+                on_path.discard(agv)
+                done.add(agv)
+                continue
+            if nxt in on_path:
+                return None
+            if nxt in done:
+                continue
+            more = ahead(nxt)
+            if more is None:
+                heads.add(nxt)
+                done.add(nxt)
+            elif not more:
+                return None
+            else:
+                on_path.add(nxt)
+                stack.append((nxt, iter(more)))
+    return heads
