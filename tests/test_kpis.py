@@ -16,6 +16,7 @@ import yaml
 from fleet_sim.analysis.kpis import (
     CATALOGUE,
     NOTE_FIELDS,
+    NOTE_MEANINGS,
     RUN_FIELDS,
     compute_kpis,
     kpi_names,
@@ -237,6 +238,7 @@ def test_catalogue_names_every_kpi_a_run_reports_once() -> None:
         "warnings_by_code.E_001", "warnings_by_code.E_002",
         *(f"idle_with_orders_waiting_pct_by_reason.{r}" for r in NotDispatched)}
     assert not set(RUN_FIELDS + NOTE_FIELDS) & kpi_names()
+    assert set(NOTE_MEANINGS) == set(NOTE_FIELDS)  # an export says what each note is
     assert all(k.unit and k.meaning for k in CATALOGUE)
 
 

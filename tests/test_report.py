@@ -505,7 +505,8 @@ def test_a_value_the_code_did_not_give_is_an_error() -> None:
     """StrictUndefined: a template printing a missing value fails instead of leaving a blank."""
     section = SimpleNamespace(title="Runs", template="runs.html.j2", figures=[], runs=2,
                               finished=2, failed=0, failed_runs=None, database="db",
-                              gridlocked_runs=None, open_orders="", query="q")
+                              gridlocked_runs=None, out_of_service_runs=None,
+                              out_of_service_advice="", open_orders="", query="q")
     report = SimpleNamespace(title="t", lead="l", statements=[], estimates=[],
                              sections=[section], answer_title="Recommendation")
     with pytest.raises(UndefinedError, match="wall_s"):

@@ -1,22 +1,26 @@
 """Stalls named for what they are (issue 33, item 7): a standstill behind AGVs waiting for a
 charger is charging starvation, not a traffic gridlock; a fleet all in Error or Maintenance is
 out of service; a wait-for cycle, or a standstill behind an AGV that nothing holds, stays a
-gridlock. Each stall has its own KPIs, words and advice in the run summary. Built on
-tests/data/charger_queue_loop.yaml (a loop with one charger whose queue stands on the loop)
-and the bundled warehouse shift under fcfs (the issue's finding: the whole fleet reaches the
-charging threshold together)."""
+gridlock. Each stall has its own KPIs, words and advice in the run summary, a sweep's or a
+sizing search's lines and the report. Built on tests/data/charger_queue_loop.yaml (a loop with
+one charger whose queue stands on the loop) and the bundled warehouse shift under fcfs (the
+issue's finding: the whole fleet reaches the charging threshold together)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any, cast
 
+import pandas as pd
 import yaml
 
 from fleet_sim.analysis.kpis import out_of_service, run_kpis, starved, summary_text
 from fleet_sim.config.layout import load_layout
 from fleet_sim.model.records import Recorder
 from fleet_sim.model.stalls import Held, Stall, StallMeter
+from fleet_sim.report.console import kpi_table, stall_lines
+from fleet_sim.report.render import render_html
+from fleet_sim.report.report import Report, ReportData, section_charging, stall_statements
 from fleet_sim.sim.engine import simulate
 from fleet_sim.sim.gridlock import chain_heads, held_up_off_traffic
 from fleet_sim.sim.traffic.locks import Lock
@@ -170,3 +174,60 @@ def test_the_meter_joins_touching_spells_drops_empty_ones_and_keeps_the_worst() 
             ] == [(100.0, 400.0), (600.0, 700.0), (900.0, 1000.0)]  # the last still open
     meter.end(1000.0)
     assert meter.spells[Stall.CHARGING_STARVATION][-1].end_s == 1000.0
+
+
+def stall_summary() -> pd.DataFrame:
+    """A sweep summary: at 10 AGVs both runs starved, at 12 one of two; one run at 12 out of
+    service; one run at 10 locked solid."""
+    worst = "9 of 10 AGVs: 4 charging, 3 waiting for a charger or on the way to one, 2 at or " \
+        "below the 30 % threshold"
+    return pd.DataFrame({
+        "run_id": ["a10", "b10", "a12", "b12"], "status": ["ok"] * 4,
+        "fleet.size": [10, 10, 12, 12], "agvs": [10, 10, 12, 12],
+        "throughput_per_hour": [90.0, 91.0, 92.0, 93.0],
+        "lead_time_p95_s": [2100.0, 2000.0, 900.0, 950.0],
+        "gridlock_at_h": [None, 5.5, None, None],
+        "gridlock_where": [None, "agvs 3 5 at nodes M007 M008 (wait-for cycle)", None, None],
+        "charging_starvation_h": [0.5, 0.6, 0.0, 0.2],
+        "charging_starvation_at_h": [4.4, 4.5, None, 4.8],
+        "charging_starvation_peak_agvs": [9, 8, None, 6],
+        "charging_starvation_worst": [worst, "8 of 10 AGVs: ...", None, "6 of 12 AGVs: ..."],
+        "out_of_service_h": [0.0, 0.0, 0.25, 0.0],
+        "out_of_service_at_h": [None, None, 2.0, None],
+        "orders_open_at_end": [0, 0, 0, 0]})
+
+
+def test_sweeps_sizing_searches_and_reports_name_each_stall_with_its_own_advice(
+        tmp_path: Path) -> None:
+    summary = stall_summary()
+    gridlock, starvation, down = stall_statements(summary)
+    assert gridlock.startswith("WARNING: 1 of 4 finished runs locked solid") and \
+        LIMIT_AGVS in gridlock
+    assert starvation.startswith(
+        "CHARGING STARVATION in 3 of 4 finished runs: orders waited, no AGV free to take them, "
+        "while AGVs waited for a charger, 0.43 h per run on average (at most 0.60 h), first "
+        "from 4.40 h; at worst 9 of 10 AGVs: 4 charging, 3 waiting for a charger or on the "
+        "way to one, 2 at or below the 30 % threshold (run a10)")
+    assert "more chargers, opportunity charging" in starvation and LIMIT_AGVS not in starvation
+    assert down.startswith("OUT OF SERVICE in 1 of 4 finished runs: orders waited while every "
+                           "AGV was in Error, Maintenance or SafeMode (the earliest a12 from "
+                           "2.00 h, for 0.25 h)")
+    assert "incidents.repair" in down and LIMIT_AGVS not in down
+    assert stall_lines(summary) == [f"  {s}" for s in (gridlock, starvation, down)]
+    assert stall_statements(summary.assign(gridlock_at_h=None, charging_starvation_h=0.0,
+                                           out_of_service_h=0.0)) == []
+    # the table that ends a sweep: a note per design point
+    table = "\n".join(kpi_table(summary, ["fleet.size"], []))
+    assert "GRIDLOCK in 1 of 2 runs; charging starvation in 2 of 2 runs (0.55 h each, mean)" \
+        in table
+    assert "charging starvation in 1 of 2 runs (0.20 h each, mean); out of service in 1 of " \
+        "2 runs" in table
+    # the report: under Charging, a row per design point with a starved run
+    data = ReportData(tmp_path, {}, summary, ["fleet.size"], [], None, None, None)
+    sec = section_charging(data, {}, {})
+    assert sec.starvation is not None
+    assert sec.starvation.rows == [["10", "2 of 2", "0.55", "4.40", "9 of 10"],
+                                   ["12", "1 of 2", "0.10", "4.80", "6 of 12"]]
+    page = " ".join(render_html(Report("t", "l", [starvation], [], [sec])).split())
+    assert "Charging starvation:</strong> orders waited" in page
+    assert "It is not a traffic gridlock." in page and LIMIT_AGVS not in page

@@ -109,6 +109,12 @@ NOTE_FIELDS = ("gridlock_where", "charging_starvation_worst")
 charging_starvation_worst (``9 of 10 AGVs: 3 charging, 4 waiting for a charger or on the way
 to one, 2 at or below the 30 % threshold``: the starvation at its deepest, none if none)."""
 
+NOTE_MEANINGS: Mapping[str, str] = {
+    "gridlock_where": "where the fleet locked solid",
+    "charging_starvation_worst": "what held the AGVs when charging starvation was deepest",
+}
+"""Each note's meaning, for exports beside its value."""
+
 
 @dataclass(frozen=True)
 class Kpi:

@@ -12,8 +12,12 @@ Decisions:
   these lines.
 * A sweep ends with a table per design point (`kpi_table`): the targets' KPIs (without
   targets, throughput and p95 lead time) as mean ± the half-width of the 95 % interval over the
-  finished runs, named from the KPI catalogue, and a note where runs locked solid, left orders
-  open or failed. It is printed last so that the answer is what stays on the screen.
+  finished runs, named from the KPI catalogue, and a note where runs locked solid, were
+  starved of charging, stood out of service, left orders open or failed. It is printed last so
+  that the answer is what stays on the screen.
+* Each stall has its own words and advice (issue 33, item 7): a gridlock (traffic: limit the
+  AGVs on the floor), charging starvation (spread the charging) and a fleet out of service
+  (repairs); the sentences are the report's (fleet_sim.report.report).
 """
 
 from __future__ import annotations
@@ -74,7 +78,7 @@ def sweep_lines(experiment: Experiment, outcome: SweepOutcome, out: Path) -> str
              f"{done} finished in all, {len(outcome.failed)} failed in this sweep"]
     lines += [f"  failed: {failure.run_id} ({failure.status}): {failure.error}"
               for failure in outcome.failed]
-    lines += gridlock_lines(summary)
+    lines += stall_lines(summary)
     warnings = [w for w in (c.warning() for c in check_targets(
         summary, experiment.factor_names, experiment.spec.targets)) if w]
     lines += [f"  warning: {warning}" for warning in warnings[:MAX_WARNINGS]]
@@ -98,10 +102,11 @@ TABLE_KPIS = ("throughput_per_hour", "lead_time_p95_s")
 def kpi_table(summary: Any, factor_names: Sequence[str], target_kpis: Sequence[str]) -> list[str]:
     """The lines of a short table, one row per design point: the mean and 95 % interval of the
     targets' KPIs (without targets: throughput and p95 lead time), named with their units from
-    the KPI catalogue, and a note where runs locked solid (gridlock) or left orders open."""
+    the KPI catalogue, and a note where runs locked solid (gridlock), were starved of charging,
+    stood out of service or left orders open."""
     import pandas as pd
 
-    from fleet_sim.analysis.kpis import gridlocked, kpi_label
+    from fleet_sim.analysis.kpis import gridlocked, kpi_label, out_of_service, starved
     from fleet_sim.analysis.paired import number_text
     from fleet_sim.analysis.stats import mean_ci
     from fleet_sim.config.experiment import level_text
@@ -123,9 +128,18 @@ def kpi_table(summary: Any, factor_names: Sequence[str], target_kpis: Sequence[s
             cells.append("n/a" if ci.n == 0 else number_text(ci.mean) if ci.n == 1 else
                          f"{number_text(ci.mean)} ± {number_text(ci.half_width)}")
         notes = []
-        locked = sum(gridlocked(row) for row in ok.to_dict("records"))
+        records = ok.to_dict("records")
+        locked = sum(gridlocked(row) for row in records)
         if locked:
             notes.append(f"GRIDLOCK in {locked} of {len(ok)} runs")
+        starving = [row for row in records if starved(row)]
+        if starving:
+            hours = sum(float(row["charging_starvation_h"]) for row in starving) / len(starving)
+            notes.append(f"charging starvation in {len(starving)} of {len(ok)} runs "
+                         f"({hours:.2f} h each, mean)")
+        down = sum(out_of_service(row) for row in records)
+        if down:
+            notes.append(f"out of service in {down} of {len(ok)} runs")
         if "orders_open_at_end" in ok.columns:
             open_orders = pd.to_numeric(ok["orders_open_at_end"], errors="coerce").fillna(0)
             if (open_orders > 0).any():
@@ -165,7 +179,7 @@ def size_lines(results: Sequence[SizingResult], out: Path) -> str:
     if (out / "summary.parquet").is_file():
         import pandas as pd
 
-        lines += gridlock_lines(pd.read_parquet(out / "summary.parquet"))
+        lines += stall_lines(pd.read_parquet(out / "summary.parquet"))
     lines.append(f"  sizing       {out / 'sizing.json'}")
     return "\n".join(lines)
 
@@ -205,12 +219,13 @@ def optimise_lines(outcome: OptimiseOutcome, wall_s: float) -> str:
     return "\n".join(lines)
 
 
-def gridlock_lines(summary: Any) -> list[str]:
-    """The warning line of a sweep or sizing search whose runs locked solid, if any did."""
-    from fleet_sim.report.report import gridlock_statement
+def stall_lines(summary: Any) -> list[str]:
+    """The lines of a sweep or sizing search whose runs locked solid (gridlock), were starved
+    of charging or stood out of service, each with its advice (none if no run did)."""
+    from fleet_sim.report.report import stall_statements
 
-    statement = gridlock_statement(summary) if len(summary) else None
-    return [f"  {statement}"] if statement is not None else []
+    return [f"  {statement}" for statement in stall_statements(summary)] if len(summary) \
+        else []
 
 
 def report_lines(html: Path, pdf: Path | None) -> str:

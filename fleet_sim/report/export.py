@@ -36,7 +36,7 @@ from typing import Any
 
 import pandas as pd
 
-from fleet_sim.analysis.kpis import CATALOGUE, NOTE_FIELDS, RUN_FIELDS
+from fleet_sim.analysis.kpis import CATALOGUE, NOTE_MEANINGS, RUN_FIELDS
 from fleet_sim.config.writing import atomic_path
 from fleet_sim.errors import FleetSimError, InputError, require_extra
 from fleet_sim.study.results import read_summary, runs_table_sql
@@ -82,8 +82,7 @@ def _kpi_rows(figures: dict[str, Any], typed: bool = False) -> pd.DataFrame:
         for name, item in items:
             kpi = known.get(name)
             meaning = kpi.meaning if kpi else ("about the run" if name in RUN_FIELDS
-                                               else "where the fleet locked solid"
-                                               if name in NOTE_FIELDS else "")
+                                               else NOTE_MEANINGS.get(name, ""))
             cell: Any = "" if item is None else str(item)
             if typed and isinstance(item, (int, float)) and not isinstance(item, bool):
                 cell = item

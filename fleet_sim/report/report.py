@@ -61,6 +61,11 @@ Decisions, where the issue is silent:
 * Charging: the runs' charging KPIs (``state_charging_pct``, ``charges``, the charger queue wait
   and any ``charger_*``/``soc_*`` KPI) against fleet size, and SOC curves of a few AGVs from the
   run's ``soc.parquet``. A run without charging says so instead of drawing empty axes.
+* Stalls (issue 33, item 7), each named for what it is, with its own advice: runs that locked
+  solid (gridlock: traffic; limit the AGVs on the floor), runs starved of charging (orders
+  waited while AGVs waited for a charger: spread the charging) and runs whose whole fleet
+  stood out of service (repairs). Each has a statement at the top when a run had it; the
+  starvation a table per design point under Charging, the other two their runs under Runs.
 """
 
 from __future__ import annotations
@@ -82,6 +87,8 @@ import yaml
 
 from fleet_sim.analysis.kpis import (
     BY_REASON,
+    CHARGING_ADVICE,
+    OUT_OF_SERVICE_ADVICE,
     kpi_better,
     kpi_label,
     kpi_short,
@@ -209,6 +216,9 @@ class ChargingSection(Section):
     title: ClassVar[str] = "Charging and battery"
     template: ClassVar[str] = "charging.html.j2"
     charging: bool
+    starvation: Table | None = None
+    """Per design point, the runs starved of charging (charging_starvation_h above zero)."""
+    advice: str = ""
 
 
 @dataclass(kw_only=True)
@@ -295,6 +305,9 @@ class RunsSection(Section):
     """A command that queries sweep.duckdb (`query_command`), shown as the example."""
     gridlocked_runs: Table | None = None
     """Runs that locked solid (gridlock_at_h set): when, where, what they left open."""
+    out_of_service_runs: Table | None = None
+    """Runs in which orders waited while every AGV was out of service: when, how long."""
+    out_of_service_advice: str = ""
     open_orders: str = ""
     """One line on the orders open at the end of the finished runs, when any run left some."""
 
@@ -714,6 +727,10 @@ def section_charging(data: ReportData, series: dict[str, pd.DataFrame],
             or c.startswith(("charger_", "soc_", "battery_"))]
     active = [k for k in kpis if float(ok[k].fillna(0).abs().max()) > 0]
     sec = ChargingSection(charging=bool(active))
+    sec.starvation = starvation_table(data)
+    if sec.starvation is not None:
+        sec.advice = CHARGING_ADVICE
+        sec.text += [f"charging starvation: {', '.join(row)}" for row in sec.starvation.rows]
     if not active:
         sec.text.append("No charging in these runs.")
     else:
@@ -1024,6 +1041,14 @@ def section_runs(data: ReportData) -> RunsSection:
                                      "oldest open order (s)"], rows)
         sec.text += [f"run {r[0]}: GRIDLOCK at {r[1]} h, {r[2]}; {r[3]} orders open"
                      for r in rows]
+    down = stalled_runs(summary, "out_of_service_h")
+    if not down.empty:
+        rows = [[str(r["run_id"]), fmt(r["out_of_service_at_h"]), fmt(r["out_of_service_h"]),
+                 fmt(r.get("orders_open_at_end"))] for _, r in down.iterrows()]
+        sec.out_of_service_runs = Table(["run", "from (h)", "for (h)", "orders open at end"],
+                                        rows)
+        sec.out_of_service_advice = OUT_OF_SERVICE_ADVICE
+        sec.text += [f"run {r[0]}: OUT OF SERVICE from {r[1]} h for {r[2]} h" for r in rows]
     sec.open_orders = open_orders_line(summary)
     if sec.open_orders:
         sec.text.append(sec.open_orders)
@@ -1072,6 +1097,84 @@ def gridlock_statement(summary: pd.DataFrame) -> str | None:
             "throughput and lead times describe a stopped fleet. Limit the AGVs on the floor "
             "(admission, dispatch.max_active_agvs) or run fewer AGVs; the runs are listed "
             "under Runs.")
+
+
+def stalled_runs(summary: pd.DataFrame, kpi: str) -> pd.DataFrame:
+    """The finished runs of a summary with `kpi` (charging_starvation_h, out_of_service_h)
+    above zero, by run id."""
+    if kpi not in summary.columns:
+        return summary.iloc[0:0]
+    ok = summary[summary["status"] == "ok"]
+    return ok[pd.to_numeric(ok[kpi], errors="coerce").fillna(0) > 0].sort_values("run_id")
+
+
+def starvation_statement(summary: pd.DataFrame) -> str | None:
+    """The report's statement when runs were starved of charging (None when none was)."""
+    starving = stalled_runs(summary, "charging_starvation_h")
+    if starving.empty:
+        return None
+    finished = int((summary["status"] == "ok").sum())
+    hours = pd.to_numeric(starving["charging_starvation_h"])
+    at_h = pd.to_numeric(starving["charging_starvation_at_h"])
+    peak = starving.sort_values("charging_starvation_peak_agvs", ascending=False,
+                                kind="stable").iloc[0]
+    return (f"CHARGING STARVATION in {len(starving)} of {finished} finished runs: orders waited, "
+            "no AGV free to take them, while AGVs waited for a charger, "
+            f"{hours.mean():.2f} h per run on average (at most {hours.max():.2f} h), first "
+            f"from {at_h.min():.2f} h; at worst {peak['charging_starvation_worst']} (run "
+            f"{peak['run_id']}): the fleet charges together, not a traffic gridlock. "
+            f"{CHARGING_ADVICE}")
+
+
+def out_of_service_statement(summary: pd.DataFrame) -> str | None:
+    """The report's statement when every AGV of a run stood out of service while orders
+    waited (None when that never happened)."""
+    down = stalled_runs(summary, "out_of_service_h")
+    if down.empty:
+        return None
+    finished = int((summary["status"] == "ok").sum())
+    first = down.sort_values("out_of_service_at_h").iloc[0]
+    return (f"OUT OF SERVICE in {len(down)} of {finished} finished runs: orders waited while "
+            "every AGV was in Error, Maintenance or SafeMode (the earliest "
+            f"{first['run_id']} from {float(first['out_of_service_at_h']):.2f} h, for "
+            f"{float(first['out_of_service_h']):.2f} h); the runs are listed under Runs. "
+            f"{OUT_OF_SERVICE_ADVICE}")
+
+
+def stall_statements(summary: pd.DataFrame) -> list[str]:
+    """The statements on gridlock, charging starvation and a fleet out of service, in that
+    order, those that apply."""
+    return [s for s in (gridlock_statement(summary), starvation_statement(summary),
+                        out_of_service_statement(summary)) if s is not None]
+
+
+def starvation_table(data: ReportData) -> Table | None:
+    """Per design point with a starved run: the runs starved, the mean hours of starvation
+    over all its runs, the earliest start, the most AGVs held by their batteries at once."""
+    ok = data.ok
+    if "charging_starvation_h" not in ok.columns:
+        return None
+    hours = pd.to_numeric(ok["charging_starvation_h"], errors="coerce").fillna(0)
+    if not (hours > 0).any():
+        return None
+    factors = [f for f in data.factors if f in ok.columns]
+    frame = ok.assign(_h=hours, _at=pd.to_numeric(ok["charging_starvation_at_h"],
+                                                   errors="coerce"),
+                      _peak=pd.to_numeric(ok["charging_starvation_peak_agvs"],
+                                          errors="coerce"))
+    groups = frame.groupby(factors, sort=True, dropna=False) if factors else [((), frame)]
+    rows = []
+    for key, group in groups:
+        starving = group[group["_h"] > 0]
+        if starving.empty:
+            continue
+        values = key if isinstance(key, tuple) else (key,)
+        rows.append([*(level_text(v) for v in values), f"{len(starving)} of {len(group)}",
+                     f"{group['_h'].mean():.2f}", f"{starving['_at'].min():.2f}",
+                     f"{int(starving['_peak'].max())} of {int(group['agvs'].max())}"
+                     if "agvs" in group else fmt(starving["_peak"].max())])
+    return Table([*factors, "runs starved", "starvation per run (h, mean)",
+                  "first from (h)", "most AGVs held by their batteries"], rows)
 
 
 def open_orders_line(summary: pd.DataFrame) -> str:
@@ -1134,9 +1237,7 @@ def build_report(out_dir: Path) -> Report:
         section_congestion(data, series, recommended), section_detail(data, recommended),
         section_incidents(data, recommended),
         section_statistics(data, stats), section_runs(data)]
-    warning = gridlock_statement(data.summary)
-    if warning is not None:
-        statements = [warning, *statements]
+    statements = [*stall_statements(data.summary), *statements]
     name = data.experiment.get("name", "experiment")
     n_ok = int((data.summary["status"] == "ok").sum())
     lead = (f"{question(data)} {progress_text(out_dir, data.summary)}{n_ok} of "
