@@ -162,6 +162,7 @@ def test_giving_way_keeps_the_main_loop_flowing(warehouse_layout: Layout) -> Non
         scenario = make_scenario("warehouse.yaml", duration_h=3, warmup_h=0, seed=7,
                                  fleet={"size": 25}, demand={"rate_per_hour": 187.5},
                                  charging={"enabled": False},
+                                 rules={"agv_ahead": "held_back"},  # no E_101 behind AGVs
                                  traffic={"give_way_after_s": give_way_after_s,
                                           "replan_after_s": 1e9})
         run = simulate(scenario, warehouse_layout)

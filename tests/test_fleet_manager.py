@@ -433,7 +433,7 @@ def test_work_conservation_over_a_long_run_with_every_incident(spurs_layout: Lay
         charging={"threshold_pct": 40},
         incidents={"link_loss_rate_per_h": 1.0, "link_loss_duration":
                    {"dist": "exponential", "mean_s": 60}, "mtbf_h": 10,
-                   "transfer_failure_prob": 0.01})
+                   "transfer_failure_prob": 0.01, "cpu_reset": "operator"})
     run = simulate(scenario, spurs_layout)
     events = run.recorder.events
     assert _recorded_reasons(events) >= {"waiting_for_charger", "link_lost", "status_poll",

@@ -226,7 +226,8 @@ def test_safe_mode_when_no_link_low_battery_and_no_charger(tmp_path: Path) -> No
                   fleet={"size": 1, "start_nodes": ["S1"],
                          "vehicle": {"battery": {"initial_soc_pct": soc}}},
                   charging={"enabled": False}, dispatch={"park_idle": False},
-                  incidents={"faults": [{"agv": 0, "at_s": 30.0, "code": "E_999"}]},
+                  incidents={"faults": [{"agv": 0, "at_s": 30.0, "code": "E_999"}],
+                             "cpu_reset": "operator"},
                   rules={"bat_low_pct": 12.0, "bat_critical_pct": 5.0})
         after_error = [e for e in out.recorder.events if e.from_state == "Error" != e.to_state]
         assert after_error and after_error[0][4] == expected, soc
@@ -237,7 +238,7 @@ def test_fault_operator_maintenance_and_back(tmp_path: Path) -> None:
     out = run(tiny(tmp_path), [TraceOrder(20.0, "PICK", "DROP"), TraceOrder(40.0, "PICK", "DROP")],
               duration_h=1.0, fleet={"size": 2},
               incidents={"faults": [{"agv": 0, "at_s": 25.0, "code": "E_999"}],
-                         "operator_response": {"dist": "fixed", "mean_s": 120},
+                         "cpu_reset": "operator", "operator_response": {"dist": "fixed", "mean_s": 120},
                          "repair": {"dist": "fixed", "mean_s": 300}, "relocalise_s": 10})
     path = [(e.time_s, e.event) for e in out.recorder.events
             if e.agv == 0 and e.event.startswith("Event_") and e.time_s >= 25.0][:4]

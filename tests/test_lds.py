@@ -152,3 +152,25 @@ def test_it_moves_on_once_the_way_is_clear_beyond_1_2_m_for_2000_ms(granted_s: f
     clear_at = 50.0 + math.sqrt(2 * 0.7 / 0.5) + 2.0
     assert behind.log == [("paused", pytest.approx(40.3)),
                           ("cleared", pytest.approx(max(clear_at, 50.0 + granted_s)))]
+
+
+def test_a_fault_while_paused_after_the_grant_lets_go_of_the_node(tmp_path: Path) -> None:
+    """AGV 0 breaks down loading at P; AGV 1 waits paused behind it. The operator takes AGV 0
+    off at 160 s: AGV 1 is granted P and stays paused until the way has been clear for 2 s;
+    a fault at 161 s, in that pause, must let go of P (before, the grant leaked and AGV 0,
+    back on the track at P after its repair, waited for it for ever)."""
+    data = yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text())
+    data["stations"][0]["handling"] = {"dist": "fixed", "mean_s": 100.0}
+    layout_file = write_yaml(tmp_path / "tiny.yaml", data)
+    faults = [{"agv": 0, "at_s": 60.0, "code": "E_102"}, {"agv": 1, "at_s": 161.0,
+                                                         "code": "E_102"}]
+    scenario = make_scenario(str(layout_file), warmup_h=0.0, duration_h=1.0,
+                             fleet={"size": 2},
+                             demand={"kind": "trace", "trace_csv": "unused.csv"},
+                             incidents={"faults": faults,
+                                        "operator_response": {"dist": "fixed", "mean_s": 100},
+                                        "repair": {"dist": "fixed", "mean_s": 100}})
+    out = simulate(scenario, load_layout(layout_file), TWO_ORDERS)
+    failed = named(out, "Event_Critical_Error", 1)[0]
+    assert failed.from_state == "Paused" and failed.time_s == 161.0
+    assert all(o.delivered_s is not None for o in out.recorder.orders)

@@ -208,11 +208,25 @@ class Driver:
             return (yield from self.traffic.allocate(self, hop))
         try:
             claim = yield from self.traffic.allocate(self, hop)
-            yield from lds.wait_over()
+            lds.waiting = False
+            if claim is None:  # gave up: turning away, it is paused until clear all the same
+                yield from lds.wait_over()
         except BaseException:  # a fault (E_101 among them): the pause is over
             lds.stop()
             raise
         return claim
+
+    def _move_on(self) -> Proc:
+        """Granted while paused behind an AGV: paused until the way is clear (4.2.4). The
+        grant is in `ahead` meanwhile, so a fault lets go of it with the rest."""
+        lds = self.lds
+        if lds is None or lds.paused_since is None:
+            return
+        try:
+            yield from lds.wait_over()
+        except BaseException:
+            lds.stop()
+            raise
 
     @property
     def in_parking(self) -> bool:
@@ -361,6 +375,8 @@ class Driver:
                     i = 0
                     continue
                 ahead.append(self._granted(nxt, claim))
+                if self.lds is not None and self.lds.paused_since is not None:
+                    yield from self._move_on()
             v_end_max = 0.0
             if nxt != self.goal and i + 2 < len(path) and markers.get(nxt) not in STOP_MARKERS:
                 w = path[i + 2]
@@ -400,6 +416,8 @@ class Driver:
                     on_plan = True
                     continue
                 self.ahead.append(self._granted(nxt, claim))
+                if self.lds is not None and self.lds.paused_since is not None:
+                    yield from self._move_on()
             nxt = self.ahead[0].node
             self.next_node = nxt
             v_end_max = 0.0
