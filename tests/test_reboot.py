@@ -77,3 +77,13 @@ def test_an_agv_that_does_not_know_where_it_is_may_not_take_an_order() -> None:
     located = transition_for(0, VehicleState.MOVING, "Event_Located").guard
     assert located is not None
     assert not located(SimpleNamespace(position_known=False), rules)
+
+
+def test_a_fault_while_booting_is_recovered_from(tmp_path: Path) -> None:
+    """A scripted fault before POST ends (boot_s 5 s) used to crash the run."""
+    for reset in ("reboot", "operator"):
+        out = run(tiny(tmp_path), ONE_ORDER, duration_h=0.5,
+                  incidents={"faults": [{"agv": 0, "at_s": 2.0, "code": "E_999"}],
+                             "cpu_reset": reset})
+        assert events(out, "Event_Critical_Error")[0].from_state == "Booting"
+        assert out.recorder.orders[0].delivered_s is not None, reset

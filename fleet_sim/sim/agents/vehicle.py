@@ -324,9 +324,14 @@ class Vehicle:
 
     # ---- its day ------------------------------------------------------------------------------
     def run(self) -> Proc:
-        yield self.env.timeout(self.profile.boot_s)
-        self.fire("Event_Init_Complete")
-        yield from self.fleet.boot_report(self)  # 4.2.1: it reports to the FMS
+        try:
+            yield self.env.timeout(self.profile.boot_s)
+            self.fire("Event_Init_Complete")
+            yield from self.fleet.boot_report(self)  # 4.2.1: it reports to the FMS
+        except simpy.Interrupt as interrupt:  # a fault while booting
+            if not isinstance(interrupt.cause, Failure):
+                raise
+            yield from self._recover(interrupt.cause)
         while True:
             try:
                 if self.order is None:
