@@ -163,6 +163,7 @@ class StallMeter:
             if detail == BATTERY_LOW:
                 self._battery_low.add(agv)
             self._changed(time_s, agv)
+            self._look(time_s)
         elif event == NOT_DISPATCHED_END:
             self._waiting_for_charger.discard(agv)
             self._look(time_s)
@@ -206,7 +207,8 @@ class StallMeter:
 
     # ---- spells -------------------------------------------------------------------------------
     def _changed(self, time_s: float, agv: int) -> None:
-        """AGV `agv`'s facts changed: what holds it, then whether the fleet is stalled."""
+        """AGV `agv`'s facts changed: what holds it, then (if that changed) whether the fleet
+        is stalled."""
         if agv in self._down:
             reason: Held | None = Held.DOWN
         elif agv in self._charging:
@@ -218,12 +220,13 @@ class StallMeter:
         else:
             reason = None
         before = self._held.get(agv)
-        if reason is not before:
-            self._n_down += (reason is Held.DOWN) - (before is Held.DOWN)
-            if reason is None:
-                del self._held[agv]
-            else:
-                self._held[agv] = reason
+        if reason is before:
+            return
+        self._n_down += (reason is Held.DOWN) - (before is Held.DOWN)
+        if reason is None:
+            del self._held[agv]
+        else:
+            self._held[agv] = reason
         self._look(time_s)
 
     def _look(self, time_s: float) -> None:
