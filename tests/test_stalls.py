@@ -138,8 +138,15 @@ def test_a_standstill_is_a_gridlock_unless_every_chain_of_waits_ends_at_a_held_a
     recorder.stalls = meter = StallMeter(6, 30.0)
     meter.charger_asked(10.0, 1)  # AGV 1 waits for a charger ...
     assert not held_up_off_traffic([3, 5], waiting, recorder)  # ... AGV 4 is held by nothing
-    meter.state_changed(20.0, 4, "Moving", "Error")
+    recorder.error(20.0, 4, "E_101", "Error")  # AGV 4 timed out paused: a jam's symptom
+    meter.state_changed(20.0, 4, "Paused", "Error")
     assert meter.held(1) is Held.CHARGER and meter.held(4) is Held.DOWN
+    assert not held_up_off_traffic([3, 5], waiting, recorder)
+    meter.state_changed(300.0, 4, "Error", "Idle")  # repaired; a fault of its own this time
+    recorder.error(400.0, 4, "E_999", "Fatal")
+    meter.state_changed(400.0, 4, "Moving", "Error")
+    assert held_up_off_traffic([3, 5], waiting, recorder)
+    meter.state_changed(500.0, 4, "Error", "Maintenance")  # the fault stays until it is back
     assert held_up_off_traffic([3, 5], waiting, recorder)
     assert not held_up_off_traffic([3], {**waiting, **locks(a1=3)}, recorder)
 

@@ -471,6 +471,8 @@ class Recorder:
 
     def error(self, time_s: float, agv: int, code: str, level: str) -> None:
         self.errors.append(ErrorRecord(time_s, agv, code, level))
+        if self.stalls is not None:
+            self.stalls.fault(agv, code)
         if len(self.errors) >= self._full:
             self._hand(self.errors, self._sink.errors)
 

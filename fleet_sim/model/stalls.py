@@ -39,6 +39,11 @@ Decisions, where the issue is silent:
   charging on, P_050 with it off.
 * A charger request holds its AGV from the ask until it leaves the state Charging (or fails:
   it is out of service then).
+* An AGV down with an obstacle timeout (E_101) is out of service for the stalls, but does not
+  explain a standstill behind it (`explains_standstill`): it timed out standing, often in the
+  jam itself (an AGV paused behind an AGV ahead for 5 minutes), so the standstill stays a
+  gridlock as it was before issue 33. A chain ending at an AGV down with any other fault
+  (E_999, E_102, E_201, a line lost, a link timeout), or in SafeMode, waits for the repair.
 * Spells of no length (a state left and entered again in one instant) are not spells; spells
   that touch are one.
 """
@@ -58,6 +63,9 @@ DOWN_STATES: Final = frozenset(s.value for s in (
 CHARGING_STATE: Final = VehicleState.CHARGING.value
 WAITING_FOR_CHARGER: Final = NotDispatched.WAITING_FOR_CHARGER.value
 BATTERY_LOW: Final = NotDispatched.BATTERY_LOW.value
+BLOCKED_FAULTS: Final = frozenset({"E_101"})
+"""Faults that are what being blocked ends in (an obstacle timeout: 5 minutes paused, behind
+an AGV as well as a person): an AGV down with one of these does not explain a standstill."""
 
 
 class Held(Enum):
@@ -118,6 +126,8 @@ class StallMeter:
     _held: dict[int, Held] = field(default_factory=dict)
     """AGV -> what holds it (AGVs held by nothing are not in it)."""
     _n_down: int = 0
+    _fault: dict[int, str] = field(default_factory=dict)
+    """AGV -> the code of the fault it is down with."""
     _waiting_for_charger: set[int] = field(default_factory=set)
     """AGVs whose open not_dispatched reason is waiting_for_charger."""
     _orders_waiting: int = 0
@@ -134,6 +144,7 @@ class StallMeter:
             self._asked.discard(agv)  # a failed AGV's charger request is cancelled
         else:
             self._down.discard(agv)
+            self._fault.pop(agv, None)
         if to_state == CHARGING_STATE:
             self._charging.add(agv)
         else:
@@ -148,6 +159,10 @@ class StallMeter:
         else:
             self._low.discard(agv)
         self._changed(time_s, agv)
+
+    def fault(self, agv: int, code: str) -> None:
+        """AGV `agv` raised Error `code` (its state change follows or came first)."""
+        self._fault[agv] = code
 
     def charger_asked(self, time_s: float, agv: int) -> None:
         self._asked.add(agv)
@@ -182,6 +197,16 @@ class StallMeter:
     def held(self, agv: int) -> Held | None:
         """What keeps AGV `agv` from taking an order now, if its battery or a fault does."""
         return self._held.get(agv)
+
+    def explains_standstill(self, agv: int) -> bool:
+        """Is AGV `agv`, at the front of a chain of lock waits, held by its battery or out of
+        service, so that the AGVs behind it wait for a charger or a repair, not for traffic?
+        Not if it is down with an obstacle timeout (`BLOCKED_FAULTS`): an AGV that timed out
+        standing in a jam, behind an AGV, is a symptom of the jam."""
+        reason = self._held.get(agv)
+        if reason is None:
+            return False
+        return reason is not Held.DOWN or self._fault.get(agv) not in BLOCKED_FAULTS
 
     def spells_to(self, kind: Stall, end_s: float) -> list[Spell]:
         """The spells of `kind`, one still open lasting to `end_s` (the meter is unchanged)."""

@@ -17,7 +17,8 @@ run, and the AGVs queued behind it stop too. A watcher process looks every tenth
 A standstill is a traffic gridlock only if traffic explains it (issue 33, item 7): when every
 chain of those waits ends at an AGV held by its battery or out of service (charging, waiting
 for or on its way to a charger, at or below the charging threshold; Error, Maintenance,
-SafeMode: fleet_sim.model.stalls), the AGVs behind stand for the charger queue or the repair,
+SafeMode, but not after an obstacle timeout, E_101, which a jam itself ends in:
+fleet_sim.model.stalls), the AGVs behind stand for the charger queue or the repair,
 not for traffic, and it is not recorded: the stall is measured as what it is (the KPIs
 charging_starvation_h and out_of_service_h), and the watcher goes on looking. Found in the
 warehouse shift under fcfs: the whole fleet reaches the threshold together, the AGVs queued
@@ -111,13 +112,13 @@ def locked(now_s: float, traffic: Traffic, vehicles: Sequence[Any], recorder: Re
 def held_up_off_traffic(agvs: Sequence[int], waiting: Mapping[int, Lock],
                         recorder: Recorder) -> bool:
     """Does every chain of lock waits from `agvs` end at an AGV held by its battery or out of
-    service (fleet_sim.model.stalls)? False if any ends elsewhere, or at a lock nobody holds,
-    or runs round a cycle."""
+    service (`StallMeter.explains_standstill`)? False if any ends elsewhere, or at a lock
+    nobody holds, or runs round a cycle."""
     stalls = recorder.stalls
     if stalls is None:
         return False
     heads = chain_heads(agvs, waiting)
-    return heads is not None and all(stalls.held(agv) is not None for agv in heads)
+    return heads is not None and all(stalls.explains_standstill(agv) for agv in heads)
 
 
 def chain_heads(agvs: Sequence[int], waiting: Mapping[int, Lock]) -> set[int] | None:
