@@ -87,3 +87,17 @@ def test_a_fault_while_booting_is_recovered_from(tmp_path: Path) -> None:
                              "cpu_reset": reset})
         assert events(out, "Event_Critical_Error")[0].from_state == "Booting"
         assert out.recorder.orders[0].delivered_s is not None, reset
+
+
+def test_a_fault_while_it_looks_for_its_position_is_an_error_like_any_other(
+        tmp_path: Path) -> None:
+    """Reset at 30 s, POST to 35 s, then creeping to S1: a transfer fault at 40 s sends it to
+    the operator (whose Maintenance re-estimates the position, 4.2.13), not a crashed run."""
+    out = run(tiny(tmp_path), ONE_ORDER, duration_h=1.0,
+              incidents={"faults": [{"agv": 0, "at_s": FAULT_AT_S, "code": "E_999"},
+                                    {"agv": 0, "at_s": 40.0, "code": "E_102"}]})
+    second = events(out, "Event_Critical_Error")[1]
+    assert second.time_s == 40.0 and second.from_state == "Moving"
+    assert events(out, "Event_Locate") and not events(out, "Event_Located")
+    assert events(out, "Event_Switch_Auto")
+    assert out.recorder.orders[0].delivered_s is not None

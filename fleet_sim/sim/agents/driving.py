@@ -210,7 +210,7 @@ class Driver:
             claim = yield from self.traffic.allocate(self, hop)
             lds.waiting = False
             if claim is None:  # gave up: turning away, it is paused until clear all the same
-                yield from lds.wait_over()
+                yield from self._stand_paused(lds, hop.node)
         except BaseException:  # a fault (E_101 among them): the pause is over
             lds.stop()
             raise
@@ -223,10 +223,24 @@ class Driver:
         if lds is None or lds.paused_since is None:
             return
         try:
-            yield from lds.wait_over()
+            yield from self._stand_paused(lds, self.ahead[0].node)
         except BaseException:
             lds.stop()
             raise
+
+    def _stand_paused(self, lds: AgvAhead, node: str) -> Proc:
+        """`AgvAhead.wait_over`; the time it stands on after traffic's wait ended is blocked
+        time like the wait (the AGV ahead keeps it there), and a wait in the replay."""
+        ahead = lds.paused_behind
+        start = self.env.now
+        yield from lds.wait_over()
+        now = self.env.now
+        if now <= start or ahead is None:
+            return
+        self.recorder.blocked(start, now)
+        if self.recorder.record_moves:
+            self.recorder.moved(MoveRecord(self.id, "wait", start, now, self.node, node,
+                                           ahead.id))
 
     @property
     def in_parking(self) -> bool:

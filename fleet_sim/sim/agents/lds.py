@@ -49,6 +49,9 @@ class Ahead(Protocol):
     """What the AGV behind can see of the one ahead (a `Driver`)."""
 
     @property
+    def id(self) -> int: ...
+
+    @property
     def standing(self) -> bool:
         """Not driving a hop (waiting, handling a load, down, charging)."""
         ...

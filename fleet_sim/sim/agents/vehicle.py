@@ -334,6 +334,8 @@ class Vehicle:
             yield from self._recover(interrupt.cause)
         while True:
             try:
+                if not self._position_known:
+                    yield from self._locate()
                 if self.order is None:
                     yield from self._idle()
                 if self.order is not None:
@@ -859,11 +861,9 @@ class Vehicle:
             not mid_hop and "location" not in locating.values())
         yield self.env.timeout(self.profile.boot_s)  # POST
         self.error_code = None
-        self.failing = False
         self.fire("Event_Init_Complete", "after the watchdog reset")
         yield from self.fleet.boot_report(self)
-        if not self._position_known:
-            yield from self._locate()
+        self.failing = False  # (then `run` has it find its position, faults and all)
 
     def _locate(self) -> Proc:
         """Position unknown: creep (rules.obstacle_slow_speed_mps) to the nearest TYPE_LOC
@@ -934,4 +934,5 @@ class Vehicle:
             yield from self.driver.reenter_track(self._recovery_node())
             self.in_dead_spot = self.rssi_dbm < self.rules.link_min_rssi_dbm
         self.failing = False
+        self._position_known = True  # 4.2.13's initial position estimation
         self.fire("Event_Switch_Auto", "back to AUTO, position re-estimated")
