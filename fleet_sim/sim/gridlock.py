@@ -50,18 +50,15 @@ Decisions, where the issue is silent:
 
 from __future__ import annotations
 
-from collections.abc import Generator, Iterator, Mapping, Sequence
+from collections.abc import Generator, Mapping, Sequence
 from typing import Any
 
 import simpy
 
 from fleet_sim.model.records import Gridlock, Recorder
 from fleet_sim.sim.traffic.control import Traffic
-from fleet_sim.sim.traffic.deadlock import find_cycle
+from fleet_sim.sim.traffic.deadlock import chain_heads, find_cycle
 from fleet_sim.sim.traffic.locks import Lock
-
-NOBODY = -1
-"""No AGV (ids count from 0)."""
 
 CHECKS_PER_THRESHOLD = 10
 """The watcher looks every `gridlock_after_s / 10`: told at most that late (the time it
@@ -119,49 +116,3 @@ def held_up_off_traffic(agvs: Sequence[int], waiting: Mapping[int, Lock],
         return False
     heads = chain_heads(agvs, waiting)
     return heads is not None and all(stalls.explains_standstill(agv) for agv in heads)
-
-
-def chain_heads(agvs: Sequence[int], waiting: Mapping[int, Lock]) -> set[int] | None:
-    """The AGVs at the front of the chains of lock waits from `agvs`: those they wait for, and
-    those these wait for, ..., up to AGVs that wait for no lock. None if a chain runs round a
-    cycle or reaches a lock that names nobody."""
-    def ahead(agv: int) -> tuple[int, ...] | None:  # None: it waits for no lock
-        lock = waiting.get(agv)
-        return None if lock is None else lock.blockers(agv)
-
-    heads: set[int] = set()
-    done: set[int] = set()
-    for start in agvs:
-        if start in done:
-            continue
-        first = ahead(start)
-        if first is None:
-            heads.add(start)
-            done.add(start)
-            continue
-        if not first:
-            return None
-        on_path = {start}
-        stack: list[tuple[int, Iterator[int]]] = [(start, iter(first))]
-        while stack:
-            agv, rest = stack[-1]
-            nxt = next(rest, NOBODY)
-            if nxt == NOBODY:
-                stack.pop()
-                on_path.discard(agv)
-                done.add(agv)
-                continue
-            if nxt in on_path:
-                return None
-            if nxt in done:
-                continue
-            more = ahead(nxt)
-            if more is None:
-                heads.add(nxt)
-                done.add(nxt)
-            elif not more:
-                return None
-            else:
-                on_path.add(nxt)
-                stack.append((nxt, iter(more)))
-    return heads
