@@ -25,7 +25,10 @@ RING = DATA / "gridlock_ring.yaml"
 RING_FIELDS = {"duration_h": 1.0, "warmup_h": 0.1, "seed": 3,
                "fleet": {"size": 4, "start_nodes": ["N0", "N1", "N2", "N3"]},
                "demand": {"rate_per_hour": 120}, "dispatch": {"park_idle": False},
-               "charging": {"enabled": False}, "traffic": {"gridlock_after_s": 120}}
+               "charging": {"enabled": False}, "traffic": {"gridlock_after_s": 120},
+               "rules": {"agv_ahead": "held_back"}}
+"""The locked ring, its AGVs held out of each other's LDS range (under the default reading
+each would raise E_101 after 5 minutes paused: tests/test_stalls.py)."""
 
 
 def wait_share_pct(moves: list[MoveRecord], agvs: int, start_s: float, end_s: float) -> float:

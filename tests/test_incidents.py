@@ -238,7 +238,8 @@ def test_fault_operator_maintenance_and_back(tmp_path: Path) -> None:
     out = run(tiny(tmp_path), [TraceOrder(20.0, "PICK", "DROP"), TraceOrder(40.0, "PICK", "DROP")],
               duration_h=1.0, fleet={"size": 2},
               incidents={"faults": [{"agv": 0, "at_s": 25.0, "code": "E_999"}],
-                         "cpu_reset": "operator", "operator_response": {"dist": "fixed", "mean_s": 120},
+                         "cpu_reset": "operator",
+                         "operator_response": {"dist": "fixed", "mean_s": 120},
                          "repair": {"dist": "fixed", "mean_s": 300}, "relocalise_s": 10})
     path = [(e.time_s, e.event) for e in out.recorder.events
             if e.agv == 0 and e.event.startswith("Event_") and e.time_s >= 25.0][:4]

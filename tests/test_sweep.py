@@ -422,7 +422,8 @@ def test_a_sweep_ends_with_a_kpi_table_that_flags_gridlock_and_open_orders(
         "name": "ring", "layout": str(ring), "duration_h": 0.5, "warmup_h": 0.1, "seed": 3,
         "fleet": {"size": 4, "start_nodes": ["N0", "N1", "N2", "N3"]},
         "demand": {"rate_per_hour": 120}, "dispatch": {"park_idle": False},
-        "charging": {"enabled": False}, "traffic": {"gridlock_after_s": 120}})
+        "charging": {"enabled": False}, "traffic": {"gridlock_after_s": 120},
+        "rules": {"agv_ahead": "held_back"}})  # (else E_101 behind AGVs breaks the ring up)
     experiment = write_yaml(tmp_path / "e.yaml", {
         "name": "ring", "scenario": str(scenario), "factors": {"fleet.size": [1, 4]},
         "replications": 2, "master_seed": 4})

@@ -459,7 +459,7 @@ def test_agvs_put_inside_the_aisle_and_faults_keep_it_one_way(tmp_path: Path) ->
     crossing(tmp_path)
     raw = crossing_scenario(tmp_path, hours=4)
     raw["fleet"] = {"size": 6, "start_nodes": ["A1", "A3", "S2", "N4", "E1", "P1"]}
-    raw["incidents"] = {"obstacle_rate_per_km": 3, "faults": [
+    raw["incidents"] = {"obstacle_rate_per_km": 3, "cpu_reset": "operator", "faults": [
         {"agv": i % 6, "at_s": 900 + 311 * i, "code": "E_999"} for i in range(24)]}
     scenario = parse_scenario(raw, "<test>", tmp_path)
     layout = load_layout_for(scenario, "<test>")

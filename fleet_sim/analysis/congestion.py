@@ -71,8 +71,9 @@ WORK_SPELL_COLUMNS = ("time_s", "agv", "event", "from_state", "to_state")
 
 
 def _work_spells(events: pd.DataFrame) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """Per AGV, the (start, end) spells in which it has somewhere to go: state Moving, or Idle
-    with an order assigned (waiting to leave parking) until it moves."""
+    """Per AGV, the (start, end) spells in which it has somewhere to go: state Moving (or
+    Paused on the way, behind an AGV in a queue among others), or Idle with an order assigned
+    (waiting to leave parking) until it moves."""
     out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     ordered = events.sort_values(["agv", "time_s"], kind="stable")
     for agv, group in ordered.groupby("agv", sort=False):
@@ -81,7 +82,8 @@ def _work_spells(events: pd.DataFrame) -> dict[int, tuple[np.ndarray, np.ndarray
         open_at: float | None = None
         for t, event, before, after in zip(group["time_s"], group["event"], group["from_state"],
                                            group["to_state"], strict=True):
-            committed = after == "Moving" or (event == "order_assigned" and after == "Idle")
+            committed = after in ("Moving", "Paused") \
+                or (event == "order_assigned" and after == "Idle")
             if committed and open_at is None:
                 open_at = float(t)
             elif not committed and before != after and open_at is not None:
