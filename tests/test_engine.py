@@ -9,6 +9,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -84,24 +85,40 @@ def test_same_seed_same_bytes_other_seed_other_results(tmp_path: Path,
     assert (a / "orders.parquet").read_bytes() != (c / "orders.parquet").read_bytes()
 
 
-def events_digest(base: str, layout: str, agvs: int, rate: float, policy: str) -> str:
-    """SHA-256 of every event of a one-hour run of experiments/`base` on `layout`, seed 11:
-    time (to the microsecond, so that a last-bit difference of another machine's maths
-    library in a time alone does not count), AGV, event, node and detail, in order."""
-    run = simulate(*scenario_for(layout, agvs, 1.0, rate, policy, base=base))
+def events_digest(base: str, layout: str, agvs: int, rate: float, policy: str,
+                  **extra: Any) -> str:
+    """SHA-256 of every event of a one-hour run of experiments/`base` on `layout`, seed 11
+    (`extra`: overrides): time (to the microsecond, so that a last-bit difference of another
+    machine's maths library in a time alone does not count), AGV, event, node and detail, in
+    order."""
+    run = simulate(*scenario_for(layout, agvs, 1.0, rate, policy, base=base, **extra))
     events = [(round(e.time_s, 6), e.agv, e.event, e.node, e.detail)
               for e in run.recorder.events]
     return hashlib.sha256(repr(events).encode()).hexdigest()
 
 
+BEFORE_READINGS = {"rules.agv_ahead": "held_back", "incidents.cpu_reset": "operator"}
+"""Issue 33's readings switched back: AGVs held out of each other's LDS range, E_999 to an
+operator (the model before them)."""
+
 KEPT = [  # (experiment, layout, AGVs, orders/h) -> digest of the reactive run's events, the
-    # same as at e29fdcf, before issue 21's work began
+    # same as at e29fdcf, before issue 21's work began (with BEFORE_READINGS)
     (("warehouse_shift.yaml", "warehouse", 40, 300.0),
      "6e586437d5b3ce9c5a4c66c30ccdf26656f845b08cdec56c6f367715518db4b5"),
     (("warehouse_incidents.yaml", "warehouse_same_direction", 30, 300.0),
      "bfbc1a0c706be5acd403c39a88a5e8b71ec16c71eb05d6696c8a165b99cd71c1"),
     (("dc_shift.yaml", "distribution_centre", 60, 600.0),
      "879eb6156507b5fa505333726951724ecd38e2daa47650346c048e4a6477c8b2"),
+]
+
+
+NOW = [  # the same runs with today's defaults: re-recorded once by issue 33, whose readings
+    # of RSS-AGV-001 (the AGV ahead paused by the LDS, E_999 as a reboot) change every run
+    # with a queue or a CPU fault; the runs above show that switching them back gives
+    # the results before them, byte for byte
+    (KEPT[0][0], "b92b1b7a2dfcb3bf4e3eec2048a7d125fb6657e21dd4ac31d07d4c547ef0bb04"),
+    (KEPT[1][0], "b7829bef2d4e0ce987f686fff1ae0a2fc7d56e651e930c952d54f632c6355833"),
+    (KEPT[2][0], "efe1c1a6c9154679eadef26dd26b5bf4a84049bd3039629b339d2602209de469"),
 ]
 
 
@@ -113,7 +130,15 @@ def test_runs_under_reactive_traffic_keep_their_results_byte_for_byte(
     cover what reactive traffic does (reroutes, circulating, deadlocks found and broken,
     same-direction aisles, obstacles, faults and link losses, admission); the digest is of
     every event. A change that moves one changes what planners got before: make it on
-    purpose, say so in its note, and record the new digest here."""
+    purpose, say so in its note, and record the new digest here. With issue 33's readings
+    switched back (BEFORE_READINGS) they are the digests of e29fdcf."""
+    assert events_digest(*case, "reactive", **BEFORE_READINGS) == digest
+
+
+@pytest.mark.parametrize(("case", "digest"), NOW, ids=[c[1] for c, _ in NOW])
+def test_runs_with_todays_defaults_keep_their_results_byte_for_byte(
+        case: tuple[str, str, int, float], digest: str) -> None:
+    """The same runs with the defaults (issue 33's readings on)."""
     assert events_digest(*case, "reactive") == digest
 
 
