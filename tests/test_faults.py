@@ -420,3 +420,32 @@ def test_a_run_that_outlives_its_study_writes_nothing(tmp_path: Path) -> None:
     run_dir = out / "runs" / spec.run_id
     assert not (run_dir / MANIFEST).exists() and not (run_dir / "kpis.json").exists()
     assert not (run_dir / ".partial").exists()
+
+
+def test_a_run_made_by_another_version_of_the_model_is_made_again(
+        tmp_path: Path, undisturbed: Path) -> None:
+    """A results folder from before a change that moves results (issue 33's new defaults):
+    resuming it must not mix old runs with new ones. Each stale run is named in one line and
+    made again; the summary is the undisturbed one."""
+    from fleet_sim.study.runner import MODEL_KEY, MODEL_VERSION
+
+    out = tmp_path / "out"
+    shutil.copytree(undisturbed, out)
+    runs = sorted((out / "runs").iterdir())
+    for run_dir, version in ((runs[0], None), (runs[2], "2026-11-01")):
+        spec = json.loads((run_dir / "spec.json").read_text(encoding="utf-8"))
+        assert spec[MODEL_KEY] == MODEL_VERSION
+        if version is None:
+            del spec[MODEL_KEY]  # an older fleet_sim said nothing
+        else:
+            spec[MODEL_KEY] = version
+        (run_dir / "spec.json").write_text(json.dumps(spec), encoding="utf-8")
+    again = fleet_sim("sweep", experiment_file(tmp_path), "--out", out, "--workers", "1",
+                      cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert (f"run {runs[0].name}: it was made by another version of the model (older, now "
+            f"{MODEL_VERSION}); it is run again") in again.stderr
+    assert f"run {runs[2].name}: it was made by another version of the model (2026-11-01" \
+        in again.stderr
+    assert "2 runs made, 2 already finished" in again.stdout
+    pd.testing.assert_frame_equal(summary_kpis(out), summary_kpis(undisturbed))

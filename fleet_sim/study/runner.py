@@ -237,7 +237,8 @@ def execute_run(spec: RunSpec, runs_dir: str) -> RunResult:
     for stale in (MANIFEST, "kpis.json", "error.json"):  # a damaged run is made again
         (run_dir / stale).unlink(missing_ok=True)
     info = {**spec.as_json(), "pid": os.getpid(), "host": socket.gethostname(),
-            "started": time.strftime("%Y-%m-%dT%H:%M:%S"), CHECKED_BY: MANIFEST}
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S"), CHECKED_BY: MANIFEST,
+            MODEL_KEY: MODEL_VERSION}
     write_json_atomic(run_dir / "spec.json", info)
     partial = run_dir / ".partial"
     try:
@@ -294,6 +295,13 @@ MANIFEST = "manifest.json"
 CHECKED_BY = "checked_by"
 """The key of spec.json that says the run is finished only with its manifest (absent in the
 runs of an older fleet_sim, which wrote none)."""
+MODEL_VERSION = "2026-11-28"
+"""The model that made a run, in spec.json: changed whenever a change moves the results of runs
+with the same settings (new defaults, a fix in the engine). A finished run of another model
+(or of an older fleet_sim, which did not say) is made again, with one line naming it, so a
+resumed study never mixes runs of two models. Last changed by issue 33 (the AGV ahead paused
+by its LDS, E_999 as a reboot, commands timed on each type's protocol)."""
+MODEL_KEY = "model_version"
 CHECKED_ASIDE = ("spec.json", "error.json", MANIFEST)
 """Files of a run folder the manifest does not cover (written before, or instead of, it)."""
 HASH_CHUNK = 1 << 20
@@ -326,6 +334,9 @@ def run_problem(run_dir: Path) -> str | None:
         return spec_problem
     if spec["run_id"] != run_dir.name:  # the summary would file it under another run's name
         return f"spec.json names another run ({spec['run_id']})"
+    if spec.get(MODEL_KEY) != MODEL_VERSION:
+        return (f"it was made by another version of the model ({spec.get(MODEL_KEY) or 'older'}"
+                f", now {MODEL_VERSION})")
     manifest_file = run_dir / MANIFEST
     if not manifest_file.exists() and spec.get(CHECKED_BY) == MANIFEST:
         return f"{MANIFEST} is missing"
