@@ -158,21 +158,12 @@ def chain_heads(agvs: Sequence[int], waiting: Mapping[int, Lock]) -> set[int] | 
     heads: set[int] = set()
     done: set[int] = set()
     for start in agvs:
-        if start in done:
-            continue
-        first = ahead(start)
-        if first is None:
-            heads.add(start)
-            done.add(start)
-            continue
-        if not first:
-            return None
-        on_path = {start}
-        stack: list[tuple[int, Iterator[int]]] = [(start, iter(first))]
+        on_path: set[int] = set()
+        stack: list[tuple[int, Iterator[int]]] = [(NOBODY, iter((start,)))]
         while stack:
             agv, rest = stack[-1]
             nxt = next(rest, NOBODY)
-            if nxt == NOBODY:
+            if nxt == NOBODY:  # all it waits for looked at
                 stack.pop()
                 on_path.discard(agv)
                 done.add(agv)
