@@ -46,6 +46,7 @@ Decisions, where the issue is silent:
 
 from __future__ import annotations
 
+import copy
 import math
 import re
 from pathlib import Path
@@ -681,6 +682,11 @@ class Scenario(StrictModel):
 def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> Scenario:
     """Read a scenario file; `overrides` maps dotted keys (``fleet.size``) to new values."""
     path = Path(path)
+    return scenario_with(scenario_data(path), overrides or {}, str(path), path.parent)
+
+
+def scenario_data(path: Path) -> dict[str, Any]:
+    """A scenario file's YAML, read and parsed once: a mapping, and not an experiment's."""
     data = read_yaml(path)
     if data is not None and not isinstance(data, dict):
         raise InputError(str(path), "top level", data, "a mapping")
@@ -689,9 +695,17 @@ def load_scenario(path: str | Path, overrides: dict[str, Any] | None = None) -> 
         raise InputError(str(path), "top level", "an experiment file (scenario, factors...)",
                          "a scenario file; run experiments with `fleet-sim sweep` or "
                          "`fleet-sim size`")
-    for dotted, value in (overrides or {}).items():
-        _set_dotted(data, dotted, value, str(path))
-    return parse_scenario(data, str(path), path.parent)
+    return data
+
+
+def scenario_with(data: dict[str, Any], overrides: dict[str, Any], file: str,
+                  base_dir: str | Path) -> Scenario:
+    """The scenario of `data` (left as it is) with `overrides` set; `file` names it in errors,
+    `base_dir` is its folder."""
+    data = copy.deepcopy(data)
+    for dotted, value in overrides.items():
+        _set_dotted(data, dotted, value, file)
+    return parse_scenario(data, file, base_dir)
 
 
 def parse_scenario(data: Any, file: str, base_dir: str | Path = ".") -> Scenario:
