@@ -137,6 +137,29 @@ def test_every_file_kind_has_its_generated_reference_page() -> None:
         hook.expand("<!-- fleet-sim: schema nope -->")
 
 
+def test_the_commands_page_shows_every_registered_command_and_option() -> None:
+    """docs/reference/commands.md is generated from the command registry: every command
+    (compare included) has its heading and usage line, every option its row."""
+    from fleet_sim.cli import REGISTRY, Command, OneOf
+
+    page = (ROOT / "docs" / "reference" / "commands.md").read_text(encoding="utf-8")
+    assert "<!-- fleet-sim: commands -->" in page
+    text = _hook().expand(page)
+    assert "compare" in REGISTRY and "layout import" in REGISTRY
+    missing = []
+    for name, entry in REGISTRY.items():
+        if f"### {name} {{#{name.replace(' ', '-')}}}" not in text:
+            missing.append(name)
+        if isinstance(entry, Command):
+            if f"usage: fleet-sim {name} " not in text:
+                missing.append(f"{name} usage")
+            args = [a for item in entry.arguments
+                    for a in (item.args if isinstance(item, OneOf) else (item,))]
+            section = text.split(f"usage: fleet-sim {name} ", 1)[-1].split("\n### ", 1)[0]
+            missing += [f"{name} {flag}" for a in args for flag in a.flags
+                        if flag.startswith("--") and f"| `{flag}" not in section]
+    assert missing == []
+
 def test_the_site_builds_strict_with_the_generated_reference(tmp_path: Path) -> None:
     """`mkdocs build --strict` (as `make docs`) succeeds; the KPI page lists every KPI of the
     catalogue and each format page every key of its file kind's schema, every model's."""
@@ -162,6 +185,11 @@ def test_the_site_builds_strict_with_the_generated_reference(tmp_path: Path) -> 
         models = [schema, *schema.get("$defs", {}).values()]
         keys = {key for model in models for key in model.get("properties", {})}
         assert keys and [k for k in sorted(keys) if f"<code>{k}</code>" not in page] == [], kind
+    from fleet_sim.cli import REGISTRY
+
+    commands = (site / "reference" / "commands" / "index.html").read_text(encoding="utf-8")
+    assert "fleet-sim: commands" not in commands
+    assert [n for n in REGISTRY if f'id="{n.replace(" ", "-")}"' not in commands] == []
     index = json.loads((site / "search" / "search_index.json").read_text(encoding="utf-8"))
     assert any(doc["location"].startswith("studies/") for doc in index["docs"])
 

@@ -6,6 +6,8 @@ while the site is built (`make docs`, and tests/test_docs.py with --strict):
     <!-- fleet-sim: kpi-catalogue -->      the KPI catalogue, fleet_sim.analysis.kpis
     <!-- fleet-sim: schema KIND -->        the JSON Schema of a file kind, as tables
                                            (fleet_sim.config.schemas, `fleet-sim schema KIND`)
+    <!-- fleet-sim: commands -->           every command's usage and arguments, from the
+                                           parser the command registry builds (fleet_sim.cli)
 
 Decisions, where the issue is silent:
 
@@ -20,11 +22,17 @@ Decisions, where the issue is silent:
   order it is first reached), each with the key paths where it is used; types link to their
   model's table. A default that is an object is not repeated (its model's table gives each
   field's default); a default longer than 60 characters is cut.
+* The commands are rendered from the argparse parser itself (`fleet_sim.cli.build_parser`),
+  walking its subparsers in the registry's order: a command, an option or a choice added to
+  the registry is on the page with nothing else to edit. Each command gets a heading (its
+  words, anchor `#run`, `#layout-import`), its description, its usage line at a fixed width of
+  100 and a table of its arguments; a group gets its help and the list of its commands.
 * This module imports no MkDocs: the rendering is plain functions the test can call.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import re
 from pathlib import Path
@@ -203,6 +211,75 @@ def render_kpis() -> str:
     return "\n".join(out)
 
 
+def _subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    actions = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    return dict(actions[0].choices) if actions else {}
+
+
+def _text(text: str | None) -> str:
+    """Help text for Markdown: one line, `|` and `<` escaped (`results/<name>` is no tag)."""
+    return _cell(text or "").replace("<", "&lt;")
+
+
+def _argument_row(action: argparse.Action) -> str:
+    if action.option_strings:
+        name = ", ".join(action.option_strings)
+        if action.nargs != 0:
+            metavar = action.metavar or action.dest.upper()
+            name += f" {metavar}" + (f" [{metavar} ...]" if action.nargs == "+" else "")
+    else:
+        name = str(action.metavar or action.dest)  # as the usage line shows it
+    notes = []
+    if action.choices is not None:
+        notes.append("one of " + ", ".join(f"`{c}`" for c in action.choices))
+    if action.required and action.option_strings:
+        notes.append("required")
+    help_text = " ".join([_text(action.help), *(f"({n})" for n in notes)])
+    return f"| `{name}` | {help_text} |"  # a `|` in a code span splits no cell
+
+
+def _command_lines(words: str, parser: argparse.ArgumentParser) -> list[str]:
+    formatter = argparse.HelpFormatter(parser.prog, width=100)
+    formatter.add_usage(parser.usage, parser._actions, parser._mutually_exclusive_groups)
+    out = [f"### {words} {{#{words.replace(' ', '-')}}}", "", _text(parser.description), "",
+           "```", formatter.format_help().strip(), "```", ""]
+    arguments = [a for a in parser._actions if not isinstance(a, argparse._HelpAction)]
+    if arguments:
+        out += ["| argument | meaning |", "|---|---|"]
+        out += [_argument_row(a) for a in arguments]
+        out.append("")
+    for group in parser._mutually_exclusive_groups:
+        names = [a.option_strings[0] for a in group._group_actions]
+        out += [f"{'Exactly' if group.required else 'At most'} one of "
+                f"{', '.join(f'`{n}`' for n in names)}.", ""]
+    if parser.epilog:
+        out += [_text(parser.epilog), ""]
+    return out
+
+
+def render_commands() -> str:
+    """Every command of `fleet-sim`: its usage and arguments, from the registry's parser."""
+    from fleet_sim.cli import REGISTRY, Group, build_parser
+
+    parser = build_parser()
+    out = ["Generated from the command registry (`fleet_sim.cli`): the same parser "
+           "`fleet-sim COMMAND --help` prints.", ""]
+    for name, sub in _subcommands(parser).items():
+        entry = REGISTRY[name]
+        if isinstance(entry, Group):
+            out += [f"### {name} {{#{name}}}", "", _text(entry.help), ""]
+            out += [f"* [`{name} {word}`](#{name}-{word})"
+                    + (f" (the default: `fleet-sim {name} ...` is `fleet-sim {name} {word} ...`)"
+                       if word == entry.default else "")
+                    for word in entry.commands]
+            out.append("")
+            for word, command in _subcommands(sub).items():
+                out += _command_lines(f"{name} {word}", command)
+        else:
+            out += _command_lines(name, sub)
+    return "\n".join(out)
+
+
 def expand(markdown: str) -> str:
     """`markdown` with every generated part filled in; an unknown marker is an error."""
     def fill(match: re.Match[str]) -> str:
@@ -211,8 +288,10 @@ def expand(markdown: str) -> str:
             return render_kpis()
         if part == "schema" and argument in FILE_MODELS:
             return render_schema(argument)
+        if part == "commands" and argument is None:
+            return render_commands()
         raise ValueError(f"unknown generated part {match.group(0)!r}; known: "
-                         f"kpi-catalogue, schema {{{','.join(FILE_MODELS)}}}")
+                         f"kpi-catalogue, commands, schema {{{','.join(FILE_MODELS)}}}")
     return MARKER.sub(fill, markdown)
 
 

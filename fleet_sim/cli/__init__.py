@@ -27,8 +27,8 @@ from fleet_sim.cli import layout
 from fleet_sim.cli import motion
 
 # isort: split
-from fleet_sim.cli.registry import REGISTRY, Command, Group, build_parser, main
+from fleet_sim.cli.registry import REGISTRY, Command, Group, OneOf, build_parser, main
 from fleet_sim.cli.shared import experiment_for
 
-__all__ = ["REGISTRY", "Command", "Group", "build_parser", "experiment_for", "layout", "main",
-           "motion", "run", "study"]
+__all__ = ["REGISTRY", "Command", "Group", "OneOf", "build_parser", "experiment_for", "layout",
+           "main", "motion", "run", "study"]
