@@ -40,7 +40,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -406,88 +406,20 @@ def _experiment(source: PathLike | Experiment, sets: dict[str, object]) -> Exper
 def _scenario(source: PathLike | Scenario, sets: dict[str, object], agvs: Agvs,
               hours: float | None, seed: int | None) -> tuple[Scenario, str]:
     """The scenario with the settings, then `agvs`, `hours` and `seed`, and the name its
-    errors give it. A problem of the file alone names the file; one a setting brings names
-    --set and the field; one of a flag names the flag (as `fleet-sim run`)."""
-    load, file = _loader(source)
+    errors give it (fleet_sim.config.overrides: which step names which problem, as `fleet-sim
+    run` does)."""
+    from fleet_sim.config.overrides import load_scenario, scenario_of
+    from fleet_sim.config.scenario import resolved
 
-    def with_hours(overrides: dict[str, object]) -> Scenario:
-        try:
-            return load(overrides)
-        except InputError as exc:
-            if hours is not None and exc.element == "warmup_h":
-                raise InputError("--hours", "duration_h", hours,
-                                 f"a run longer than the scenario's warm-up ({exc.value} h in "
-                                 f"{file})") from None
-            raise
-
-    plain: dict[str, object] = {}
-    if hours is not None:
-        plain["duration_h"] = hours
-    if seed is not None:
-        plain["seed"] = seed
-    scenario = with_hours(plain)
-    if sets:
-        try:
-            scenario = load({**sets, **plain})
-        except InputError as exc:
-            if exc.file != file:
-                raise
-            raise InputError(SET, exc.element, exc.value, exc.expected) from None
-    if agvs is None:
-        return scenario, file
-    counts = agvs if isinstance(agvs, int) else dict(agvs)
-    return with_hours({**sets, **_fleet_overrides(counts, scenario), **plain}), file
-
-
-def _loader(source: PathLike | Scenario) -> tuple[Callable[[dict[str, object]], Scenario], str]:
-    """How to load the scenario with overrides, and the name its errors give it."""
-    from fleet_sim.config.scenario import load_scenario
-
+    counts = agvs if agvs is None or isinstance(agvs, int) else dict(agvs)
     if not isinstance(source, Scenario):
         path = Path(source)
-        return (lambda overrides: load_scenario(path, overrides)), str(path)
-    from fleet_sim.config.scenario import _set_dotted, parse_scenario, resolved
-
+        return load_scenario(path, sets, agvs=counts, hours=hours, seed=seed), str(path)
     name = f"<scenario {source.name}>"
-
-    def rebuilt(overrides: dict[str, object]) -> Scenario:
-        if not overrides:
-            return source
-        data = resolved(source)
-        for dotted, value in overrides.items():
-            _set_dotted(data, dotted, value, name)
-        return parse_scenario(data, name, source.base_dir)
-
-    return rebuilt, name
-
-
-def _fleet_overrides(agvs: int | dict[str, int], scenario: Scenario) -> dict[str, object]:
-    """The overrides of `agvs` (--agvs): fleet.size, or each named type's count of a mixed
-    fleet. A plain number for a mixed fleet, types for a one-type fleet, or a type the fleet
-    does not have is refused naming --agvs."""
-    from agv_model.inputs import closest
-    from fleet_sim.config.scenario import type_count_path
-
-    fleet = scenario.fleet
-    if isinstance(agvs, int):
-        if fleet.vehicles:
-            types = [t.type for t in fleet.vehicles]
-            raise InputError("--agvs", "", agvs, "TYPE=N for a mixed fleet (fleet."
-                             f"vehicles: {', '.join(types)}), e.g. --agvs {types[-1]}=N; "
-                             f"several: --agvs {types[0]}=N,{types[-1]}=M")
-        return {"fleet.size": agvs}
-    text = ",".join(f"{t}={n}" for t, n in agvs.items())
-    if not fleet.vehicles:
-        raise InputError("--agvs", "", text,
-                         "a number of AGVs (the scenario's fleet has one vehicle type)")
-    types = [t.type for t in fleet.vehicles]
-    for name, count in agvs.items():
-        if name not in types:
-            close = closest(name, types)
-            hint = f"; did you mean {close}={count}?" if close is not None else ""
-            raise InputError("--agvs", "", text, f"TYPE=N with TYPE a type of fleet.vehicles "
-                             f"({', '.join(types)}){hint}")
-    return {type_count_path(name): n for name, n in agvs.items()}
+    if not sets and agvs is None and hours is None and seed is None:
+        return source, name
+    return scenario_of(resolved(source), name, source.base_dir, sets, agvs=counts,
+                       hours=hours, seed=seed), name
 
 
 def _check_out_dir(out: Path, argument: str, element: str = "out") -> None:
