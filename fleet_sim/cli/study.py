@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TypedDict
 
 from fleet_sim.cli.arguments import REPLICATIONS, RUNNER
 from fleet_sim.cli.registry import arg, command, one_of
@@ -16,32 +17,44 @@ from fleet_sim.cli.shared import check_out_dir, check_out_file, experiment_for
 @command("sweep", "run every run of an experiment (resumable)",
          arg("experiment", type=Path, help="experiment YAML file"), *RUNNER)
 def _sweep(args: argparse.Namespace) -> int:
+    from fleet_sim import api
     from fleet_sim.report.console import sweep_header, sweep_lines
     from fleet_sim.study.runner import default_out
-    from fleet_sim.study.sweep import sweep
 
     experiment = experiment_for(args.experiment, args.settings)
     out = args.out or default_out(experiment)
     print(sweep_header(experiment, len(experiment.runs()), args.workers, args.scheduler))
-    outcome = sweep(experiment, out, args.workers, args.scheduler, args.quiet,
-                    dask_timeout_s=args.dask_timeout)
-    print(sweep_lines(experiment, outcome, out))
-    return 1 if outcome.failed else 0
+    result = api.sweep(experiment, out=out, **_runner(args))
+    print(sweep_lines(experiment, result.outcome, out))
+    return 1 if result.outcome.failed else 0
+
+
+class Runner(TypedDict):
+    """The runner's options of a study command, as the API takes them."""
+
+    workers: int
+    scheduler: str | None
+    dask_timeout: float
+    progress: bool
+
+
+def _runner(args: argparse.Namespace) -> Runner:
+    return Runner(workers=args.workers, scheduler=args.scheduler,
+                  dask_timeout=args.dask_timeout, progress=not args.quiet)
 
 
 @command("size", "smallest fleet that meets the experiment's targets",
          arg("experiment", type=Path, help="experiment YAML file"), *RUNNER)
 def _size(args: argparse.Namespace) -> int:
+    from fleet_sim import api
     from fleet_sim.report.console import size_header, size_lines
     from fleet_sim.study.runner import default_out
-    from fleet_sim.study.sizing import size_fleet
 
     experiment = experiment_for(args.experiment, args.settings)
     out = args.out or default_out(experiment)
     print(size_header(experiment))
-    results = size_fleet(experiment, out, args.workers, args.scheduler, args.quiet,
-                         dask_timeout_s=args.dask_timeout)
-    print(size_lines(results, out))
+    result = api.size(experiment, out=out, **_runner(args))
+    print(size_lines(result.groups, out))
     return 0
 
 
@@ -52,9 +65,9 @@ def _size(args: argparse.Namespace) -> int:
 def _optimise(args: argparse.Namespace) -> int:
     import time
 
+    from fleet_sim import api
     from fleet_sim.config.decisions import design_space
     from fleet_sim.report.console import optimise_header, optimise_lines
-    from fleet_sim.study.optimise import optimise
     from fleet_sim.study.runner import default_out
 
     experiment = experiment_for(args.experiment, args.settings)
@@ -62,10 +75,9 @@ def _optimise(args: argparse.Namespace) -> int:
     out = args.out or default_out(experiment)
     print(optimise_header(experiment, space))
     start = time.perf_counter()
-    outcome = optimise(experiment, out, args.workers, args.scheduler, args.quiet,
-                       dask_timeout_s=args.dask_timeout, space=space)
-    print(optimise_lines(outcome, time.perf_counter() - start))
-    return 1 if outcome.runs_failed else 0
+    result = api.optimise(experiment, out=out, **_runner(args))
+    print(optimise_lines(result.outcome, time.perf_counter() - start))
+    return 1 if result.outcome.runs_failed else 0
 
 
 @command("compare", "every variant against the baseline: paired differences with common random "
@@ -76,7 +88,8 @@ def _optimise(args: argparse.Namespace) -> int:
 def _compare(args: argparse.Namespace) -> int:
     import time
 
-    from fleet_sim.study.compare import check_compare, compare, table_lines
+    from fleet_sim import api
+    from fleet_sim.study.compare import check_compare, table_lines
     from fleet_sim.study.runner import default_out
 
     experiment = experiment_for(args.experiment, args.settings)
@@ -85,8 +98,8 @@ def _compare(args: argparse.Namespace) -> int:
     print(f"compare {experiment.name}: {', '.join(experiment.variant_names[1:])} against "
           f"{experiment.baseline_name}, {max(1, len(experiment.points))} design point(s)")
     start = time.perf_counter()
-    outcome = compare(experiment, out, args.workers, args.scheduler, args.quiet,
-                      args.max_replications, dask_timeout_s=args.dask_timeout)
+    outcome = api.compare(experiment, out=out, max_replications=args.max_replications,
+                          **_runner(args)).outcome
     print(f"  {outcome.runs_made} runs made, {outcome.runs_skipped} already finished, "
           f"{len(outcome.failed)} failed; {time.perf_counter() - start:.0f} s")
     print("\n".join(table_lines(outcome)))
