@@ -40,13 +40,12 @@ def test_every_state_is_shown_safe_after_every_grant_and_plan_with_incidents(
         assert proof is not None, what
         proofs.add(proof)
 
-    grant_now, declare = Traffic._grant_now, Plans.declare
+    grant_now, declare = Traffic.grant_now, Plans.declare
 
     def grant_checked(self: Traffic, client_id: int, needs: Any) -> Any:
         claim = grant_now(self, client_id, needs)
         checked["grants"] += 1
-        assert self.plans is not None
-        safe(self.plans, f"grant to {client_id} at {self.env.now} s")
+        safe(self.strategy.plans, f"grant to {client_id} at {self.env.now} s")
         return claim
 
     def declare_checked(self: Plans, client_id: int, path: Any) -> None:
@@ -54,12 +53,12 @@ def test_every_state_is_shown_safe_after_every_grant_and_plan_with_incidents(
         checked["plans"] += 1
         safe(self, f"plan of {client_id}")
 
-    monkeypatch.setattr(Traffic, "_grant_now", grant_checked)
+    monkeypatch.setattr(Traffic, "grant_now", grant_checked)
     monkeypatch.setattr(Plans, "declare", declare_checked)
     model.env.run(until=scenario.duration_s)
     assert checked["grants"] > 3_000 and checked["plans"] > 200
     assert proofs == {"acyclic", "witness"}
-    plans = traffic.plans
+    plans = traffic.strategy.plans
     assert plans is not None and plans.refused_grants > 0  # the check did refuse grants
     kinds = {e.event for e in model.recorder.events}
     assert {"Event_Obstacle_Detected", "heartbeat_lost", "Event_Critical_Error"} <= kinds
@@ -162,7 +161,7 @@ def test_the_walk_lets_go_of_a_node_once_the_body_has_cleared_it() -> None:
     model = build_model(scenario, layout, (), False, False, None, 10_000)  # than its 3.6 m hops
     model.env.run(until=1200.0)
     traffic = model.traffic
-    plans = traffic.plans
+    plans = traffic.strategy.plans
     assert plans is not None
     checked = 0
     for x in sorted(plans.path):
@@ -170,7 +169,7 @@ def test_the_walk_lets_go_of_a_node_once_the_body_has_cleared_it() -> None:
         nodes, _ = traffic.held_locks(x)
         if len(path) - at < 6 or not nodes:
             continue
-        walk = _Walk(traffic)
+        walk = _Walk(traffic.table)
         walk.add(x, plans.plan_id[x], path, plans._steps[x], plans._costs[x], at, ())
         clear_m = traffic.clearance_m(x)
         past0 = traffic.past_m(x)
@@ -203,7 +202,7 @@ def test_a_refused_grant_is_walked_again_once_an_agv_the_walk_got_stuck_on_has_m
     scenario, layout = scenario_for("warehouse_same_direction", 60, 0.5, 300, "avoiding",
                                     **{"dispatch.max_active_agvs": 60})
     model = build_model(scenario, layout, (), False, False, None, 10_000)
-    plans = model.traffic.plans
+    plans = model.traffic.strategy.plans
     assert plans is not None
     counts = {"walks": 0, "cycles": 0, "look-ahead walks": 0, "asked without a walk": 0}
     last: dict[tuple[int, int, str], tuple[float, dict[int, tuple[Any, ...]]]] = {}
@@ -238,7 +237,7 @@ def test_a_refused_grant_is_walked_again_once_an_agv_the_walk_got_stuck_on_has_m
             return granted
         if walked and key in last:  # walked again: has an AGV of the cycle moved?
             until_s, was = last[key]
-            again.append((self.traffic.env.now, until_s,
+            again.append((self.table.env.now, until_s,
                           any(moved_before[y] != at for y, at in was.items())))
         if not granted and walked:
             refusal = self._refused[client_id]
@@ -271,12 +270,12 @@ def test_the_walk_keeps_out_of_a_junction_until_it_can_drive_on() -> None:
                              dispatch={"park_idle": False}, traffic={"policy": "avoiding"})
     model = build_model(scenario, layout)
     traffic = model.traffic
-    plans = traffic.plans
+    plans = traffic.strategy.plans
     assert plans is not None
     routes = {0: ["W", "J", "E", "X"], 1: ["E", "S", "J", "N"], 2: ["S", "J", "N"]}
 
     def walk() -> _Walk:
-        walk = _Walk(traffic)
+        walk = _Walk(traffic.table)
         for x, path in routes.items():
             plans.declare(x, path)
             walk.add(x, plans.plan_id[x], path, plans._steps[x], plans._costs[x], 0, ())
@@ -286,7 +285,7 @@ def test_the_walk_keeps_out_of_a_junction_until_it_can_drive_on() -> None:
     assert found.run()
     first_into_j = next(x for x, _, k in found.moves if routes[x][k:k + 1] == ["J"])
     assert first_into_j == 2
-    traffic.junction_locks = frozenset()  # without the rule: the greedy walk closes the cycle
+    traffic.table.junction_locks = frozenset()  # without the rule: the greedy walk closes the cycle
     greedy = walk()
     assert not greedy.run()
     assert sorted(greedy.stuck(0)) == [0, 1, 2]
@@ -313,5 +312,5 @@ def test_a_blocked_agv_takes_another_way_after_replan_after_s_as_a_checked_plan(
     other_ways = [(e.time_s, e.agv, e.event, e.detail) for e in model.recorder.events
                   if e.event in ("reroute", "circulate")]
     assert other_ways == [(replan_after_s, mover.id, "reroute", "N0 B0 N2")]
-    plans = model.traffic.plans
+    plans = model.traffic.strategy.plans
     assert plans is not None and plans.path[mover.id][:3] == ["N0", "B0", "N2"]

@@ -192,12 +192,12 @@ def test_an_agv_whose_re_entry_wait_is_broken_waits_again_and_never_shares_a_nod
     comer.process = env.process(comer.driver.reenter_track("P"))
     env.run(until=5)
     assert traffic.waiting[comer.id].key == traffic.node_locks["P"].key
-    traffic._escapes[comer.id] = Escape("yield", (comer.node,))
+    traffic.strategy.escapes.chosen[comer.id] = Escape("yield", (comer.node,))
     comer.driver.on_deadlock_victim(DeadlockVictim(Escape("yield", (comer.node,))))
     env.run(until=20)
     assert comer.process.is_alive and not comer.driver.held  # still waiting, P not taken
     assert traffic.node_locks["P"].holder == holder.id
-    assert comer.id not in traffic._escapes
+    assert comer.id not in traffic.strategy.escapes.chosen
     holder.process = env.process(holder.drive("S3"))
     env.run(until=120)
     assert not comer.process.is_alive

@@ -32,6 +32,7 @@ from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.engine import RunOutput, build_model, simulate
 from fleet_sim.sim.traffic.control import Traffic
+from fleet_sim.sim.traffic.reactive import ReactivePolicy
 
 from .conftest import LAYOUTS, make_scenario, write_yaml
 
@@ -62,7 +63,8 @@ class StubAgv:
 def fleet_manager(layout: Layout, config: DispatchConfig | None = None) -> FleetManager:
     env = simpy.Environment()
     recorder = Recorder(0.0, 3600.0)
-    traffic = Traffic(env, layout, Motion(1.0, 0.5, 0.5, 0.3), recorder)
+    traffic = Traffic(env, layout, Motion(1.0, 0.5, 0.5, 0.3), recorder,
+                      strategy=ReactivePolicy)
     commands = CommandPath.for_profile(env, None, 0.0, np.random.default_rng(0), recorder)
     return FleetManager(env, layout, traffic, config or DispatchConfig(), recorder, commands)
 
@@ -187,7 +189,8 @@ def test_a_charger_given_to_an_agv_that_gave_up_goes_back(spurs_layout: Layout) 
 
     env = simpy.Environment()  # the assign command takes its time on the CarriRo link
     recorder = Recorder(0.0, 3600.0)
-    traffic = Traffic(env, spurs_layout, Motion(1.0, 0.5, 0.5, 0.3), recorder)
+    traffic = Traffic(env, spurs_layout, Motion(1.0, 0.5, 0.5, 0.3), recorder,
+                      strategy=ReactivePolicy)
     commands = CommandPath.for_profile(env, "carriro-ad-plus", 0.0, np.random.default_rng(0),
                                        recorder)
     fm = FleetManager(env, spurs_layout, traffic, DispatchConfig(), recorder, commands)

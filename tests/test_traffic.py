@@ -18,6 +18,7 @@ from fleet_sim.model.records import Recorder
 from fleet_sim.sim.traffic.control import RouteCosts, Traffic
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim, Escape, GentlestEscapeFirst
 from fleet_sim.sim.traffic.locks import Claim, CorridorLock, NodeLock
+from fleet_sim.sim.traffic.reactive import ReactivePolicy
 
 from .conftest import DATA, write_yaml
 
@@ -47,6 +48,7 @@ class Client:
 def make_traffic(layout: Layout, clients: int = 0, **kwargs: object) -> Traffic:
     """Traffic on `layout`, with stand-in clients 0 .. clients-1 registered."""
     recorder = Recorder(0.0, 3600.0)
+    kwargs.setdefault("strategy", ReactivePolicy)
     traffic = Traffic(simpy.Environment(), layout, Motion(1.0, 0.5, 0.5, 0.3), recorder,
                       **kwargs)  # type: ignore[arg-type]
     for i in range(clients):
@@ -134,7 +136,7 @@ def four_in_a_ring(traffic: Traffic) -> list[Client]:
 def test_a_wait_for_cycle_is_found_and_the_caller_takes_the_bypass(ring: Layout) -> None:
     traffic = make_traffic(ring)
     clients = four_in_a_ring(traffic)
-    escape = traffic.resolve_deadlock(clients[0])
+    escape = traffic.strategy.resolve_deadlock(clients[0])
     # each AGV's way round the node it waits for is the bypass: N0 -> B0 -> N2, B0 free
     assert escape == Escape("reroute", ("N0", "B0", "N2"))
     assert traffic.recorder.deadlocks == 1
@@ -155,12 +157,12 @@ class LastMember:
 def test_the_victim_chosen_by_the_strategy_gets_a_deadlock_victim_cause(ring: Layout) -> None:
     traffic = make_traffic(ring, policy=LastMember())
     clients = four_in_a_ring(traffic)
-    assert traffic.resolve_deadlock(clients[0]) is None  # someone else moves
+    assert traffic.strategy.resolve_deadlock(clients[0]) is None  # someone else moves
     victim = clients[3]
     assert victim.causes == [DeadlockVictim(Escape("reroute", ("N3", "B3", "N1")))]
     assert victim.notes == [("deadlock_resolved", "reroute via N3 B3 N1")]
     # while the victim has not taken its escape, the cycle is not resolved twice
-    assert traffic.resolve_deadlock(clients[1]) is None
+    assert traffic.strategy.resolve_deadlock(clients[1]) is None
     assert victim.causes == [DeadlockVictim(Escape("reroute", ("N3", "B3", "N1")))]
     assert traffic.recorder.deadlocks == 1
 
@@ -169,7 +171,7 @@ def test_a_cycle_with_a_failing_member_is_left_to_the_fault(ring: Layout) -> Non
     traffic = make_traffic(ring)
     clients = four_in_a_ring(traffic)
     clients[2].failing = True
-    assert traffic.resolve_deadlock(clients[0]) is None
+    assert traffic.strategy.resolve_deadlock(clients[0]) is None
     assert traffic.recorder.deadlocks == 0 and not clients[0].notes
 
 
@@ -177,7 +179,7 @@ def test_no_cycle_without_a_closed_chain(ring: Layout) -> None:
     traffic = make_traffic(ring)
     clients = four_in_a_ring(traffic)
     traffic.stop_waiting(3)  # AGV 3 no longer waits for N0: the chain is open
-    assert traffic.resolve_deadlock(clients[0]) is None
+    assert traffic.strategy.resolve_deadlock(clients[0]) is None
     assert traffic.recorder.deadlocks == 0
 
 

@@ -317,7 +317,7 @@ def test_a_deadlock_in_front_of_the_aisle_is_found_through_every_holder(tmp_path
     assert not traffic.request(2, gate, direction=BACKWARD).triggered
     traffic.start_waiting(2, gate)
     assert gate.holder == 1  # the first holder is not in the cycle
-    escape = traffic.resolve_deadlock(clients[2])
+    escape = traffic.strategy.resolve_deadlock(clients[2])
     assert traffic.recorder.deadlocks == 1
     assert clients[2].notes[0] == ("deadlock_detected", "agvs 2 0 waiting for zone AISLE T")
     assert escape is not None and escape.kind == "reroute"

@@ -48,6 +48,7 @@ from fleet_sim.sim.estimate import Bottleneck, bottleneck
 from fleet_sim.sim.gridlock import watch
 from fleet_sim.sim.incidents import start_incidents
 from fleet_sim.sim.traffic.control import RouteCosts, Traffic
+from fleet_sim.sim.traffic.policies import POLICIES
 
 ProgressCallback = Callable[[float, float], None]
 """Called with (simulated seconds so far, simulated seconds in all) during a run."""
@@ -96,7 +97,8 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
                         record_moves=record_moves, sink=sink, batch_rows=batch_rows)
     costs = RouteCosts(scenario.traffic.congestion_cost_s, scenario.traffic.weak_wifi_cost_s,
                        scenario.rules.weak_rssi_dbm)
-    traffic = Traffic(env, layout, motion, recorder, costs=costs, config=scenario.traffic)
+    traffic = Traffic(env, layout, motion, recorder, costs=costs, config=scenario.traffic,
+                      strategy=POLICIES[scenario.traffic.policy])
     recorder.zone_wait_s = {z: 0.0 for z in traffic.zone_ids}
     recorder.stalls = StallMeter(scenario.fleet.size, stall_threshold_pct(scenario))
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo

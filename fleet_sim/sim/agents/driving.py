@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import numpy as np
 import simpy
@@ -42,6 +42,7 @@ from fleet_sim.model.records import MoveRecord, Recorder
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.agents.lds import AgvAhead, Ahead
 from fleet_sim.sim.traffic.allocation import Hop
+from fleet_sim.sim.traffic.avoiding import AvoidingPolicy
 from fleet_sim.sim.traffic.control import Traffic
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim
 from fleet_sim.sim.traffic.locks import Claim, Lock
@@ -365,11 +366,13 @@ class Driver:
     # ---- driving ------------------------------------------------------------------------------
     def drive(self, goal: str, stop_early: Callable[[], bool] | None = None) -> Proc:
         """Drive to `goal` and stop there, holding it. When `stop_early()` turns true, stop at
-        the first node where the AGV can instead."""
+        the first node where the AGV can instead. How, the traffic policy says (`DRIVES`)."""
+        return DRIVES[self.traffic.strategy.name](self, goal, stop_early)
+
+    def _drive_reactively(self, goal: str, stop_early: Callable[[], bool] | None) -> Proc:
+        """`drive` under `traffic.policy: reactive`: along the route, hop by hop; a wait given
+        up (a deadlock victim, or blocked long with another way) takes the escape."""
         traffic = self.traffic
-        if traffic.plans is not None:
-            yield from self._drive_safely(goal, stop_early)
-            return
         self.goal = goal
         path = traffic.route(self.node, goal, self.id)
         markers = traffic.layout.markers
@@ -409,9 +412,9 @@ class Driver:
         """`drive` under `traffic.policy: avoiding`: along the plan declared with traffic (the
         route to `goal`, then on to parking). While traffic refuses the plan (the state would
         not be safe with it), the AGV drives on along the plan it has, stopping at each node to
-        ask again. Blocked long, it may take another way (`Traffic._replan_safely`: a new plan
-        the check accepted; the wait ends without a claim); it never backs off."""
-        traffic = self.traffic
+        ask again. Blocked long, it may take another way (`AvoidingPolicy._replan_safely`: a
+        new plan the check accepted; the wait ends without a claim); it never backs off."""
+        traffic = cast(AvoidingPolicy, self.traffic.strategy)
         self.goal = goal
         on_plan = traffic.declare(self, goal)
         while self.node != self.goal:
@@ -436,7 +439,7 @@ class Driver:
             self.next_node = nxt
             v_end_max = 0.0
             if on_plan and nxt != self.goal \
-                    and traffic.layout.markers.get(nxt) not in STOP_MARKERS:
+                    and self.traffic.layout.markers.get(nxt) not in STOP_MARKERS:
                 w = traffic.plan_step(self.id, 2)
                 if w is not None and self._look_ahead(
                         Hop(nxt, w, traffic.plan_step(self.id, 3))):
@@ -466,7 +469,7 @@ class Driver:
         self.next_node = None
         yield self.env.timeout(self.body_m / self.profile.turn_speed_mps)
         self.enter_parking(place)
-        accepted = self.traffic.declare(self, goal)
+        accepted = cast(AvoidingPolicy, self.traffic.strategy).declare(self, goal)
         assert accepted
         yield from self.reenter_track(place.nodes[0])
         self.parked_in = None
@@ -607,3 +610,10 @@ class Driver:
         recorder = self.recorder
         if recorder.record_occupancy:
             recorder.occupied("node", held.node, self.id, held.since_s, self.env.now)
+
+
+DRIVES: dict[str, Callable[[Driver, str, Callable[[], bool] | None], Proc]] = {
+    "reactive": Driver._drive_reactively,
+    "avoiding": Driver._drive_safely,
+}
+"""Traffic policy name (`traffic.policy`) -> how a driver drives under it."""

@@ -39,7 +39,7 @@ from fleet_sim.sim.traffic.locks import Lock, ZoneLock
 from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate
 
 if TYPE_CHECKING:
-    from fleet_sim.sim.traffic.control import Traffic
+    from fleet_sim.sim.traffic.table import Reservations
 
 DIRECTION_NAMES = {FORWARD: "forward", BACKWARD: "backward", ANY_DIRECTION: ""}
 """How the replay's zone rows name a same-direction claim's direction ("": a mutex zone)."""
@@ -92,8 +92,8 @@ class CorridorModule:
 
     name = "corridor"
 
-    def __init__(self, traffic: Traffic) -> None:
-        self.traffic = traffic
+    def __init__(self, table: Reservations) -> None:
+        self.table = table
         self._entered: dict[Hop, tuple[tuple[int, Need], ...]] = {}
         """Hop -> the corridors it enters (each once, with the node it enters from), whoever
         asks; `needs` leaves out those the client holds."""
@@ -104,19 +104,19 @@ class CorridorModule:
             entered = self._entered[hop] = self._enters(hop)
         if not entered:
             return NO_NEEDS
-        held = self.traffic.corridors_of(client_id)
+        held = self.table.corridors_of(client_id)
         return [need for cid, need in entered if cid not in held]
 
     def _enters(self, hop: Hop) -> tuple[tuple[int, Need], ...]:
-        traffic = self.traffic
-        corridor_of = traffic.layout.corridor_of
+        table = self.table
+        corridor_of = table.layout.corridor_of
         out: list[tuple[int, Need]] = []
         for a, b in ((hop.via, hop.node), (hop.node, hop.after)):
             corridor = corridor_of(a, b) if b is not None else None
             if corridor is None or a in corridor.members:
                 continue
             if all(cid != corridor.id for cid, _ in out):
-                out.append((corridor.id, Need(traffic.corridor_locks[corridor.id], a)))
+                out.append((corridor.id, Need(table.corridor_locks[corridor.id], a)))
         return tuple(out)
 
     def may_allocate(self, client_id: int, need: Need) -> bool:
@@ -128,16 +128,16 @@ class MutexZoneModule:
 
     name = "mutex"
 
-    def __init__(self, traffic: Traffic) -> None:
-        self.traffic = traffic
+    def __init__(self, table: Reservations) -> None:
+        self.table = table
 
     def needs(self, client_id: int, hop: Hop) -> Sequence[Need]:
-        traffic = self.traffic
-        zones = traffic.layout.mutex_zones_at.get(hop.node)
+        table = self.table
+        zones = table.layout.mutex_zones_at.get(hop.node)
         if not zones:
             return NO_NEEDS
-        held = traffic.zones_of(client_id)
-        return [Need(traffic.zone_locks[z.id]) for z in zones if z.id not in held]
+        held = table.zones_of(client_id)
+        return [Need(table.zone_locks[z.id]) for z in zones if z.id not in held]
 
     def may_allocate(self, client_id: int, need: Need) -> bool:
         return need.lock.is_free
@@ -149,15 +149,15 @@ class SameDirectionModule:
 
     name = "same_direction"
 
-    def __init__(self, traffic: Traffic) -> None:
-        self.traffic = traffic
+    def __init__(self, table: Reservations) -> None:
+        self.table = table
 
     def needs(self, client_id: int, hop: Hop) -> Sequence[Need]:
-        traffic = self.traffic
-        layout = traffic.layout
+        table = self.table
+        layout = table.layout
         if not layout.direction_zones_at:
             return NO_NEEDS
-        held_zones = traffic.zones_of(client_id)
+        held_zones = table.zones_of(client_id)
         out: list[Need] = []
         for a, b in ((hop.via, hop.node), (hop.node, hop.after)):
             along = layout.direction_zone_of(a, b) if b is not None else None
@@ -169,7 +169,7 @@ class SameDirectionModule:
                 continue
             if any(n.zone_id == zone.id for n in out):
                 continue
-            out.append(Need(traffic.zone_locks[zone.id], a, direction, held is not None))
+            out.append(Need(table.zone_locks[zone.id], a, direction, held is not None))
         return out
 
     def may_allocate(self, client_id: int, need: Need) -> bool:
@@ -182,9 +182,9 @@ class NodeModule:
 
     name = "node"
 
-    def __init__(self, traffic: Traffic) -> None:
-        self.traffic = traffic
-        self._needs = {node: (Need(lock),) for node, lock in traffic.node_locks.items()}
+    def __init__(self, table: Reservations) -> None:
+        self.table = table
+        self._needs = {node: (Need(lock),) for node, lock in table.node_locks.items()}
 
     def needs(self, client_id: int, hop: Hop) -> Sequence[Need]:
         return self._needs[hop.node]

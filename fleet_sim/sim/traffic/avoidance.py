@@ -80,8 +80,8 @@ from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock, Zon
 from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectionGate
 
 if TYPE_CHECKING:
-    from fleet_sim.sim.traffic.control import Traffic
     from fleet_sim.sim.traffic.routing import Routes
+    from fleet_sim.sim.traffic.table import Reservations
 
 Move = tuple[int, int, int]
 """One move of a witness: (client, plan number, the index in the plan of the node reached;
@@ -96,8 +96,10 @@ fleet_sim.sim.traffic.allocation does); the direction is a same-direction zone's
 class Plans:
     """Every AGV's declared plan, the resources each still needs, and the safety checks."""
 
-    def __init__(self, traffic: Traffic) -> None:
-        self.traffic = traffic
+    def __init__(self, table: Reservations, routes: Routes) -> None:
+        self.table = table
+        self.routes = routes
+        """The default vehicle type's routes (hop lengths and times)."""
         self.path: dict[int, list[str]] = {}
         """Client id -> its plan: nodes from where it stood when it declared it to a parking
         access."""
@@ -135,7 +137,7 @@ class Plans:
         key = (id(routes), node)
         path = self._exits.get(key)
         if path is None:
-            accesses = sorted(p.nodes[0] for p in self.traffic.layout.parking)
+            accesses = sorted(p.nodes[0] for p in self.table.layout.parking)
             best = min(accesses, key=lambda a: (routes.travel_time_s(node, a), a))
             path = routes.route(node, best)
             self._exits[key] = path
@@ -143,37 +145,37 @@ class Plans:
 
     def steps(self, path: Sequence[str]) -> list[Step]:
         """Per index k of `path`: what reaching path[k] takes (`Step`)."""
-        traffic = self.traffic
-        layout = traffic.layout
+        table = self.table
+        layout = table.layout
         corridor_of = layout.corridor_of
-        out: list[Step] = [((traffic.node_locks[path[0]], 0),)]
+        out: list[Step] = [((table.node_locks[path[0]], 0),)]
         n = len(path)
         for k in range(1, n):
             a, b = path[k - 1], path[k]
-            step: list[tuple[Lock, int]] = [(traffic.node_locks[b], 0)]
+            step: list[tuple[Lock, int]] = [(table.node_locks[b], 0)]
             for u, v in ((a, b), (b, path[k + 1] if k + 1 < n else None)):
                 if v is None:
                     continue
                 corridor = corridor_of(u, v)
                 if corridor is not None and u not in corridor.members:
-                    lock = traffic.corridor_locks[corridor.id]
+                    lock = table.corridor_locks[corridor.id]
                     if all(lk is not lock for lk, _ in step):
                         step.append((lock, 0))
                 if layout.direction_zones_at:
                     along = layout.direction_zone_of(u, v)
                     if along is not None:  # both ways: it turns round at b (alone inside)
-                        lock = traffic.zone_locks[along[0].id]
+                        lock = table.zone_locks[along[0].id]
                         if (lock, along[1]) not in step:
                             step.append((lock, along[1]))
             for zone in layout.mutex_zones_at.get(b, ()):
-                step.append((traffic.zone_locks[zone.id], 0))
+                step.append((table.zone_locks[zone.id], 0))
             out.append(tuple(step))
         return out
 
     def costs(self, path: Sequence[str]) -> list[tuple[float, float]]:
         """Per index k of `path`: the free-flow seconds and metres of the hop into path[k]
         ((0, 0) at the start), read once per plan rather than at every step of every walk."""
-        edge = self.traffic.routes.edge
+        edge = self.routes.edge
         return [(0.0, 0.0)] + [(e["free_time_s"], e["length_m"]) for e in
                                (edge[hop] for hop in itertools.pairwise(path))]
 
@@ -258,7 +260,7 @@ class Plans:
                 return True
             if not self._reaches(holders, lambda h: h == client_id, skip=client_id):
                 return True
-        elif not any(self.traffic.held_locks(client_id)):
+        elif not any(self.table.held_locks(client_id)):
             return True  # off the track: in nobody's way, and in no move of the witness
         if self._walk(client_id, (list(path), steps, self.costs(path)), ()) is None:
             return True
@@ -295,7 +297,7 @@ class Plans:
         if waits:
             k = self.path[client_id].index(node, self.at[client_id])
             self._refused[client_id] = _Refusal(
-                self.plan_id[client_id], node, self.traffic.env.now + self._costs[client_id][k][0],
+                self.plan_id[client_id], node, self.table.env.now + self._costs[client_id][k][0],
                 self._where(failed.stuck(client_id)))
         self.refused_grants += 1
         return False
@@ -308,7 +310,7 @@ class Plans:
         if refused is None or refused.plan != self.plan_id[client_id] or refused.node != node:
             return True
         if not refused.stuck:
-            return self.traffic.env.now + 1e-9 >= refused.until_s
+            return self.table.env.now + 1e-9 >= refused.until_s
         return refused.stuck != self._where(y for y, *_ in refused.stuck)
 
     def retry_at(self, client_id: int) -> float | None:
@@ -376,8 +378,8 @@ class Plans:
         client's new plan or the locks it is granted: if all get off the track, the order
         of moves becomes the witness and None is returned; else the walk where it got stuck
         (`_Walk.stuck` names the cycle of waits)."""
-        walk = _Walk(self.traffic)
-        held_locks = self.traffic.held_locks
+        walk = _Walk(self.table)
+        held_locks = self.table.held_locks
         for x in sorted(self.path):
             if x == client_id:
                 path, steps, costs = new_plan if new_plan is not None \
@@ -400,16 +402,16 @@ class Plans:
         """Why the state is safe, checked from scratch (for tests and bug hunts): "acyclic"
         (the claim graph has no cycle), "witness" (the witness's moves, those granted but not
         driven yet first, take every AGV on the track off it), or None: not shown safe."""
-        traffic = self.traffic
+        table = self.table
         if self.witness is None:
             graph: nx.DiGraph = nx.DiGraph()
             for x, needs in self.needs.items():
                 graph.add_edges_from((x, y) for lock in needs for y in _holders(lock) if y != x)
             return "acyclic" if nx.is_directed_acyclic_graph(graph) else None
-        walk = _Walk(traffic)
+        walk = _Walk(table)
         junctions, walk.junctions = walk.junctions, frozenset()  # replayed moves are made as
         for x in sorted(self.path):  # they come, into a junction too
-            if any(traffic.held_locks(x)):
+            if any(table.held_locks(x)):
                 walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self._costs[x],
                          self.at[x], ())
         for x in sorted(walk.plans):  # the nodes granted and not driven yet: held, so driving
@@ -457,8 +459,8 @@ class _Walk:
     what the hop takes, and lets go of what the body has cleared and the corridors and zones
     it has left, as the driver and traffic do."""
 
-    def __init__(self, traffic: Traffic) -> None:
-        self.traffic = traffic
+    def __init__(self, table: Reservations) -> None:
+        self.table = table
         self.holders: dict[Lock, list[int]] = {}
         self.ways: dict[Lock, int] = {}
         self.plans: dict[int, tuple[list[str], list[Step], list[tuple[float, float]]]] = {}
@@ -485,7 +487,7 @@ class _Walk:
         self.plan_of: dict[int, int] = {}
         self.moves: list[Move] = []
         """The moves made, in order."""
-        self.junctions = traffic.junction_locks
+        self.junctions = table.junction_locks
         self.deferred: dict[int, Lock] = {}
         """Member -> the node it waits to see free before it drives into the junction before
         it (`step`: not blocking the junction)."""
@@ -534,14 +536,14 @@ class _Walk:
 
     def add(self, x: int, plan: int, path: list[str], steps: list[Step],
             costs: list[tuple[float, float]], k: int, granted: Sequence[tuple[Lock, int]]) -> None:
-        traffic = self.traffic
-        node_locks = traffic.node_locks
+        table = self.table
+        node_locks = table.node_locks
         self.plans[x] = (path, steps, costs)
         self.plan_of[x] = plan
         self.at[x] = k
         self.time_s[x] = 0.0
-        self.clear_m[x] = traffic.clearance_m(x)
-        nodes, others = traffic.held_locks(x)
+        self.clear_m[x] = table.clearance_m(x)
+        nodes, others = table.held_locks(x)
         for lock, way in granted:
             self.take(x, lock, way)
             mine = nodes if isinstance(lock.key, NodeLock) else others
@@ -549,7 +551,7 @@ class _Walk:
                 mine.append(lock)
         here = node_locks[path[k]]
         on_plan = {node_locks[n] for n in path[k + 1:k + 3]}
-        past = traffic.past_m(x)
+        past = table.past_m(x)
         behind = sorted((lk for lk in nodes if lk is not here),
                         key=lambda lk: (-past.get(str(lk.key), 0.0), str(lk.key)))
         self.ahead[x] = [lk for lk in behind if lk in on_plan]
@@ -676,7 +678,7 @@ class _Walk:
         not about to drive in from a node it holds (`hops`: its plan's hops from where it
         stands through the nodes it holds ahead, and one more), as traffic keeps a corridor
         or aisle taken at its mouth while the AGV holds the mouth."""
-        layout = self.traffic.layout
+        layout = self.table.layout
         held = self.others[x]
         for lock in list(held):
             key = lock.key
