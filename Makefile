@@ -53,9 +53,10 @@ design: $(STAMP)
 	echo "make design: wall time $$((t / 60)) min $$((t % 60)) s on $$(nproc) cores"; \
 	exit $$status
 
-# The whole test suite, ruff and mypy included.
+# The whole test suite, ruff and mypy included, on every core (pytest-xdist; each test on its
+# own tmp_path). --dist worksteal: a worker that runs out of tests takes some of the other's.
 test: $(STAMP)
-	$(VENV)/bin/python -m pytest -q
+	$(VENV)/bin/python -m pytest -q -n auto --dist worksteal
 
 # The documentation site into site/ (MkDocs, Material theme); --strict: a broken link fails.
 # The KPI catalogue and the file-format pages are generated from the code (tools/docs_hook.py).
