@@ -313,6 +313,23 @@ def test_a_queued_hop_waits_for_its_corridor_then_takes_its_node(
     assert 0 not in traffic.waiting
 
 
+def test_no_import_circle_in_the_simulation_core_type_only_imports_included() -> None:
+    """Issue 34: the allocation modules, the plans and the policies see the reservation table
+    (`Reservations`), not `Traffic`; nothing Traffic imports imports it back, not even for a
+    type (grimp counts `if TYPE_CHECKING:` imports)."""
+    import grimp
+    import networkx as nx
+
+    graph = grimp.build_graph("fleet_sim")
+    core = nx.DiGraph()
+    for module in graph.modules:
+        if module.startswith("fleet_sim.sim"):
+            core.add_edges_from((module, imported)
+                                for imported in graph.find_modules_directly_imported_by(module)
+                                if imported.startswith("fleet_sim.sim"))
+    assert list(nx.simple_cycles(core)) == []
+
+
 def test_only_traffic_reads_lock_state() -> None:
     """Traffic (fleet_sim.sim.traffic) owns every allocation: no other module of fleet_sim
     reads its locks, their holders or their queues."""

@@ -37,7 +37,7 @@ order (Habermann's sequence). Traffic keeps it acyclic:
   is safe (what happened in the dense states of 300 AGVs on the fulfilment centre). Any order
   of legal moves is a witness, so this changes which order is found, never what is granted.
 * A blocked AGV takes another route as reactive traffic does after `replan_after_s`
-  (`Traffic._replan_safely`), as a new plan the check accepts (`may_declare`) or not at all.
+  (`AvoidingPolicy._replan_safely`), as a new plan the check accepts (`may_declare`) or not at all.
 
 Why this never locks solid: an acyclic graph has a sink, an AGV none of whose remaining
 resources another AGV holds; its next hop is free and granting it adds edges into the sink

@@ -32,6 +32,8 @@ class AvoidingPolicy:
 
     def __init__(self, traffic: Traffic) -> None:
         self.traffic = traffic
+        self.table = traffic.table
+        """What is held, by whom, and what is queued."""
         self.escapes = Escapes(traffic)
         self.plans = Plans(traffic.table, traffic.routes)
         """Every AGV's plan and the safety checks."""
@@ -96,7 +98,7 @@ class AvoidingPolicy:
         return True
 
     def plan_step(self, client_id: int, ahead: int) -> str | None:
-        """Avoiding: the node `ahead` hops further along the client's plan, if any."""
+        """the node `ahead` hops further along the client's plan, if any."""
         return self.plans.step(client_id, ahead)
 
     def _woken(self, lock: Lock) -> None:
@@ -115,23 +117,23 @@ class AvoidingPolicy:
     def _wake_on(self, lock: Lock | None) -> simpy.Event:
         if lock is None:
             if self._wake_all is None:
-                self._wake_all = self.traffic.env.event()
+                self._wake_all = self.table.env.event()
             return self._wake_all
         event = self._wakes.get(lock)
         if event is None:
-            event = self._wakes[lock] = self.traffic.env.event()
+            event = self._wakes[lock] = self.table.env.event()
         return event
 
     def allocate(self, client: TrafficClient, hop: Hop,
-                         needs_of: Callable[[], list[tuple[AllocationModule, Need]]] | None
-                         = None) -> Generator[simpy.Event, Any, Claim | None]:
-        """Avoiding: wait until every part of the hop is free and the grant keeps the state
+                 needs_of: Callable[[], list[tuple[AllocationModule, Need]]] | None = None
+                 ) -> Generator[simpy.Event, Any, Claim | None]:
+        """wait until every part of the hop is free and the grant keeps the state
         safe, then take it all at once. The wait is recorded like any lock wait (for the one
         not free, or, held back by the check, for the hop's node); a wait-for cycle, which the
         check should make impossible, is still looked for and recorded. `needs_of`: what the
         hop needs, if not the modules' answer (back onto the track)."""
         plans = self.plans
-        env = self.traffic.env
+        env = self.table.env
         client_id = client.id
         start: float | None = None
         zone_wait: str | None = None
@@ -158,7 +160,7 @@ class AvoidingPolicy:
                     return granted
                 if blocker is None and needs_of is None:
                     self._held_back.add(client_id)
-                shown = blocker if blocker is not None else self.traffic.node_locks[hop.node]
+                shown = blocker if blocker is not None else self.table.node_locks[hop.node]
                 if start is None:
                     start = env.now
                     if isinstance(shown.key, ZoneLock):
@@ -168,10 +170,10 @@ class AvoidingPolicy:
                         holder = shown.holder
                         self.traffic.open_waits[client_id] = (start, str(shown.key),
                                                        -1 if holder is None else holder)
-                if self.traffic.waiting.get(client_id) is not shown:
-                    if client_id in self.traffic.waiting:
-                        self.traffic.stop_waiting(client_id)
-                    self.traffic.start_waiting(client_id, shown)
+                if self.table.waiting.get(client_id) is not shown:
+                    if client_id in self.table.waiting:
+                        self.table.stop_waiting(client_id)
+                    self.table.start_waiting(client_id, shown)
                     client.began_waiting(shown)
                     self._record_cycle(client)
                 wake = self._wake_on(blocker)
@@ -199,7 +201,7 @@ class AvoidingPolicy:
                 self._held_back.discard(client_id)
                 self._wake_held_back()
             if start is not None:
-                self.traffic.stop_waiting(client_id)
+                self.table.stop_waiting(client_id)
                 self.traffic.recorder.blocked(start, env.now, client_id)
                 self.traffic.close_wait(client)
                 if zone_wait is not None and start < env.now:
@@ -219,20 +221,20 @@ class AvoidingPolicy:
         return True
 
     def _record_cycle(self, client: TrafficClient) -> None:
-        """Avoiding: record a wait-for cycle through the client, if one closed (none should)."""
-        if client.id not in self.traffic.suspects:
+        """record a wait-for cycle through the client, if one closed (none should)."""
+        if client.id not in self.table.suspects:
             return
-        cycle = find_cycle(client.id, self.traffic.waiting)
-        if cycle is None or not self.traffic.cycles.is_new(cycle, self.traffic.waiting):
+        cycle = find_cycle(client.id, self.table.waiting)
+        if cycle is None or not self.table.cycles.is_new(cycle, self.table.waiting):
             return
         self.traffic.recorder.deadlocks += 1
         names = " ".join(str(m) for m in cycle)
-        locks = " ".join(str(self.traffic.waiting[m].key) for m in cycle)
+        locks = " ".join(str(self.table.waiting[m].key) for m in cycle)
         client.note("deadlock_detected", f"agvs {names} waiting for {locks}")
 
     def reenter(self, client: TrafficClient,
-                        access: str) -> Generator[simpy.Event, Any, Claim]:
-        """Avoiding: back onto the track at `access` with the plan of driving off again there
+                access: str) -> Generator[simpy.Event, Any, Claim]:
+        """back onto the track at `access` with the plan of driving off again there
         (it holds nothing, so that plan closes no cycle), once the access and its corridor and
         zones are free and the grant keeps the state safe."""
         plans = self.plans
@@ -244,12 +246,12 @@ class AvoidingPolicy:
 
         def needs_of() -> list[tuple[AllocationModule, Need]]:
             out: list[tuple[AllocationModule, Need]] = []
-            corridor = self.traffic.layout.corridor_at(access)
+            corridor = self.table.layout.corridor_at(access)
             if corridor is not None:
-                out.append((modules["corridor"], Need(self.traffic.corridor_locks[corridor.id])))
-            out += [(modules["mutex"], Need(self.traffic.zone_locks[z.id]))
+                out.append((modules["corridor"], Need(self.table.corridor_locks[corridor.id])))
+            out += [(modules["mutex"], Need(self.table.zone_locks[z.id]))
                     for z in self.traffic.zones_at(access)]
-            out.append((modules["node"], Need(self.traffic.node_locks[access])))
+            out.append((modules["node"], Need(self.table.node_locks[access])))
             return out
 
         claim = yield from self.allocate(client, Hop(access, access), needs_of)

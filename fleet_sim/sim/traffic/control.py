@@ -69,10 +69,8 @@ from fleet_sim.sim.traffic.deadlock import (
     DeadlockPolicy,
     Escape,
     GentlestEscapeFirst,
-    KnownCycles,
-    find_cycle,
 )
-from fleet_sim.sim.traffic.locks import Claim, Lock
+from fleet_sim.sim.traffic.locks import Claim
 from fleet_sim.sim.traffic.policy import TrafficPolicy
 from fleet_sim.sim.traffic.routing import Routes
 from fleet_sim.sim.traffic.table import Reservations, TrafficClient
@@ -135,6 +133,8 @@ class Traffic:
         self.blocks_others = table.blocks_others
         self.past_m = table.past_m
         self.clearance_m = table.clearance_m
+        self.start_waiting = table.start_waiting
+        self.stop_waiting = table.stop_waiting
         self.next_nodes = {n: tuple(sorted(self.graph.successors(n))) for n in self.graph.nodes}
         """Node -> the nodes a segment leads to from it, sorted (escapes look in that order)."""
         self.blocks: dict[tuple[str, str], list[tuple[float, float]]] = {}
@@ -143,7 +143,6 @@ class Traffic:
         """Blocks an AGV has reported: routes keep off them until they end."""
         self.motion_backend: MotionBackend | None = None
         """Moves the AGVs when set (`motion: sumo`); None: closed-form hops."""
-        self.cycles = KnownCycles()
         self._type_routes: dict[str, Routes] = {}
         """Vehicle type -> its routes (mixed fleets, layouts with `allowed_types`)."""
         self._client_routes: dict[int, Routes] = {}
@@ -158,9 +157,6 @@ class Traffic:
             (u, v): self.costs.weak_wifi_s for u, v, d in self.graph.edges(data=True)
             if self.costs.weak_wifi_s > 0 and d["rssi_dbm"] < self.costs.weak_rssi_dbm}
         """Weak-Wi-Fi segments and their extra route cost."""
-        self.suspects: set[int] = set()
-        """Clients found in a wait-for cycle that may still stand: they look again while they
-        wait; nobody else needs to (see the module docstring)."""
         self.zone_since: dict[int, dict[str, float]] = {}
         """Client id -> zone id -> when the client was given the zone it holds."""
         self.zone_entry: dict[int, dict[str, str]] = {}
@@ -228,18 +224,6 @@ class Traffic:
                             for c in self.zone_locks[zone_id].users):
                 out |= self.against_hops[zone_id][claim.direction]
         return out
-
-    def start_waiting(self, client_id: int, lock: Lock) -> None:
-        self.waiting[client_id] = lock
-        self.table.version += 1
-        cycle = find_cycle(client_id, self.waiting)
-        if cycle is not None:
-            self.suspects.update(cycle)
-
-    def stop_waiting(self, client_id: int) -> None:
-        del self.waiting[client_id]
-        self.suspects.discard(client_id)
-        self.table.version += 1
 
     # ---- routes -----------------------------------------------------------------------------
     def travel_time_s(self, src: str, dest: str, client_id: int | None = None) -> float:
@@ -352,10 +336,6 @@ class Traffic:
             if place.nodes[0] == node:
                 return place
         return None
-
-    def free_all(self, client_id: int, claims: list[Claim]) -> None:
-        for claim in claims:
-            self.free(client_id, claim)
 
     def close_wait(self, client: TrafficClient) -> None:
         opened = self.open_waits.pop(client.id, None)

@@ -27,6 +27,8 @@ class Escapes:
 
     def __init__(self, traffic: Traffic) -> None:
         self.traffic = traffic
+        self.table = traffic.table
+        """What is held, by whom, and what is queued."""
         self.chosen: dict[int, Escape] = {}
         """Escapes chosen for clients that have not taken them yet."""
         self._reroutes: dict[tuple[Routes, str, str, Lock | None], list[str] | None] = {}
@@ -42,7 +44,7 @@ class Escapes:
                   may_replan: bool) -> Escape | None:
         """Blocked long enough: another route if there is one; with someone queued behind,
         circulating rather than blocking them. The escape is kept for `take_escape`."""
-        escape = self.another_route(client, may_give_way and self.traffic.blocks_others(client.id),
+        escape = self.another_route(client, may_give_way and self.table.blocks_others(client.id),
                                      may_replan)
         if escape is not None:
             self.chosen[client.id] = escape
@@ -68,21 +70,21 @@ class Escapes:
         when the caller would not take that kind (it is then not looked for; looking changes
         nothing)."""
         client_id = client.id
-        waited = self.traffic.waiting.get(client_id)
+        waited = self.table.waiting.get(client_id)
         node = client.node
         goal = client.goal
         inside: Corridor | None = None
         if must_free is not None and isinstance(must_free.key, CorridorLock):
             cid = must_free.key.corridor_id
-            hold = self.traffic.corridors_held[client_id].get(cid)
+            hold = self.table.corridors[client_id].get(cid)
             if hold is None or not hold[0].triggered or hold[1] is not None:
                 return Escape("yield", (node,))
-            inside = self.traffic.layout.corridors[cid]
+            inside = self.table.layout.corridors[cid]
         if must_free is not None and isinstance(must_free.key, ZoneLock):
-            zone = self.traffic.layout.traffic_zone_by_id[must_free.key.zone_id]
+            zone = self.table.layout.traffic_zone_by_id[must_free.key.zone_id]
             if not any(c.triggered and cast(Lock, c.resource).key in
                        {NodeLock(n) for n in zone.nodes}
-                       for c in self.traffic.nodes_held[client_id]):
+                       for c in self.table.nodes[client_id]):
                 return Escape("yield", (node,))  # holds the zone, not yet inside: give it up
         avoid_nodes: set[str] = set()
         avoid_edges = self.traffic.against(client_id) if self.traffic.against_hops else set()
@@ -92,9 +94,9 @@ class Escapes:
             if isinstance(key, NodeLock):
                 avoid_nodes.add(key.node)
             elif isinstance(key, ZoneLock):
-                avoid_nodes |= self.traffic.layout.traffic_zone_by_id[key.zone_id].nodes
+                avoid_nodes |= self.table.layout.traffic_zone_by_id[key.zone_id].nodes
             else:
-                corridor = self.traffic.layout.corridors[key.corridor_id]
+                corridor = self.table.layout.corridors[key.corridor_id]
                 avoid_nodes |= corridor.members
                 avoid_edges |= corridor.segments
         routes = self.traffic.routes_of(client_id)
@@ -147,31 +149,31 @@ class Escapes:
                     continue
                 if not routes.allows(first, second):
                     continue
-                if self.traffic.layout.corridor_of(first, second) is not None \
-                        or self.traffic.layout.direction_zone_of(first, second) is not None:
+                if self.table.layout.corridor_of(first, second) is not None \
+                        or self.table.layout.direction_zone_of(first, second) is not None:
                     continue  # circulate on one-way track only
                 back = self.traffic.route(second, goal, client_id)
                 return Escape("circulate", (node, first, *back))
         return None
 
     def _free_to_enter(self, client_id: int, node: str, nxt: str) -> bool:
-        if not self.traffic.node_locks[nxt].is_free:
+        if not self.table.node_locks[nxt].is_free:
             return False
-        for zone in self.traffic.layout.mutex_zones_at.get(nxt, ()):
-            if zone.id not in self.traffic.zones_held[client_id] \
-                    and not self.traffic.zone_locks[zone.id].is_free:
+        for zone in self.table.layout.mutex_zones_at.get(nxt, ()):
+            if zone.id not in self.table.zones[client_id] \
+                    and not self.table.zone_locks[zone.id].is_free:
                 return False
-        along = self.traffic.layout.direction_zone_of(node, nxt)
+        along = self.table.layout.direction_zone_of(node, nxt)
         if along is not None:
             zone, direction = along
-            held = self.traffic.zones_held[client_id].get(zone.id)
+            held = self.table.zones[client_id].get(zone.id)
             if held is not None and held.triggered:
                 if cast(DirectedClaim, held).direction != direction:
                     return False
-            elif not cast(DirectionGate, self.traffic.zone_locks[zone.id]).admits(direction):
+            elif not cast(DirectionGate, self.table.zone_locks[zone.id]).admits(direction):
                 return False
-        corridor = self.traffic.layout.corridor_of(node, nxt)
-        if corridor is None or self.traffic.holds_corridor(client_id, corridor.id):
+        corridor = self.table.layout.corridor_of(node, nxt)
+        if corridor is None or self.table.holds_corridor(client_id, corridor.id):
             return True
-        return self.traffic.corridor_locks[corridor.id].is_free
+        return self.table.corridor_locks[corridor.id].is_free
 

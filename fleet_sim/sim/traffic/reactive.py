@@ -9,7 +9,7 @@ each part of a hop in turn, and wait-for cycles are found and broken.
   out of each AGV, and a lock passed on goes to an AGV that thereby stops waiting. The only
   change that can close a cycle is therefore an AGV starting to wait, and the cycle then runs
   through it. AGVs that no cycle was found for do not walk their wait chains again while they
-  wait (`Traffic.suspects`): before, every blocked AGV walked its whole chain every
+  wait (`Reservations.suspects`): before, every blocked AGV walked its whole chain every
   `deadlock_check_s` when anything had changed anywhere, which in a long queue cost (queue
   length)^2 per check period, the largest cost of a congested run with 200 AGVs.
 * Giving way: an AGV that has waited `give_way_after_s` for a corridor or a side track while
@@ -46,6 +46,8 @@ class ReactivePolicy:
 
     def __init__(self, traffic: Traffic) -> None:
         self.traffic = traffic
+        self.table = traffic.table
+        """What is held, by whom, and what is queued."""
         self.escapes = Escapes(traffic)
 
     def placed(self, client_id: int, node: str) -> None:
@@ -77,27 +79,27 @@ class ReactivePolicy:
         taken: list[Claim] = []
         for m, need in needs:
             if m.name == "corridor":
-                claim = self.traffic.request(client_id, need.lock, entry=need.entry)
+                claim = self.table.request(client_id, need.lock, entry=need.entry)
                 if not (yield from self.wait(client, need.lock, claim)):
-                    self.traffic.free_all(client_id, taken)
+                    self.table.free_all(client_id, taken)
                     return None
                 taken.append(claim)
             elif m.name == "mutex":
-                claim = self.traffic.request(client_id, need.lock)
+                claim = self.table.request(client_id, need.lock)
                 if not (yield from self._wait_zone(client, need.zone_id, need.lock, claim)):
-                    self.traffic.free_all(client_id, taken)
+                    self.table.free_all(client_id, taken)
                     self.traffic.release_left_zones(client_id)
                     return None
             elif m.name == "same_direction":
                 if not (yield from self._take_direction(client, need)):
-                    self.traffic.free_all(client_id, taken)
+                    self.table.free_all(client_id, taken)
                     self.traffic.drop_pending_zones(client_id)
                     self.traffic.release_left_zones(client_id)
                     return None
             else:
-                claim = self.traffic.request(client_id, need.lock)
+                claim = self.table.request(client_id, need.lock)
                 if not (yield from self.wait(client, need.lock, claim)):
-                    self.traffic.free_all(client_id, taken)
+                    self.table.free_all(client_id, taken)
                     self.traffic.release_left_zones(client_id)
                     return None
                 return claim
@@ -110,13 +112,13 @@ class ReactivePolicy:
         Any other interrupt (a fault) withdraws or frees the claim and passes on."""
         if claim.triggered:
             return True
-        env = self.traffic.env
+        env = self.table.env
         config = self.traffic.config
-        table = self.traffic.table
-        suspects = self.traffic.suspects
+        table = self.table
+        suspects = self.table.suspects
         client_id = client.id
         start = env.now
-        self.traffic.start_waiting(client_id, lock)
+        self.table.start_waiting(client_id, lock)
         client.began_waiting(lock)
         self.traffic.recorder.wait_began(client_id, start,
                                  lock.key.zone_id if isinstance(lock.key, ZoneLock) else None)
@@ -139,7 +141,7 @@ class ReactivePolicy:
                     if (client_id in suspects and self.resolve_deadlock(client) is not None) \
                             or ((now_seen[1] or now_seen[2]) and self.escapes.other_way(
                                 client, now_seen[1], now_seen[2]) is not None):
-                        self.traffic.withdraw(client_id, claim)
+                        self.table.withdraw(client_id, claim)
                         return False
                 try:
                     yield FirstOf(env, claim, Timeout(env, check_s))
@@ -147,31 +149,31 @@ class ReactivePolicy:
                     if not isinstance(interrupt.cause, DeadlockVictim):
                         # a fault: let go and pass it on
                         if claim.triggered:
-                            self.traffic.free(client_id, claim)
+                            self.table.free(client_id, claim)
                         else:
-                            self.traffic.withdraw(client_id, claim)
+                            self.table.withdraw(client_id, claim)
                         raise
                     if claim.triggered:
                         self.escapes.take_escape(client_id)  # the way is open after all
                         return True
-                    self.traffic.withdraw(client_id, claim)
+                    self.table.withdraw(client_id, claim)
                     return False
                 if claim.triggered:
                     return True
         finally:
-            self.traffic.stop_waiting(client_id)
+            self.table.stop_waiting(client_id)
             self.traffic.recorder.blocked(start, env.now, client_id)
             self.traffic.close_wait(client)
 
     def _wait_zone(self, client: TrafficClient, zone_id: str, gate: Lock, claim: Claim,
                    may_escape: bool = True) -> Generator[simpy.Event, Any, bool]:
         """`wait` for a zone, its waiting time counted for the zone."""
-        start = self.traffic.env.now
+        start = self.table.env.now
         ok = yield from self.wait(client, gate, claim, may_escape)
-        if start < self.traffic.env.now:
-            self.traffic.recorder.zone_waited(zone_id, start, self.traffic.env.now)
+        if start < self.table.env.now:
+            self.traffic.recorder.zone_waited(zone_id, start, self.table.env.now)
         if ok:
-            self.traffic.zone_since[client.id][zone_id] = self.traffic.env.now
+            self.traffic.zone_since[client.id][zone_id] = self.table.env.now
         return ok
 
     def _take_direction(self, client: TrafficClient,
@@ -182,14 +184,14 @@ class ReactivePolicy:
         client_id = client.id
         zone_id = need.zone_id
         assert need.entry is not None
-        held = self.traffic.zones_held[client_id].get(zone_id)
-        since = self.traffic.zone_since[client_id].get(zone_id, self.traffic.env.now)
-        claim = self.traffic.request(client_id, need.lock, direction=need.direction)
+        held = self.table.zones[client_id].get(zone_id)
+        since = self.traffic.zone_since[client_id].get(zone_id, self.table.env.now)
+        claim = self.table.request(client_id, need.lock, direction=need.direction)
         if not (yield from self._wait_zone(client, zone_id, need.lock, claim)):
             return False
         if held is not None:  # a turn inside: the old claim ends here
             self.traffic.record_zone(client_id, zone_id, held, since)
-            self.traffic.turned(client_id, claim)
+            self.table.turned(client_id, claim)
             client.note("zone_turn", f"{zone_id} {DIRECTION_NAMES[need.direction]}")
         self.traffic.note_entry(client_id, zone_id, need.entry)
         return True
@@ -197,23 +199,23 @@ class ReactivePolicy:
     def resolve_deadlock(self, client: TrafficClient) -> Escape | None:
         """Look for a wait-for cycle through `client` and resolve it. Returns the escape when
         the client itself must move; another victim is interrupted with `DeadlockVictim`."""
-        if client.id not in self.traffic.suspects:
+        if client.id not in self.table.suspects:
             return None  # no cycle closed through it since it last looked
-        cycle = find_cycle(client.id, self.traffic.waiting)
+        cycle = find_cycle(client.id, self.table.waiting)
         if cycle is None:
-            self.traffic.suspects.discard(client.id)
+            self.table.suspects.discard(client.id)
             return None
-        members = [self.traffic.clients[m] for m in cycle]
+        members = [self.table.clients[m] for m in cycle]
         if any(m.id in self.escapes.chosen or m.failing for m in members):
             return None  # already being resolved
-        new = self.traffic.cycles.is_new(cycle, self.traffic.waiting)
+        new = self.table.cycles.is_new(cycle, self.table.waiting)
         names = " ".join(str(m) for m in cycle)
         if new:
-            locks = " ".join(str(self.traffic.waiting[m].key) for m in cycle)
+            locks = " ".join(str(self.table.waiting[m].key) for m in cycle)
             self.traffic.recorder.deadlocks += 1
             client.note("deadlock_detected", f"agvs {names} waiting for {locks}")
         # Member i holds the lock that member i-1 waits for; its escape must let go of it.
-        options = [(m.id, self.escapes.escape_for(m, self.traffic.waiting[cycle[i - 1]]))
+        options = [(m.id, self.escapes.escape_for(m, self.table.waiting[cycle[i - 1]]))
                    for i, m in enumerate(members)]
         chosen = self.traffic.policy.choose(options)
         if chosen is None:
@@ -221,7 +223,7 @@ class ReactivePolicy:
                 client.note("deadlock_unresolved", f"agvs {names}: no free way out yet")
             return None
         victim_id, escape = chosen
-        victim = self.traffic.clients[victim_id]
+        victim = self.table.clients[victim_id]
         victim.note("deadlock_resolved", f"{escape.kind} via {' '.join(escape.path)}")
         self.escapes.chosen[victim_id] = escape
         if victim is client:
@@ -235,25 +237,25 @@ class ReactivePolicy:
         wait was broken (the client chosen to break a wait-for cycle), what it took given
         back."""
         client_id = client.id
-        corridor = self.traffic.layout.corridor_at(access)
+        corridor = self.table.layout.corridor_at(access)
         taken: list[Claim] = []
         if corridor is not None:
-            lock = self.traffic.corridor_locks[corridor.id]
-            claim = self.traffic.request(client_id, lock)
+            lock = self.table.corridor_locks[corridor.id]
+            claim = self.table.request(client_id, lock)
             if not (yield from self.wait(client, lock, claim, may_escape=False)):
                 return None
             taken.append(claim)
         for zone in self.traffic.zones_at(access):
-            gate = self.traffic.zone_locks[zone.id]
+            gate = self.table.zone_locks[zone.id]
             if not (yield from self._wait_zone(client, zone.id, gate,
-                                               self.traffic.request(client_id, gate), False)):
-                self.traffic.free_all(client_id, taken)
+                                               self.table.request(client_id, gate), False)):
+                self.table.free_all(client_id, taken)
                 self.traffic.release_left_zones(client_id)  # holding no node, it is inside none
                 return None
-        lock = self.traffic.node_locks[access]
-        claim = self.traffic.request(client_id, lock)
+        lock = self.table.node_locks[access]
+        claim = self.table.request(client_id, lock)
         if not (yield from self.wait(client, lock, claim, may_escape=False)):
-            self.traffic.free_all(client_id, taken)
+            self.table.free_all(client_id, taken)
             self.traffic.release_left_zones(client_id)
             return None
         return claim
@@ -266,13 +268,13 @@ class ReactivePolicy:
                 break
         else:  # the node alone (`grant_now`, shortened)
             node = hop.node
-            lock = self.traffic.node_locks[node]
+            lock = self.table.node_locks[node]
             if lock.users or lock.put_queue:
                 return None
             claim = lock.claim(client_id)
             claim.node = node
-            self.traffic.nodes_held[client_id].add(claim)
-            self.traffic.table.version += 1
+            self.table.nodes[client_id].add(claim)
+            self.table.version += 1
             return claim
         needs = self.traffic.needs(client_id, hop)
         for m, need in needs:

@@ -21,7 +21,7 @@ import simpy
 
 from fleet_sim.config.layout import Layout
 from fleet_sim.errors import SimulationError
-from fleet_sim.sim.traffic.deadlock import DeadlockVictim
+from fleet_sim.sim.traffic.deadlock import DeadlockVictim, KnownCycles, find_cycle
 from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock, ZoneLock
 from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate, Gate
 
@@ -106,6 +106,11 @@ class Reservations:
         """Client id -> corridor id -> its corridor claims, in the order it asked for them."""
         self.zones: dict[int, dict[str, Claim]] = {}
         """Client id -> zone id -> its zone claims (granted or waiting)."""
+        self.suspects: set[int] = set()
+        """Clients found in a wait-for cycle that may still stand: they look again while they
+        wait; nobody else needs to (fleet_sim.sim.traffic.reactive)."""
+        self.cycles = KnownCycles()
+        """The wait-for cycles recorded so far (each is recorded once)."""
         self.on_free: list[Callable[[Lock], None]] = []
         """Called with each lock a client gives back (the avoiding policy wakes its waiters)."""
 
@@ -152,6 +157,19 @@ class Reservations:
                    if c.triggered]
         return nodes, others
 
+    def start_waiting(self, client_id: int, lock: Lock) -> None:
+        """The client waits for `lock`; a wait-for cycle it closes makes its members suspects."""
+        self.waiting[client_id] = lock
+        self.version += 1
+        cycle = find_cycle(client_id, self.waiting)
+        if cycle is not None:
+            self.suspects.update(cycle)
+
+    def stop_waiting(self, client_id: int) -> None:
+        del self.waiting[client_id]
+        self.suspects.discard(client_id)
+        self.version += 1
+
     def spots(self, client_id: int) -> set[str]:
         """The nodes the client holds (stands on, drives to, or has not cleared yet)."""
         return {c.node for c in self.nodes[client_id] if c.triggered}
@@ -178,6 +196,11 @@ class Reservations:
             self._forget(client_id, lock, claim)
         for freed in self.on_free:
             freed(lock)
+
+    def free_all(self, client_id: int, claims: list[Claim]) -> None:
+        """Give back each of `claims` (all held by the client)."""
+        for claim in claims:
+            self.free(client_id, claim)
 
     def withdraw(self, client_id: int, claim: Claim) -> None:
         """Stop waiting for a claim not yet granted."""
