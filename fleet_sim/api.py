@@ -50,6 +50,7 @@ import pandas as pd
 
 from fleet_sim.config.experiment import Experiment
 from fleet_sim.config.scenario import Scenario
+from fleet_sim.config.writing import check_out_dir
 from fleet_sim.errors import InputError
 
 if TYPE_CHECKING:
@@ -236,7 +237,7 @@ def run(scenario: PathLike | Scenario, *, agvs: Agvs = None, hours: float | None
                          "replay.html into")
     layout = load_layout_for(loaded, file)
     if out is not None:
-        _check_out_dir(Path(out), "--out")
+        check_out_dir(Path(out), "--out")
     trace = []
     if loaded.demand.kind == "trace":
         assert loaded.demand.trace_csv is not None
@@ -420,18 +421,3 @@ def _scenario(source: PathLike | Scenario, sets: dict[str, object], agvs: Agvs,
         return source, name
     return scenario_of(resolved(source), name, source.base_dir, sets, agvs=counts,
                        hours=hours, seed=seed), name
-
-
-def _check_out_dir(out: Path, argument: str, element: str = "out") -> None:
-    """Refuse, before any work, a run or results directory that cannot be written: an existing
-    file in its place, or a place where it cannot be made or written (tried: the directory is
-    made and a probe file written and removed)."""
-    if out.exists() and not out.is_dir():
-        raise InputError(argument, element, str(out), "a directory (or a new path), not a file")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=out):
-            pass
-    except OSError as exc:
-        raise InputError(argument, element, str(out),
-                         f"a writable directory ({exc.strerror or exc})") from None

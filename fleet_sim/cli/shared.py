@@ -4,12 +4,12 @@ path before any work, and warnings printed on standard error."""
 from __future__ import annotations
 
 import sys
-import tempfile
 import typing
 from collections.abc import Sequence
 from pathlib import Path
 
 from fleet_sim.config.overrides import SET
+from fleet_sim.config.writing import check_out_dir as check_out_dir
 from fleet_sim.errors import InputError
 
 if typing.TYPE_CHECKING:
@@ -27,21 +27,6 @@ def experiment_for(file: Path, settings: Sequence[tuple[str, object]]) -> Experi
     check_targets_known(experiment)
     warn_experiment(experiment)
     return experiment
-
-
-def check_out_dir(out: Path, argument: str, element: str = "out") -> None:
-    """Refuse, before any work, a run or results directory that cannot be written: an existing
-    file in its place, or a place where it cannot be made or written (tried: the directory is
-    made and a probe file written and removed)."""
-    if out.exists() and not out.is_dir():
-        raise InputError(argument, element, str(out), "a directory (or a new path), not a file")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=out):
-            pass
-    except OSError as exc:
-        raise InputError(argument, element, str(out),
-                         f"a writable directory ({exc.strerror or exc})") from None
 
 
 def check_out_file(out: Path, argument: str) -> None:

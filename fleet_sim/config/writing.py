@@ -16,10 +16,13 @@ import contextlib
 import json
 import os
 import shutil
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
+
+from fleet_sim.errors import InputError
 
 
 def tidy_numbers(value: Any) -> Any:
@@ -113,3 +116,18 @@ def clean_temporaries(folder: Path, patterns: tuple[str, ...] = TEMPORARY_PATTER
                     item.unlink()
                 removed += 1
     return removed
+
+
+def check_out_dir(out: Path, argument: str, element: str = "out") -> None:
+    """Refuse, before any work, a run or results directory that cannot be written: an existing
+    file in its place, or a place where it cannot be made or written (tried: the directory is
+    made and a probe file written and removed)."""
+    if out.exists() and not out.is_dir():
+        raise InputError(argument, element, str(out), "a directory (or a new path), not a file")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        raise InputError(argument, element, str(out),
+                         f"a writable directory ({exc.strerror or exc})") from None
