@@ -366,6 +366,8 @@ def _cases() -> Iterator[Case]:
                          ("demand.flows", [{"stops": "PICK>DROP"}]),
                          ("fleet.command_timing", "sometimes"), ("fleet.command_timing", True),
                          ("traffic.grants", "always"),
+                         ("rules.agv_ahead", "maybe"), ("rules.lds_stop_m", -1),
+                         ("rules.lds_clear_m", NAN), ("incidents.cpu_reset", "reset"),
                          ("fleet", {"size": 2, "command_profile": "ktm-02",
                                     "command_timing": False}),
                          ("fleet", {"vehicles": [{"type": "a", "count": 2,
