@@ -33,7 +33,7 @@ Where the documents are silent (see docs/background/spec-readings.md):
 from __future__ import annotations
 
 import math
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from typing import Any, Protocol
 
 import simpy
@@ -63,6 +63,10 @@ class Ahead(Protocol):
 
     @property
     def accel_mps2(self) -> float: ...
+
+
+Finder = Callable[[], "tuple[int, Ahead] | None"]
+"""Names the AGV ahead holding what the AGV waits for (its id and what it sees of it)."""
 
 
 class PausedHost(Protocol):
@@ -104,7 +108,7 @@ class AgvAhead:
         within the stop distance."""
         return self.gap_m < self.rules.lds_stop_m
 
-    def began_waiting(self, find: Any) -> None:
+    def began_waiting(self, find: Finder) -> None:
         """Traffic made the AGV wait; `find()` names the AGV ahead holding what it waits for
         (id and `Ahead`), or None."""
         if self.waiting or not self.sees_agvs:  # (the same wait, told again)
@@ -113,7 +117,7 @@ class AgvAhead:
         self._wait_no += 1
         self.env.process(self._watch(find, self._wait_no))
 
-    def _watch(self, find: Any, wait_no: int) -> Generator[simpy.Event, Any, None]:
+    def _watch(self, find: Finder, wait_no: int) -> Generator[simpy.Event, Any, None]:
         yield self.env.timeout(self.rules.obstacle_pause_s)
         while self.waiting and self._wait_no == wait_no and self.paused_since is None:
             found = find()
