@@ -41,10 +41,10 @@ import numpy as np
 import numpy.typing as npt
 from pydantic import InstanceOf
 
-from agv_model.inputs import NonNegative, Positive, StrictModel
 from agv_model.line_sensor import LineSensor
 from agv_model.pid import PidGains, SteeringPid
 from agv_model.track import PAUSE_S, SPEED_TAG_MPS, Marker, TagType, Track
+from userfiles.checking import NonNegative, Positive, StrictModel
 
 FloatArray = npt.NDArray[np.float64]
 

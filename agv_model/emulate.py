@@ -31,10 +31,10 @@ from typing import Final, TextIO
 
 import numpy as np
 
-from agv_model.inputs import InputError
 from agv_model.link import LinkSettings, device_settings
 from agv_model.profile import Profile, load_profile, profile_for, profile_names
 from agv_model.protocols import Device, get_device, names
+from userfiles.checking import InputError
 
 IDLE_WAKE_S: Final = 0.05  # longest sleep, so that a stop request is seen promptly
 _BAUDS: Final = {getattr(termios, f"B{b}"): b for b in (

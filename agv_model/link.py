@@ -30,7 +30,7 @@ Readings (documented here; the profiles in `agv_model/profiles/` carry the figur
   after that command, which is the stale-reply hazard a real host has to handle.
 - `host_gap_s` follows each reply (CarriRo 処理: 10 ms after the reply is received); it is not
   part of the reply time but delays the next command (`Exchange.ready_s`).
-- Settings are a pydantic model (`agv_model.inputs`): a bad setting, in a profile file or in
+- Settings are a pydantic model (`userfiles.checking`): a bad setting, in a profile file or in
   code, is an InputError naming the setting, the value and what was expected.
 - `processing_s` is handed to the virtual device, which is where the time is spent (CarriRo's
   `processing_s`, the others' `reply_delay_s`); None keeps the device's own default.
@@ -46,8 +46,8 @@ from typing import Any, Final, Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from agv_model.inputs import NonNegative, Problem, StrictModel
 from agv_model.protocols import Command, Device, get_codec, get_device, names
+from userfiles.checking import NonNegative, Problem, StrictModel
 
 Parity = Literal["none", "even", "odd", "mark", "space"]
 JitterDistribution = Literal["none", "uniform", "normal", "exponential"]

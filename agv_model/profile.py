@@ -26,17 +26,10 @@ from typing import Annotated, Final
 
 from pydantic import Field, field_validator, model_validator
 
-from agv_model.inputs import (
-    InputError,
-    NonNegative,
-    Positive,
-    Problem,
-    StrictModel,
-    read_yaml,
-    validate,
-)
 from agv_model.link import LinkSettings
 from agv_model.protocols import names as protocol_names
+from userfiles.checking import InputError, NonNegative, Positive, Problem, StrictModel, validate
+from userfiles.reading import read_yaml
 
 PROFILE_DIR: Final = Path(__file__).resolve().parent / "profiles"
 ASSUMED: Final = "assumed"

@@ -50,8 +50,8 @@ import pandas as pd
 
 from fleet_sim.config.experiment import Experiment
 from fleet_sim.config.scenario import Scenario
-from fleet_sim.config.writing import check_out_dir
 from fleet_sim.errors import InputError
+from userfiles.writing import check_out_dir
 
 if TYPE_CHECKING:
     from fleet_sim.study.compare import CompareOutcome

@@ -1,8 +1,9 @@
 """One error family for the project, so the command line can print one clear line and exit.
 
 `InputError` (a user file holds a value the program cannot use) is the one input error of both
-packages; it is defined in `agv_model.inputs`, the lowest layer, because vehicle profiles and
-link settings are read there and agv_model never imports fleet_sim. It is re-exported here.
+packages; it is defined in `userfiles.checking`, the ground floor under fleet_sim and agv_model
+(vehicle profiles and link settings are read in agv_model, which never imports fleet_sim). It
+is re-exported here.
 
 The heavy parts are extras of the package (pyproject's optional-dependencies): a command that
 needs one that is not installed ends in one line naming the extra and the install line
@@ -18,7 +19,7 @@ import importlib.util
 from types import ModuleType
 from typing import Final
 
-from agv_model.inputs import InputError
+from userfiles.checking import InputError
 
 __all__ = ["EXTRAS", "FleetSimError", "InputError", "MissingExtra", "SimulationError",
            "optional_import", "require_extra"]

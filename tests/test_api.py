@@ -32,7 +32,7 @@ def test_import_fleet_sim_is_light_and_offers_the_api() -> None:
     code = ("import sys, fleet_sim; heavy = {'pandas', 'simpy', 'fleet_sim.api'} & "
             "set(sys.modules); assert not heavy, heavy; "
             "assert callable(fleet_sim.run) and 'pandas' in sys.modules; "
-            "assert fleet_sim.InputError.__module__ == 'agv_model.inputs'")
+            "assert fleet_sim.InputError.__module__ == 'userfiles.checking'")
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
     assert {"run", "sweep", "size", "compare", "optimise", "InputError"} <= set(dir(fleet_sim))
     with pytest.raises(AttributeError, match="no attribute 'walk'"):

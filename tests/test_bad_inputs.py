@@ -25,7 +25,6 @@ from typing import Any
 import pytest
 import yaml
 
-from agv_model.inputs import MAX_FILE_BYTES, validate
 from agv_model.profile import read_profile
 from fleet_sim.config.experiment import load_experiment
 from fleet_sim.config.layout import LayoutSpec, load_layout
@@ -34,6 +33,8 @@ from fleet_sim.config.profile_factsheet import import_factsheet
 from fleet_sim.config.scenario import load_layout_for, load_scenario
 from fleet_sim.config.trace import load_trace
 from fleet_sim.errors import InputError
+from userfiles.checking import validate
+from userfiles.reading import MAX_FILE_BYTES
 
 ROOT = Path(__file__).resolve().parents[1]
 LAYOUT = ROOT / "layouts" / "tiny_loop.yaml"

@@ -9,7 +9,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-from agv_model.inputs import InputError, StrictModel, validate
 from fleet_sim.config.distributions import (
     DISTRIBUTIONS,
     ExponentialTime,
@@ -17,6 +16,7 @@ from fleet_sim.config.distributions import (
     TimeDistribution,
     TriangularTime,
 )
+from userfiles.checking import InputError, StrictModel, validate
 
 
 class Station(StrictModel):

@@ -200,8 +200,8 @@ SOURCE_FILES = ("rss-agv-001-core-logic.ja.md", "carriro-ad-plus-serial-api-v1.4
 FILE_CITATION = re.compile("|".join(
     [*(re.escape(name) for name in SOURCE_FILES), r"\bspecs/", r"\.\./shared/",
      r"\bDESIGN\.md\b", r"\bDESIGN reading\b"]))
-CITING = ("fleet_sim", "agv_model", "bench", "tools", "docs", "experiments", "layouts", "tests",
-          ".ci", "README.md", "Makefile", "mkdocs.yml", "pyproject.toml")
+CITING = ("fleet_sim", "agv_model", "userfiles", "bench", "tools", "docs", "experiments",
+          "layouts", "tests", ".ci", "README.md", "Makefile", "mkdocs.yml", "pyproject.toml")
 
 
 def _project_files() -> list[Path]:

@@ -23,10 +23,10 @@ from agv_model.dynamics import (
     VehicleParams,
     simulate,
 )
-from agv_model.inputs import InputError, validate
 from agv_model.line_sensor import LineSensor
 from agv_model.pid import PidGains
 from agv_model.track import Marker, Straight, TagType, Track
+from userfiles.checking import InputError, validate
 
 ACC = 0.5  # P_002 / P_003, m/s2
 DT = 0.01

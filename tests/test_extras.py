@@ -182,7 +182,8 @@ def test_optional_modules_are_imported_only_through_the_helper() -> None:
     module goes through fleet_sim.errors.optional_import (or require_extra), and pyserial is
     not used at run time at all."""
     found = [(str(path.relative_to(ROOT)), name)
-             for package in ("fleet_sim", "agv_model") for path in (ROOT / package).rglob("*.py")
+             for package in ("fleet_sim", "agv_model", "userfiles")
+             for path in (ROOT / package).rglob("*.py")
              for name in _imports(path)
              if name.partition(".")[0] in (*OPTIONAL_MODULES, "serial")]
     assert found == []

@@ -13,7 +13,6 @@ import jsonschema
 import pytest
 import yaml
 
-from agv_model.inputs import read_yaml, validate
 from agv_model.profile import (
     DOCUMENTS,
     FACTSHEET,
@@ -27,6 +26,8 @@ from fleet_sim.config.factsheet import read_factsheet
 from fleet_sim.config.profile_factsheet import import_factsheet
 from fleet_sim.config.schemas import json_schema
 from fleet_sim.errors import InputError
+from userfiles.checking import validate
+from userfiles.reading import read_yaml
 
 from .conftest import DATA
 

@@ -14,7 +14,6 @@ import jsonschema
 import pytest
 import yaml
 
-from agv_model.inputs import InputError, read_yaml, validate
 from agv_model.profile import PROFILE_DIR, read_profile
 from fleet_sim.cli import main
 from fleet_sim.config.experiment import load_experiment
@@ -22,6 +21,8 @@ from fleet_sim.config.layout import SegmentSpec, load_layout
 from fleet_sim.config.scenario import load_scenario
 from fleet_sim.config.schemas import json_schema
 from fleet_sim.config.trace import load_trace
+from userfiles.checking import InputError, validate
+from userfiles.reading import read_yaml
 
 from .conftest import LAYOUTS, ROOT, write_yaml
 
@@ -283,7 +284,7 @@ def test_an_unknown_key_gets_did_you_mean(tmp_path: Path, kind: str, edit: Any,
 def test_did_you_mean_offers_only_a_close_key() -> None:
     """A key the word begins or that begins it, or difflib's ratio >= 0.65; nothing for a
     word that merely shares a suffix (`sd_s` is not `mode_s`)."""
-    from agv_model.inputs import closest
+    from userfiles.checking import closest
 
     assert closest("from_node", ["from", "to", "length_m"]) == "from"
     assert closest("rate", ["rate_per_hour", "kind"]) == "rate_per_hour"

@@ -13,13 +13,14 @@ from typing import Any
 import jsonschema
 import pytest
 
-from agv_model.inputs import read_yaml, validate
 from fleet_sim.cli import main
 from fleet_sim.config.layout import LayoutSpec, layout_from_spec, layout_yaml, load_layout
 from fleet_sim.config.layout_lif import Imported, import_lif, layout_to_lif, lif_json
 from fleet_sim.config.lif import LifFile, Trajectory, read_lif, trajectory_length_m
 from fleet_sim.config.schemas import json_schema
 from fleet_sim.errors import InputError
+from userfiles.checking import validate
+from userfiles.reading import read_yaml
 
 from .conftest import DATA, LAYOUTS
 

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from agv_model.inputs import InputError, validate
 from agv_model.link import Exchange, Jitter, Link, LinkSettings, exchange_once
 from agv_model.profile import load_profile
 from agv_model.protocols import Command
 from agv_model.protocols.carriro import CarriroDevice, CarriroState
+from userfiles.checking import InputError, validate
 
 from .conftest import golden_bytes
 

@@ -11,7 +11,6 @@ import pytest
 import yaml
 from pydantic import ValidationError
 
-from agv_model.inputs import InputError
 from agv_model.link import Link
 from agv_model.profile import (
     ASSUMED,
@@ -25,6 +24,7 @@ from agv_model.profile import (
     read_profile,
 )
 from agv_model.protocols import Command
+from userfiles.checking import InputError
 
 NAMES = ("agv-3", "carriro-ad-plus", "ktm-02", "rss-agv-001", "tabo")
 FIGURES_PER_PROFILE = 5 + 4 + 9  # kinematics, battery, link

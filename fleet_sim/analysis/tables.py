@@ -35,7 +35,7 @@ Decisions:
   partial files are removed. A process killed outright (SIGKILL, the OOM killer) can leave
   ``.*.partial`` files: they are never read, and the next run into the folder replaces them.
   The resolved config, run_info.json and, last, kpis.json are written after the tables, each
-  atomically (fleet_sim.config.writing).
+  atomically (userfiles.writing).
 """
 
 from __future__ import annotations
@@ -61,7 +61,6 @@ from fleet_sim.analysis.kpis import KpiSums, run_kpis
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario, resolved
 from fleet_sim.config.trace import TraceOrder
-from fleet_sim.config.writing import fsync_path, write_text_atomic
 from fleet_sim.model.records import (
     BATCH_ROWS,
     EVENT_COLUMNS,
@@ -77,6 +76,7 @@ from fleet_sim.model.records import (
     SocSample,
 )
 from fleet_sim.sim.engine import ProgressCallback, RunOutput, simulate
+from userfiles.writing import fsync_path, write_text_atomic
 
 ORDER_COLUMNS = ("order_id", "created_s", "pickup", "dropoff", "pickup_node", "dropoff_node",
                  "agv", "assigned_s", "pickup_arrival_s", "picked_s", "dropoff_arrival_s",

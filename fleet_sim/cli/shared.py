@@ -9,8 +9,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from fleet_sim.config.overrides import SET
-from fleet_sim.config.writing import check_out_dir as check_out_dir
 from fleet_sim.errors import InputError
+from userfiles.writing import check_out_dir as check_out_dir
 
 if typing.TYPE_CHECKING:
     from fleet_sim.config.experiment import Experiment

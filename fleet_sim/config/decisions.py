@@ -57,7 +57,6 @@ from typing import TYPE_CHECKING, Annotated, Any, Final
 
 from pydantic import Field, Strict, field_validator, model_validator
 
-from agv_model.inputs import Items, NonNegative, Positive, Problem, StrictModel, Text
 from fleet_sim.config.layout_changes import Change, ChangeSite, LayoutChange, parse_changes
 from fleet_sim.config.runs import (
     MAX_RUNS,
@@ -69,6 +68,7 @@ from fleet_sim.config.runs import (
 )
 from fleet_sim.config.scenario import MAX_FLEET_SIZE, VEHICLE_TYPES
 from fleet_sim.errors import InputError
+from userfiles.checking import Items, NonNegative, Positive, Problem, StrictModel, Text
 
 if TYPE_CHECKING:
     from fleet_sim.config.experiment import Experiment, RunSpec

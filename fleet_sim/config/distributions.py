@@ -17,7 +17,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Discriminator, Field, Tag, model_validator
 
-from agv_model.inputs import Problem, StrictModel
+from userfiles.checking import Problem, StrictModel
 
 Seconds = Annotated[float, Field(ge=0)]
 """A time parameter: a finite number of seconds >= 0."""

@@ -77,7 +77,6 @@ from typing import Annotated, Any, Final, Literal
 import numpy as np
 from pydantic import Field, Strict, field_validator, model_validator
 
-from agv_model.inputs import Items, Positive, Problem, StrictModel, Text, read_yaml, validate
 from fleet_sim.config.decisions import OptimiseConfig, design_space
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.layout_changes import (
@@ -111,6 +110,8 @@ from fleet_sim.config.scenario import (
 )
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.errors import InputError
+from userfiles.checking import Items, Positive, Problem, StrictModel, Text, validate
+from userfiles.reading import read_yaml
 
 FLEET = "fleet.size"
 """The factor the sizing search varies."""

@@ -34,15 +34,9 @@ from typing import Annotated, Any, Literal, TypeVar
 
 from pydantic import ConfigDict, Field, Strict, field_validator, model_validator
 
-from agv_model.inputs import (
-    NonNegative,
-    Positive,
-    Problem,
-    StrictModel,
-    read_json,
-    validate,
-)
 from fleet_sim.config.layout import is_timestamp
+from userfiles.checking import NonNegative, Positive, Problem, StrictModel, validate
+from userfiles.reading import read_json
 
 T = TypeVar("T")
 

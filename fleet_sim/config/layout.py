@@ -40,19 +40,11 @@ import networkx as nx
 import yaml
 from pydantic import AfterValidator, Field, Strict, field_validator
 
-from agv_model.inputs import (
-    Items,
-    NonNegative,
-    Positive,
-    Problem,
-    StrictModel,
-    Text,
-    read_yaml,
-    validate,
-)
 from fleet_sim.config.distributions import FixedTime, TimeDistribution
-from fleet_sim.config.writing import comment_lines, tidy_numbers
 from fleet_sim.errors import InputError
+from userfiles.checking import Items, NonNegative, Positive, Problem, StrictModel, Text, validate
+from userfiles.reading import read_yaml
+from userfiles.writing import comment_lines, tidy_numbers
 
 NodeKind = Literal["tag", "junction", "station", "charger", "parking"]
 Branch = Literal["auto", "straight", "left", "right"]

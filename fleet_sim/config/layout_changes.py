@@ -62,7 +62,6 @@ from typing import Annotated, Any, ClassVar, Final
 
 from pydantic import Discriminator, Field, Strict, Tag, ValidationError
 
-from agv_model.inputs import Items, Positive, Problem, StrictModel, Text, input_error
 from fleet_sim.config.distributions import TimeDistribution
 from fleet_sim.config.layout import (
     ChargerSpec,
@@ -75,6 +74,7 @@ from fleet_sim.config.layout import (
     layout_from_spec,
 )
 from fleet_sim.errors import InputError
+from userfiles.checking import Items, Positive, Problem, StrictModel, Text, input_error
 
 Chain = Annotated[tuple[Text, ...], Strict(False), Field(min_length=2)]
 """Nodes in order, each joined to the next by a segment."""

@@ -61,7 +61,6 @@ from typing import Any, Final, Literal
 
 from pydantic import BaseModel
 
-from agv_model.inputs import validate
 from fleet_sim.config.layout import LayoutDefaults, LayoutSpec, NodeKind
 from fleet_sim.config.lif import (
     EXTENSION_KEY,
@@ -80,6 +79,7 @@ from fleet_sim.config.lif import (
     trajectory_length_m,
 )
 from fleet_sim.errors import InputError
+from userfiles.checking import validate
 
 PlaceKind = Literal["pickup", "dropoff", "charger", "parking"]
 ACTIONS: Final[dict[str, tuple[str, ...]]] = {

@@ -46,14 +46,6 @@ from typing import Annotated, Any, Final, Literal, TypeVar
 
 from pydantic import ConfigDict, Field, Strict, ValidationError, field_validator, model_validator
 
-from agv_model.inputs import (
-    NonNegative,
-    Positive,
-    Problem,
-    StrictModel,
-    read_json,
-    validate,
-)
 from fleet_sim.config.distributions import TimeDistribution
 from fleet_sim.config.layout import (
     Branch,
@@ -65,6 +57,8 @@ from fleet_sim.config.layout import (
     ZoneSpec,
     is_timestamp,
 )
+from userfiles.checking import NonNegative, Positive, Problem, StrictModel, validate
+from userfiles.reading import read_json
 
 T = TypeVar("T")
 

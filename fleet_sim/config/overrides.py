@@ -30,7 +30,6 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from agv_model.inputs import closest
 from fleet_sim.config.scenario import (
     MAX_FLEET_SIZE,
     Scenario,
@@ -39,6 +38,7 @@ from fleet_sim.config.scenario import (
     type_count_path,
 )
 from fleet_sim.errors import InputError
+from userfiles.checking import closest
 
 SET = "--set"
 """The flag a problem of the settings is named by."""

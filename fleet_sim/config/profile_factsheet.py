@@ -27,11 +27,12 @@ from typing import Any, Final
 import yaml
 from pydantic import BaseModel
 
-from agv_model.inputs import read_yaml, validate
 from agv_model.profile import ASSUMED, FACTSHEET, PROFILE_DIR, ProfileFile, profile_names
 from fleet_sim.config.factsheet import Factsheet, FactsheetModel, read_factsheet
-from fleet_sim.config.writing import comment_lines, tidy_numbers
 from fleet_sim.errors import InputError
+from userfiles.checking import validate
+from userfiles.reading import read_yaml
+from userfiles.writing import comment_lines, tidy_numbers
 
 DEFAULT_BASE: Final = "rss-agv-001"
 MM_DIGITS: Final = 6

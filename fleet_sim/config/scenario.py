@@ -6,7 +6,7 @@ default written out) is `resolved(scenario)`, saved with each run.
 
 Decisions, where the issue is silent:
 
-* The models are pydantic (`agv_model.inputs.StrictModel`): frozen and hashable; copy one with
+* The models are pydantic (`userfiles.checking.StrictModel`): frozen and hashable; copy one with
   ``model_copy(update=...)``. Checks that tie fields together are model validators whose errors
   name the field (``warmup_h``, ``fleet.start_nodes``); checks against the layout are
   `check_against_layout`.
@@ -56,7 +56,15 @@ import networkx as nx
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 from pydantic.config import JsonDict
 
-from agv_model.inputs import (
+from agv_model.link import LinkSettings
+from agv_model.profile import Profile as AgvModelProfile
+from agv_model.profile import load_profile, profile_names, read_profile
+from fleet_sim.config.chains import MAX_STOPS, MIN_STOPS, check_chain
+from fleet_sim.config.distributions import ExponentialTime, TimeDistribution, TriangularTime
+from fleet_sim.config.layout import Layout, Place, load_layout
+from fleet_sim.config.vehicle import VehicleProfile, vehicle_from_profile
+from fleet_sim.errors import InputError
+from userfiles.checking import (
     HourOfDay,
     Items,
     NonNegative,
@@ -66,17 +74,9 @@ from agv_model.inputs import (
     Share,
     StrictModel,
     Text,
-    read_yaml,
     validate,
 )
-from agv_model.link import LinkSettings
-from agv_model.profile import Profile as AgvModelProfile
-from agv_model.profile import load_profile, profile_names, read_profile
-from fleet_sim.config.chains import MAX_STOPS, MIN_STOPS, check_chain
-from fleet_sim.config.distributions import ExponentialTime, TimeDistribution, TriangularTime
-from fleet_sim.config.layout import Layout, Place, load_layout
-from fleet_sim.config.vehicle import VehicleProfile, vehicle_from_profile
-from fleet_sim.errors import InputError
+from userfiles.reading import read_yaml
 
 MAX_DURATION_H: Final = 8760.0
 """Longest run: one year of operation; a longer run tells nothing more and runs for days."""

@@ -22,10 +22,11 @@ from typing import Annotated
 
 from pydantic import Field, Strict
 
-from agv_model.inputs import StrictModel, Text, read_text, validate
 from fleet_sim.config.chains import SEPARATOR, check_chain
 from fleet_sim.config.layout import Layout
 from fleet_sim.errors import InputError
+from userfiles.checking import StrictModel, Text, validate
+from userfiles.reading import read_text
 
 REQUIRED = ("time_s", "pickup", "dropoff")
 STOPS = "stops"

@@ -18,8 +18,8 @@ from typing import Annotated, Any
 from pydantic import Field, field_validator, model_validator
 from pydantic.config import JsonDict
 
-from agv_model.inputs import NonNegative, Percent, Positive, Problem, StrictModel, Text
 from agv_model.profile import Profile as AgvModelProfile
+from userfiles.checking import NonNegative, Percent, Positive, Problem, StrictModel, Text
 
 ShareAboveZero = Annotated[float, Field(gt=0, le=1)]
 

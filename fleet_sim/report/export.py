@@ -37,9 +37,9 @@ from typing import Any
 import pandas as pd
 
 from fleet_sim.analysis.kpis import CATALOGUE, NOTE_MEANINGS, RUN_FIELDS
-from fleet_sim.config.writing import atomic_path
 from fleet_sim.errors import FleetSimError, InputError, require_extra
 from fleet_sim.study.results import read_summary, runs_table_sql
+from userfiles.writing import atomic_path
 
 EXCEL_MAX_ROWS = 1_048_575
 """Data rows per sheet (Excel's 1,048,576 rows, less the header)."""

@@ -26,9 +26,9 @@ from pathlib import Path
 from jinja2 import Environment, PackageLoader, StrictUndefined
 from markupsafe import Markup
 
-from fleet_sim.config.writing import atomic_path, write_text_atomic
 from fleet_sim.report import figures as figs
 from fleet_sim.report.report import Report, build_report
+from userfiles.writing import atomic_path, write_text_atomic
 
 
 @cache

@@ -56,13 +56,13 @@ from fleet_sim.analysis.replay import (
     state_spells,
 )
 from fleet_sim.config.scenario import load_scenario
-from fleet_sim.config.writing import write_text_atomic
 from fleet_sim.errors import InputError
 from fleet_sim.model.states import VehicleState
 from fleet_sim.report.figures import LEAD_COLOURS, STATE_COLOURS
 from fleet_sim.report.layout_plot import KIND_STYLE, PLACE_COLOUR, ZONE_COLOUR, zone_rule
 from fleet_sim.report.render import environment, static_script
 from fleet_sim.report.replay_payload import Agv, Leads, ReplayPayload
+from userfiles.writing import write_text_atomic
 
 REPLAY_FILE = "replay.html"
 KIND_CODES = {"drive": 0, "track": 1, "parking": 2, "off": 3}

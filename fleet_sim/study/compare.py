@@ -67,7 +67,6 @@ from fleet_sim.analysis.paired import (
     verdict,
 )
 from fleet_sim.config.experiment import MAX_RUNS, Experiment, RunSpec, point_text
-from fleet_sim.config.writing import write_json_atomic
 from fleet_sim.errors import InputError
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
@@ -86,6 +85,7 @@ from fleet_sim.study.runner import (
     write_plan,
 )
 from fleet_sim.study.warmup import largest_fleet, pilot_groups, settle_warmup
+from userfiles.writing import write_json_atomic
 
 DEFAULT_KPIS = ("throughput_per_hour", "lead_time_p95_s")
 COMPARE_FILE = "compare.json"

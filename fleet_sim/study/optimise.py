@@ -48,7 +48,6 @@ from fleet_sim.config.decisions import (
     design_space,
 )
 from fleet_sim.config.experiment import MAX_RUNS, Experiment, RunSpec, Target, load_trace_for
-from fleet_sim.config.writing import write_json_atomic
 from fleet_sim.sim.estimate import analytic_estimate
 from fleet_sim.study.cheapest import (
     FAILS,
@@ -73,6 +72,7 @@ from fleet_sim.study.runner import (
 )
 from fleet_sim.study.search import RunBudget, RunLimit, drive, run_kpis
 from fleet_sim.study.warmup import settle_warmup
+from userfiles.writing import write_json_atomic
 
 OPTIMISE_FILE = "optimise.json"
 ENERGY = "energy_used_kwh"

@@ -42,7 +42,6 @@ from typing import IO, Any
 import pandas as pd
 
 from fleet_sim.config.experiment import BASE_VARIANT, Experiment
-from fleet_sim.config.writing import atomic_path, fsync_path, temp_path
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.runner import (
     CRASHED,
@@ -53,6 +52,7 @@ from fleet_sim.study.runner import (
     SweepError,
     run_problem,
 )
+from userfiles.writing import atomic_path, fsync_path, temp_path
 
 
 @contextmanager

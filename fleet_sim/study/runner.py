@@ -17,7 +17,7 @@ Decisions, where the issues are silent:
 
 * A run is finished when its manifest exists and checks out (`run_problem`): every file it
   lists is there with its size and SHA-256, and kpis.json holds KPIs. The engine's files are
-  written to ``runs/<id>/.partial`` (each atomically: fleet_sim.config.writing) and moved in,
+  written to ``runs/<id>/.partial`` (each atomically: userfiles.writing) and moved in,
   the manifest last (``os.replace``), so a study killed at any moment leaves either a
   finished run or one that is run again; re-running skips finished runs, retries failed ones
   and makes again, with one line naming it and what was wrong, a run whose files were
@@ -87,16 +87,16 @@ import yaml
 from fleet_sim.analysis.congestion import WORK_SPELL_COLUMNS, node_waits
 from fleet_sim.config.experiment import FLEET, Experiment, RunSpec, load_trace_for, run_layout
 from fleet_sim.config.scenario import VEHICLE_TYPES
-from fleet_sim.config.writing import (
+from fleet_sim.errors import FleetSimError, InputError, optional_import, require_extra
+from fleet_sim.sim.motion import require_backend
+from fleet_sim.study.progress import Progress
+from userfiles.writing import (
     atomic_path,
     clean_temporaries,
     copy_atomic,
     write_json_atomic,
     write_text_atomic,
 )
-from fleet_sim.errors import FleetSimError, InputError, optional_import, require_extra
-from fleet_sim.sim.motion import require_backend
-from fleet_sim.study.progress import Progress
 
 RunFn = Callable[[RunSpec, str], "RunResult"]
 """A function that executes one run into `runs_dir` (module level, so workers can import it)."""

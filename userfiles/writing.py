@@ -22,7 +22,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from fleet_sim.errors import InputError
+from userfiles.checking import InputError
 
 
 def tidy_numbers(value: Any) -> Any:
