@@ -16,7 +16,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from fleet_sim.analysis.kpis import run_kpis  # noqa: E402
+from fleet_sim.analysis.kpi_sums import run_kpis  # noqa: E402
 from fleet_sim.config.scenario import load_layout_for, load_scenario  # noqa: E402
 from fleet_sim.sim.engine import simulate  # noqa: E402
 

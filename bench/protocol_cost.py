@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from agv_model.fleet_commands import GRANTS_PER_HOP, CommandTiming  # noqa: E402
-from fleet_sim.analysis.kpis import run_kpis  # noqa: E402
+from fleet_sim.analysis.kpi_sums import run_kpis  # noqa: E402
 from fleet_sim.config.scenario import load_layout_for, load_scenario  # noqa: E402
 from fleet_sim.sim.engine import RunOutput, simulate  # noqa: E402
 

@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 
-from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.config.layout import load_layout
 from fleet_sim.sim.engine import build_model, simulate
 from fleet_sim.sim.traffic.avoidance import Plans, _Walk

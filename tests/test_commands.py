@@ -7,7 +7,7 @@ import itertools
 import pytest
 
 from agv_model.fleet_commands import CommandTiming
-from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import load_layout_for, load_scenario
 from fleet_sim.config.trace import TraceOrder

@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.analysis.tables import orders_table, write_run
 from fleet_sim.config.layout import Layout
 from fleet_sim.sim.engine import build_model, simulate

@@ -19,7 +19,7 @@ import pytest
 import simpy
 import yaml
 
-from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.analysis.tables import orders_table
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.scenario import DispatchConfig

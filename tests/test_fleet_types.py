@@ -10,7 +10,8 @@ import pytest
 import yaml
 
 from agv_model.profile import load_profile
-from fleet_sim.analysis.kpis import compute_kpis, is_kpi_name, kpi_value
+from fleet_sim.analysis.kpi_sums import compute_kpis
+from fleet_sim.analysis.kpis import is_kpi_name, kpi_value
 from fleet_sim.config.layout import load_layout
 from fleet_sim.config.profile_factsheet import import_factsheet
 from fleet_sim.config.scenario import (

@@ -12,7 +12,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from fleet_sim.analysis.kpis import gridlocked, run_kpis, summary_text, target_value
+from fleet_sim.analysis.kpi_sums import run_kpis
+from fleet_sim.analysis.kpis import gridlocked, target_value
+from fleet_sim.analysis.run_summary import summary_text
 from fleet_sim.config.layout import load_layout
 from fleet_sim.model.records import MoveRecord
 from fleet_sim.report.report import gridlock_statement, open_orders_line

@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 import yaml
 
-from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.config.layout import load_layout
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.model.records import EventRecord

@@ -13,12 +13,12 @@ from typing import Any
 import pytest
 import yaml
 
+from fleet_sim.analysis.kpi_sums import compute_kpis
 from fleet_sim.analysis.kpis import (
     CATALOGUE,
     NOTE_FIELDS,
     NOTE_MEANINGS,
     RUN_FIELDS,
-    compute_kpis,
     kpi_names,
     kpi_value,
     target_value,
@@ -343,7 +343,7 @@ def test_idle_while_waiting_streamed_in_small_batches_is_the_whole_run_figure(
     """Two runs (charging and incidents; a mixed fleet held back by admission), their events
     and queue lengths handed over in batches of 7 and 5,000 rows: the very seconds of the
     whole-run computation, to the last bit, and the matched spells let go."""
-    from fleet_sim.analysis.kpis import KpiSums
+    from fleet_sim.analysis.kpi_sums import KpiSums
     from fleet_sim.config.layout import load_layout
     from fleet_sim.sim.engine import build_model
 

@@ -20,7 +20,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.analysis.replay import (
     LEAD_PARTS,
     MOVES_FILE,

@@ -274,7 +274,7 @@ def test_bundled_scenarios_stay_meaningful_on_long_runs(name: str, hours: float)
     """A planner's --hours far beyond the shift: no silent run-down (no battery on the tiny
     loop; chargers in the warehouse), the demand is met, AGVs hardly ever stand Idle while
     orders wait, and when they do the reasons account for it."""
-    from fleet_sim.analysis.kpis import run_kpis
+    from fleet_sim.analysis.kpi_sums import run_kpis
     from fleet_sim.sim.engine import simulate
 
     path = ROOT / "experiments" / f"{name}.yaml"

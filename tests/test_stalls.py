@@ -14,7 +14,9 @@ from typing import Any, cast
 import pandas as pd
 import yaml
 
-from fleet_sim.analysis.kpis import out_of_service, run_kpis, starved, summary_text
+from fleet_sim.analysis.kpi_sums import run_kpis
+from fleet_sim.analysis.kpis import out_of_service, starved
+from fleet_sim.analysis.run_summary import summary_text
 from fleet_sim.config.layout import load_layout
 from fleet_sim.model.records import Recorder
 from fleet_sim.model.stalls import Held, Stall, StallMeter

@@ -20,7 +20,7 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
-from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.analysis.replay import MOVES_FILE, moves_table, write_moves
 from fleet_sim.analysis.tables import (
     STOPS_COLUMN,

@@ -234,7 +234,7 @@ def test_the_detour_cache_is_bounded_and_forgetting_changes_no_result(
         warehouse_layout: Layout, monkeypatch: pytest.MonkeyPatch) -> None:
     """A long run asks ever new detour questions: the cache keeps the most recent ones only,
     and a run that forgets almost everything computes the same routes (same KPIs)."""
-    from fleet_sim.analysis.kpis import run_kpis
+    from fleet_sim.analysis.kpi_sums import run_kpis
     from fleet_sim.sim import engine
     from fleet_sim.sim.traffic import routing
 

@@ -15,7 +15,8 @@ import pytest
 import simpy
 import yaml
 
-from fleet_sim.analysis.kpis import compute_kpis, is_kpi_name
+from fleet_sim.analysis.kpi_sums import compute_kpis
+from fleet_sim.analysis.kpis import is_kpi_name
 from fleet_sim.cli import main
 from fleet_sim.config.layout import BACKWARD, FORWARD, LayoutSpec, layout_yaml, load_layout
 from fleet_sim.config.scenario import load_layout_for, load_scenario, parse_scenario

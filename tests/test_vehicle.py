@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fleet_sim.analysis.kpis import run_kpis
+from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.analysis.tables import events_table, orders_table
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.scenario import setup_warnings

@@ -57,7 +57,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import yaml
 
-from fleet_sim.analysis.kpis import KpiSums, run_kpis
+from fleet_sim.analysis.kpi_sums import KpiSums, run_kpis
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario, resolved
 from fleet_sim.config.trace import TraceOrder

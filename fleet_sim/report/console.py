@@ -48,7 +48,7 @@ def megabytes(path: Path) -> str:
 
 def run_lines(figures: dict[str, Any], out: Path, wall_s: float, sim_events: int) -> str:
     """The KPIs of one run and where its directory is."""
-    from fleet_sim.analysis.kpis import summary_text
+    from fleet_sim.analysis.run_summary import summary_text
 
     return (f"{summary_text(figures)}\n"
             f"  run directory               {out}  ({wall_s:.1f} s wall, {sim_events:,} events)")

@@ -28,7 +28,7 @@ COLUMNS = (("throughput_per_hour", "throughput /h", "{:.1f}"),
 
 def run_here(scenario_file: str, overrides: dict[str, Any]) -> dict[str, Any]:
     """Run one scenario in this process; its KPIs plus wall time and SimPy event count."""
-    from fleet_sim.analysis.kpis import run_kpis
+    from fleet_sim.analysis.kpi_sums import run_kpis
     from fleet_sim.config.scenario import load_layout_for, load_scenario
     from fleet_sim.config.trace import load_trace
     from fleet_sim.sim.engine import simulate
