@@ -27,10 +27,12 @@ import yaml
 
 from agv_model.profile import read_profile
 from fleet_sim.config.experiment import load_experiment
-from fleet_sim.config.layout import LayoutSpec, load_layout
-from fleet_sim.config.layout_lif import import_lif, layout_to_lif
-from fleet_sim.config.profile_factsheet import import_factsheet
+from fleet_sim.config.layout import load_layout
+from fleet_sim.config.layout_spec import LayoutSpec
 from fleet_sim.config.scenario import load_layout_for, load_scenario
+from fleet_sim.config.standards.factsheet_profile import import_factsheet
+from fleet_sim.config.standards.lif_export import layout_to_lif
+from fleet_sim.config.standards.lif_import import import_lif
 from fleet_sim.config.trace import load_trace
 from fleet_sim.errors import InputError
 from userfiles.checking import validate

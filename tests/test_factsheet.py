@@ -1,6 +1,6 @@
-"""VDA 5050 2.1.0 factsheets: fleet-sim's model of the format (fleet_sim.config.factsheet) and
-the vehicle profiles made of them (fleet_sim.config.profile_factsheet, `fleet-sim profile
-import`)."""
+"""VDA 5050 2.1.0 factsheets: fleet-sim's model of the format
+(fleet_sim.config.standards.factsheet) and the vehicle profiles made of them
+(fleet_sim.config.standards.factsheet_profile, `fleet-sim profile import`)."""
 
 from __future__ import annotations
 
@@ -22,9 +22,9 @@ from agv_model.profile import (
     read_profile,
 )
 from fleet_sim.cli import main
-from fleet_sim.config.factsheet import read_factsheet
-from fleet_sim.config.profile_factsheet import import_factsheet
 from fleet_sim.config.schemas import json_schema
+from fleet_sim.config.standards.factsheet import read_factsheet
+from fleet_sim.config.standards.factsheet_profile import import_factsheet
 from fleet_sim.errors import InputError
 from userfiles.checking import validate
 from userfiles.reading import read_yaml

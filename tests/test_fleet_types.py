@@ -13,7 +13,6 @@ from agv_model.profile import load_profile
 from fleet_sim.analysis.kpi_sums import compute_kpis
 from fleet_sim.analysis.kpis import is_kpi_name, kpi_value
 from fleet_sim.config.layout import load_layout
-from fleet_sim.config.profile_factsheet import import_factsheet
 from fleet_sim.config.scenario import (
     check_against_layout,
     load_layout_for,
@@ -21,6 +20,7 @@ from fleet_sim.config.scenario import (
     parse_scenario,
     resolved,
 )
+from fleet_sim.config.standards.factsheet_profile import import_factsheet
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.errors import InputError
 from fleet_sim.sim.engine import build_model, simulate

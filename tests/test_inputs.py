@@ -17,7 +17,8 @@ import yaml
 from agv_model.profile import PROFILE_DIR, read_profile
 from fleet_sim.cli import main
 from fleet_sim.config.experiment import load_experiment
-from fleet_sim.config.layout import SegmentSpec, load_layout
+from fleet_sim.config.layout import load_layout
+from fleet_sim.config.layout_spec import SegmentSpec
 from fleet_sim.config.scenario import load_scenario
 from fleet_sim.config.schemas import json_schema
 from fleet_sim.config.trace import load_trace

@@ -1,5 +1,6 @@
-"""VDMA LIF 1.0.0: fleet-sim's model of the format (fleet_sim.config.lif), layouts exported to it
-and imported from it (fleet_sim.config.layout_lif), and the `layout import|export` commands."""
+"""VDMA LIF 1.0.0: fleet-sim's model of the format (fleet_sim.config.standards.lif), layouts
+exported to it (lif_export) and imported from it (lif_import), and the `layout import|export`
+commands."""
 
 from __future__ import annotations
 
@@ -14,10 +15,13 @@ import jsonschema
 import pytest
 
 from fleet_sim.cli import main
-from fleet_sim.config.layout import LayoutSpec, layout_from_spec, layout_yaml, load_layout
-from fleet_sim.config.layout_lif import Imported, import_lif, layout_to_lif, lif_json
-from fleet_sim.config.lif import LifFile, Trajectory, read_lif, trajectory_length_m
+from fleet_sim.config.layout import layout_from_spec, load_layout
+from fleet_sim.config.layout_spec import LayoutSpec
+from fleet_sim.config.layout_yaml import layout_yaml
 from fleet_sim.config.schemas import json_schema
+from fleet_sim.config.standards.lif import LifFile, Trajectory, read_lif, trajectory_length_m
+from fleet_sim.config.standards.lif_export import layout_to_lif, lif_json
+from fleet_sim.config.standards.lif_import import Imported, import_lif
 from fleet_sim.errors import InputError
 from userfiles.checking import validate
 from userfiles.reading import read_yaml

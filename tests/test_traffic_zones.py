@@ -18,7 +18,9 @@ import yaml
 from fleet_sim.analysis.kpi_sums import compute_kpis
 from fleet_sim.analysis.kpis import is_kpi_name
 from fleet_sim.cli import main
-from fleet_sim.config.layout import BACKWARD, FORWARD, LayoutSpec, layout_yaml, load_layout
+from fleet_sim.config.layout import BACKWARD, FORWARD, load_layout
+from fleet_sim.config.layout_spec import LayoutSpec
+from fleet_sim.config.layout_yaml import layout_yaml
 from fleet_sim.config.scenario import load_layout_for, load_scenario, parse_scenario
 from fleet_sim.errors import InputError
 from fleet_sim.model.records import OccupancySpell

@@ -96,7 +96,7 @@ def timestamp(text: str) -> str:
     """An ISO 8601 UTC time for a LIF export, or `now`."""
     from datetime import UTC, datetime
 
-    from fleet_sim.config.layout import is_timestamp
+    from fleet_sim.config.layout_spec import is_timestamp
 
     if text == "now":
         now = datetime.now(UTC)

@@ -67,8 +67,9 @@ def _layout(args: argparse.Namespace) -> int:
 def _layout_import(args: argparse.Namespace) -> int:
     """LIF -> layout file. The layout is written even if it does not check as a graph yet (a
     LIF without parking, say): the planner completes it; the problem is named, exit status 1."""
-    from fleet_sim.config.layout import layout_from_spec, layout_yaml
-    from fleet_sim.config.layout_lif import import_lif
+    from fleet_sim.config.layout import layout_from_spec
+    from fleet_sim.config.layout_yaml import layout_yaml
+    from fleet_sim.config.standards.lif_import import import_lif
     from fleet_sim.report.console import lif_import_lines
 
     check_out_file(args.out, "--out")
@@ -100,7 +101,7 @@ def _layout_import(args: argparse.Namespace) -> int:
     description="Write a fleet_sim layout as a VDMA LIF 1.0.0 file.")
 def _layout_export(args: argparse.Namespace) -> int:
     from fleet_sim.config.layout import load_layout
-    from fleet_sim.config.layout_lif import layout_to_lif, lif_json
+    from fleet_sim.config.standards.lif_export import layout_to_lif, lif_json
     from fleet_sim.report.console import lif_export_lines
 
     check_out_file(args.lif, "--lif")
@@ -125,7 +126,7 @@ group("profile", "vehicle profiles: `profile import` makes one of a VDA 5050 fac
                 "and length from the factsheet, the rest from a base profile; what is not used "
                 "is listed.")
 def _profile_import(args: argparse.Namespace) -> int:
-    from fleet_sim.config.profile_factsheet import import_factsheet
+    from fleet_sim.config.standards.factsheet_profile import import_factsheet
     from fleet_sim.report.console import profile_import_lines
 
     check_out_file(args.out, "--out")

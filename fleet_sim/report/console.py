@@ -30,9 +30,10 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from fleet_sim.config.decisions import DesignSpace
     from fleet_sim.config.experiment import Experiment
-    from fleet_sim.config.layout import Layout, LayoutSpec
-    from fleet_sim.config.layout_lif import Imported as ImportedLif
-    from fleet_sim.config.profile_factsheet import ImportedProfile
+    from fleet_sim.config.layout import Layout
+    from fleet_sim.config.layout_spec import LayoutSpec
+    from fleet_sim.config.standards.factsheet_profile import ImportedProfile
+    from fleet_sim.config.standards.lif_import import Imported as ImportedLif
     from fleet_sim.report.export import Exported
     from fleet_sim.study.optimise import OptimiseOutcome
     from fleet_sim.study.runner import SweepOutcome

@@ -41,7 +41,8 @@ from fleet_sim.model.kinematics import Motion, MotionBackend
 from fleet_sim.model.records import BATCH_ROWS, Recorder, RecordSink
 from fleet_sim.model.stalls import StallMeter
 from fleet_sim.sim.agents.fleet_manager import FleetManager
-from fleet_sim.sim.agents.vehicle import SegmentFacts, Vehicle
+from fleet_sim.sim.agents.vehicle import Vehicle
+from fleet_sim.sim.agents.vehicle_base import SegmentFacts
 from fleet_sim.sim.commands import CommandPath
 from fleet_sim.sim.demand import Demand
 from fleet_sim.sim.estimate import Bottleneck, bottleneck
