@@ -63,15 +63,14 @@ from typing import Annotated, Any, ClassVar, Final
 from pydantic import Discriminator, Field, Strict, Tag, ValidationError
 
 from fleet_sim.config.distributions import TimeDistribution
-from fleet_sim.config.layout import (
+from fleet_sim.config.layout import Layout, layout_from_spec
+from fleet_sim.config.layout_spec import (
     ChargerSpec,
-    Layout,
     LayoutSpec,
     NodeSpec,
     ParkingSpec,
     SegmentSpec,
     StationSpec,
-    layout_from_spec,
 )
 from fleet_sim.errors import InputError
 from userfiles.checking import Items, Positive, Problem, StrictModel, Text, input_error

@@ -17,10 +17,10 @@ from pydantic import BaseModel
 
 from agv_model.profile import ProfileFile
 from fleet_sim.config.experiment import ExperimentSpec
-from fleet_sim.config.factsheet import Factsheet
-from fleet_sim.config.layout import LayoutSpec
-from fleet_sim.config.lif import LifFile
+from fleet_sim.config.layout_spec import LayoutSpec
 from fleet_sim.config.scenario import Scenario
+from fleet_sim.config.standards.factsheet import Factsheet
+from fleet_sim.config.standards.lif import LifFile
 
 SCHEMA_URI: Final = "https://json-schema.org/draft/2020-12/schema"
 FILE_MODELS: Final[dict[str, type[BaseModel]]] = {

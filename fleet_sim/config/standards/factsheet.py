@@ -34,7 +34,7 @@ from typing import Annotated, Any, Literal, TypeVar
 
 from pydantic import ConfigDict, Field, Strict, field_validator, model_validator
 
-from fleet_sim.config.layout import is_timestamp
+from fleet_sim.config.layout_spec import is_timestamp
 from userfiles.checking import NonNegative, Positive, Problem, StrictModel, validate
 from userfiles.reading import read_json
 

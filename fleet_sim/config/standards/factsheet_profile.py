@@ -28,7 +28,7 @@ import yaml
 from pydantic import BaseModel
 
 from agv_model.profile import ASSUMED, FACTSHEET, PROFILE_DIR, ProfileFile, profile_names
-from fleet_sim.config.factsheet import Factsheet, FactsheetModel, read_factsheet
+from fleet_sim.config.standards.factsheet import Factsheet, FactsheetModel, read_factsheet
 from fleet_sim.errors import InputError
 from userfiles.checking import validate
 from userfiles.reading import read_yaml

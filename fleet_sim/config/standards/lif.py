@@ -6,32 +6,9 @@ JSON schema (``json_schemas/LIF.schema``) in the Intralogistics-2X-LIF/Layout-In
 repository; nothing of either is copied here. Field names, types, required fields and ranges are
 the format's. `fleet-sim schema lif` publishes this model's JSON Schema.
 
-Decisions, where the format is silent or disagrees with itself:
-
-* The document and its schema disagree on a few points; fleet-sim reads what either allows and
-  writes what both require. `stations` (required by the schema, optional in the document),
-  `mapId` and `action.requirementType` (required by the document, optional in the schema) may
-  be missing in a file read, and are always written. A control point's `weight` must be > 0
-  (document: >= 0, schema: >= 1; a weight of 0 leaves the curve undefined there).
-* LIF 6 says the JSON structure allows extension with additional parameters, and the schema
-  forbids no additional properties anywhere. So, unlike fleet-sim's own files, keys LIF does not
-  name are kept, not refused; the importer reports each as not used. fleet-sim's own extension
-  is the key ``fleetSim`` on layouts, nodes, edges and stations (`layout_lif` says what it holds);
-  it is checked strictly, like every file fleet-sim writes.
-* Strict types as everywhere, but for one thing: a number written as a text (``"x": "1.5"``),
-  as six of the document's own examples do (``"stationHeight": "0.55"``), is read as the number
-  with a note (`TextNumber`: the command prints a warning line naming the file, the element and
-  the text; the imported layout's header says it too). Only a text that is a JSON number
-  (``"0.55"``, ``"-2"``, ``"1e3"``) counts: ``"0,55"``, ``" 1"``, ``"NaN"`` stay refused, and the
-  number then meets the field's range like any other. Every other type stays strict.
-* `lifVersion` must be 1.x.y (or 0.x.y, the drafts the document's examples are stamped with).
-  LIF 2 is in development (metaInformation.lifId, origins[], mobileRobotType... properties); a
-  2.x file is refused by name until its specification is published.
-* Checks the schema cannot express, from the document: ids unique (nodes, edges, stations across
-  all layouts of the file; layouts), an edge's start node in its own layout and its end node in
-  the file, a station's interaction nodes in the file, one property entry per vehicle type per
-  node or edge, the lists the document says must not be empty, a trajectory's knot vector of
-  len(controlPoints) + degree + 1 non-decreasing knots with an integral degree.
+The choices where the format is silent or disagrees with itself:
+docs/background/decisions/config.md. In short: fleet-sim reads what the document or the schema
+allows and writes what both require; keys LIF does not name are kept and reported, not refused.
 """
 
 from __future__ import annotations
@@ -47,7 +24,7 @@ from typing import Annotated, Any, Final, Literal, TypeVar
 from pydantic import ConfigDict, Field, Strict, ValidationError, field_validator, model_validator
 
 from fleet_sim.config.distributions import TimeDistribution
-from fleet_sim.config.layout import (
+from fleet_sim.config.layout_spec import (
     Branch,
     LayoutDefaults,
     Marker,
@@ -66,6 +43,11 @@ LIF_VERSION: Final = "1.0.0"
 """The version fleet-sim writes."""
 EXTENSION_KEY: Final = "fleetSim"
 """fleet-sim's extension key on layouts, nodes, edges and stations."""
+PlaceKind = Literal["pickup", "dropoff", "charger", "parking"]
+"""What a fleet_sim place is, as the station extension's `kind` says it."""
+ACTIONS: Final[dict[str, tuple[str, ...]]] = {
+    "pickup": ("pick",), "dropoff": ("drop",), "charger": ("startCharging", "stopCharging")}
+"""The VDA 5050 actions that say what a place is for (LIF 8.3.13.1)."""
 
 Angle = Annotated[float, Field(ge=-math.pi, le=math.pi)]
 """Radians in [-pi, pi]."""
