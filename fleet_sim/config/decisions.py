@@ -66,7 +66,7 @@ from fleet_sim.config.runs import (
     level_text,
     run_id,
 )
-from fleet_sim.config.scenario import MAX_FLEET_SIZE, VEHICLE_TYPES
+from fleet_sim.config.scenario_fleet import MAX_FLEET_SIZE, VEHICLE_TYPES
 from fleet_sim.errors import InputError
 from userfiles.checking import Items, NonNegative, Positive, Problem, StrictModel, Text
 

@@ -30,13 +30,8 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from fleet_sim.config.scenario import (
-    MAX_FLEET_SIZE,
-    Scenario,
-    scenario_data,
-    scenario_with,
-    type_count_path,
-)
+from fleet_sim.config.scenario import Scenario, scenario_data, scenario_with
+from fleet_sim.config.scenario_fleet import MAX_FLEET_SIZE, type_count_path
 from fleet_sim.errors import InputError
 from userfiles.checking import closest
 

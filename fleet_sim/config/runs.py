@@ -19,7 +19,8 @@ import numpy as np
 
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.layout_changes import Change, ChangeSite, changed_layout
-from fleet_sim.config.scenario import Scenario, check_against_layout
+from fleet_sim.config.scenario import Scenario
+from fleet_sim.config.scenario_checks import check_against_layout
 from fleet_sim.errors import InputError
 
 MAX_REPLICATIONS: Final = 1_000
