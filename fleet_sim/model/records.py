@@ -11,45 +11,9 @@ Two ways to keep them:
   goes; the sink writes the Parquet tables and keeps the KPIs' running sums
   (fleet_sim.analysis). A run's memory then stays flat in simulated time.
 
-Decisions:
-
-* Events and occupancy spells are typed NamedTuples rather than dataclasses. They are immutable
-  and read by field name like a frozen dataclass with slots, cost no more to create than plain
-  tuples (the bundled 12-AGV shift records some 35,000 events a simulated day), and pandas
-  builds a table from a list of them directly, in field order (the columns of events.parquet).
-* The core knows no file format: `RecordSink` is a Protocol declared here and implemented
-  above the core (the Parquet files and the KPI sums in fleet_sim.analysis), so the simulation
-  never imports pyarrow.
-* Batches are cut at a fixed row count (`BATCH_ROWS`), never by time or memory, so the same
-  scenario and seed hand the sink the same batches and the files come out byte-identical.
-  Rows of one kind reach the sink in the order they were recorded; the kinds are independent
-  streams, and a sink must not rely on how batches of different kinds interleave.
-* An order is handed over once, when it is finished (delivered, or failed: with its AGV, or at
-  once for a type no AGV of the fleet may serve): its fields no longer change then. Orders
-  still open at the end follow, in creation order. A sink thus sees orders in order of
-  completion, then the open ones; the in-memory path hands a sink the same sequence
-  (`hand_over`), so both give the same KPIs to the last bit. (orders.parquet is still in
-  creation order: its writer puts the rows back in order, fleet_sim.analysis.tables.)
-* Moves (the replay's drives, waits and placements, `record_moves`) stream like events, in
-  the order recorded; moves.parquet is by AGV and start time, sorted by its writer.
-* Occupancy spells (node holds and segment traversals) are not streamed: they are recorded only
-  when asked for (`record_occupancy`, which the sweep turns on for its per-node waits) and stay
-  in memory then.
-* Spells still open when the run ends count up to the end (issue 20): a lock wait is opened
-  here when it begins (`wait_began`, with the zone it is for) and closed when it ends
-  (`blocked`); a charger request likewise (`charger_asked`, `charger_wait_over`). The engine
-  calls `end_of_run` once the clock has reached the end: every lock wait still open adds its
-  part of the window to `blocked_s` (and to its zone's `zone_wait_s`), and the charger
-  requests still waiting are kept in `charger_waits_open` (their ask times) for the KPIs. The
-  driving logic is untouched: it only tells the recorder when a wait starts. After
-  `end_of_run` the totals are final; a wait whose generator is closed later (garbage
-  collection) no longer adds to them.
-* Gridlock (fleet_sim.sim.gridlock): the first time the fleet locks solid is kept in
-  `gridlock` (a `Gridlock`), and recorded as a `gridlock` event.
-* Stalls that are not traffic (charging starvation, a fleet out of service): the engine gives
-  the recorder a `StallMeter` (fleet_sim.model.stalls), which it hands what it records anyway
-  (state changes, SOC samples, charger requests, waiting orders, not_dispatched notes); the
-  meter keeps their spells. It records nothing of its own.
+The core knows no file format: `RecordSink` is a Protocol declared here and implemented above the
+core (fleet_sim.analysis), so the simulation never imports pyarrow. How rows are kept, batched,
+handed over and closed at the end, and why: docs/background/decisions/sim.md.
 """
 
 from __future__ import annotations
@@ -65,9 +29,9 @@ BATCH_ROWS: Final = 10_000
 """Rows of one kind a streaming recorder holds before it hands them to its sink, and the rows of
 one Parquet row group. Measured on the bundled 12-AGV shift (tracemalloc, roughly), 10,000 rows
 are 1.6 MB of events, 3.4 MB of orders, 1.4 MB of SOC samples; that shift records 35,000 events
-and 2,200 orders a simulated day. With 50,000, the first choice, a 30-day run peaked at 1.40x a
-1-day run (bench/memory_flat.py): the orders' batch filled for 23 days and its conversion to a
-table at the hand-over came on top. Smaller batches would make more, smaller row groups, and a
+and 2,200 orders a simulated day. With 50,000, a 30-day run peaks at 1.40x a 1-day run
+(bench/memory_flat.py): the orders' batch fills for 23 days and its conversion to a table at
+the hand-over comes on top. Smaller batches would make more, smaller row groups, and a
 larger file footer that the writer holds until the end."""
 
 

@@ -1,4 +1,4 @@
-"""Stalls that are not traffic: charging starvation and a fleet out of service (issue 33).
+"""Stalls that are not traffic: charging starvation and a fleet out of service.
 
 Orders can wait with no AGV to take them for reasons that have nothing to do with traffic:
 
@@ -20,32 +20,8 @@ a chain of lock waits stand, so that a standstill behind AGVs waiting for charge
 service) is not called a traffic gridlock. The KPIs (fleet_sim.analysis.kpis:
 charging_starvation_h, out_of_service_h and theirs) are read from its spells.
 
-Decisions, where the issue is silent:
-
-* Charging starvation is measured by the AGVs waiting for a charger (the not_dispatched reason
-  waiting_for_charger, recorded exactly while orders wait), not by "every AGV held by its
-  battery": in the warehouse shift under fcfs (the issue's finding) nine of ten AGVs charge or
-  queue for a charger for half an hour while the tenth, freshly charged, carries an order, and
-  "every AGV" would not see that stall at all in most runs. A fleet with some AGVs out of
-  service and others waiting for a charger is starved of charging (chargers would give it
-  AGVs back soonest); every AGV out of service is out of service.
-* "At or below the threshold" (the depth of a starvation, and the AGVs at the head of a chain
-  of waits) is read from the SOC the AGV reported at its latest state change (the samples of
-  soc.parquet): an AGV busy with an order crosses the threshold as it drives and counts from
-  its next state change. An Idle AGV that reaches the threshold asks for a charger the same
-  instant and counts from then. With charging off the threshold is P_050, and an Idle AGV
-  that stands there for want of charge (reason battery_low) counts from the fleet manager's
-  note. The threshold is the one the AGVs act on: max(charging.threshold_pct, P_050) with
-  charging on, P_050 with it off.
-* A charger request holds its AGV from the ask until it leaves the state Charging (or fails:
-  it is out of service then).
-* An AGV down with an obstacle timeout (E_101) is out of service for the stalls, but does not
-  explain a standstill behind it (`explains_standstill`): it timed out standing, often in the
-  jam itself (an AGV paused behind an AGV ahead for 5 minutes), so the standstill stays a
-  gridlock as it was before issue 33. A chain ending at an AGV down with any other fault
-  (E_999, E_102, E_201, a line lost, a link timeout), or in SafeMode, waits for the repair.
-* Spells of no length (a state left and entered again in one instant) are not spells; spells
-  that touch are one.
+What counts as a stall, from when, and which faults explain a standstill (the choices where the
+issues were silent): docs/background/decisions/sim.md.
 """
 
 from __future__ import annotations

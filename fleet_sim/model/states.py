@@ -1,8 +1,7 @@
 """The ten vehicle states of RSS-AGV-001 section 4.1 (ST_001 ... ST_010).
 
 The engine records every change of state with its trigger (the spec's event names, such as
-Event_Transport_Order). The full transition table of section 4.2 lives beside this enum once the
-state machine is complete; until then the engine uses the transitions of the order cycle.
+Event_Transport_Order). The transition table of section 4.2 is fleet_sim.model.state_machine.
 """
 
 from __future__ import annotations

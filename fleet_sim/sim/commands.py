@@ -14,23 +14,9 @@ AGV one `assign` round trip after the fleet manager decided; a `resume` follows 
 link; a `stop` carries a scheduled charging call. A command that misses its reply timeout is
 sent again (counted in `command_retries`). Every message counts in `commands_sent`.
 
-Readings (where the documents leave it open):
-
-* The boot report (RSS-AGV-001 4.2.1: on Event_Init_Complete the AGV sends the FMS its
-  起動完了通知) is one `status` round trip: on the serial links of CarriRo AD+ (CarriRo API
-  v1.4, 処理: the vehicle answers what the host sends) and KTM-02 the host speaks first, so
-  the fleet manager learns that a booted AGV is free when its first status request has been
-  answered. Meanwhile the AGV stands Idle, not dispatched for `command_in_transit`.
-* Route permissions (`traffic.grants`, agv_model.fleet_commands.GRANTS_PER_HOP): granted hop
-  by hop, each hop traffic grants an AGV is a permission message (`PERMISSION`, the
-  protocol's resume) the AGV must have before it drives the hop. Messages to one AGV go one
-  after the other on its link (a permission sent while the last is on its way waits for it).
-  A permission granted while the AGV stands is waited for; one granted ahead (the look-ahead
-  of fleet_sim.sim.agents.driving) travels while the AGV drives the hop before, and is waited
-  for only if it has not come when the AGV gets there. The AGV is then taken to stop there:
-  its braking for it is not modelled (messages take milliseconds, hops seconds, so this does
-  not happen with the bundled profiles). Coming back onto the track from parking is not a hop
-  and costs no permission; the first hop does.
+The boot report is one `status` round trip, and a route granted hop by hop costs a permission
+message per hop (`traffic.grants`), waited for only if it has not come when the AGV gets there:
+the readings of the documents behind these are in docs/background/decisions/sim.md.
 
 With `fleet.status_poll_s` > 0 the fleet manager learns that an AGV has become free only at its
 next status poll of that AGV (polls are spread over the period by AGV number), plus the status

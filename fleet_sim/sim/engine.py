@@ -9,8 +9,7 @@ Vehicle types: a mixed fleet (`fleet.vehicles`), a layout that opens segments or
 some types only (`allowed_types`), or one that gives a type of the fleet a speed limit of its
 own on some segment (`speed_limit_mps_by_type`), gives each type its own routes and motion in
 `Traffic` and tells the fleet manager each AGV's type. A one-type fleet on a layout without
-either is built exactly as before (the same routes, the same random streams, the same
-results).
+either has one set of routes and no types, and the same random streams.
 
 What a run records stays in its `Recorder` (in memory) unless `simulate` is handed a
 `RecordSink`: then the recorder streams its rows to the sink as the run goes and closes it when

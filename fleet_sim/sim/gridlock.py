@@ -1,4 +1,4 @@
-"""Gridlock: telling when the fleet has locked solid (issue 20).
+"""Gridlock: telling when the fleet has locked solid.
 
 Traffic resolves most wait-for cycles within seconds (fleet_sim.sim.traffic.deadlock); one that
 no escape can break (`deadlock_unresolved`: every member boxed in) stays for the rest of the
@@ -14,38 +14,21 @@ run, and the AGVs queued behind it stop too. A watcher process looks every tenth
   wait's start. A fleet standing still for other reasons (charging, Idle for want of
   admission, down) has no lock waits that long and is not called locked.
 
-A standstill is a traffic gridlock only if traffic explains it (issue 33, item 7): when every
-chain of those waits ends at an AGV held by its battery or out of service (charging, waiting
-for or on its way to a charger, at or below the charging threshold; Error, Maintenance,
-SafeMode, but not after an obstacle timeout, E_101, which a jam itself ends in:
-fleet_sim.model.stalls), the AGVs behind stand for the charger queue or the repair,
-not for traffic, and it is not recorded: the stall is measured as what it is (the KPIs
-charging_starvation_h and out_of_service_h), and the watcher goes on looking. Found in the
-warehouse shift under fcfs: the whole fleet reaches the threshold together, the AGVs queued
-for the four chargers stand at their last drop-off in single-track corridors, and the AGVs
-with orders behind them wait there until a charger frees; once charges complete, work
-resumes. A wait-for cycle is traffic whoever its members are.
+A standstill is a traffic gridlock only if traffic explains it: when every chain of those waits
+ends at an AGV held by its battery or out of service (charging, waiting for or on its way to a
+charger, at or below the charging threshold; Error, Maintenance, SafeMode, but not after an
+obstacle timeout, E_101, which a jam itself ends in: fleet_sim.model.stalls), the AGVs behind
+stand for the charger queue or the repair, not for traffic, and it is not recorded: the stall
+is measured as what it is (the KPIs charging_starvation_h and out_of_service_h), and the
+watcher goes on looking. A wait-for cycle is traffic whoever its members are.
 
 What it records: a `gridlock` event (at the moment it is told, on the first AGV named; the
 detail says since when, which AGVs and the nodes they stand at) and `Recorder.gridlock`, from
-which the KPIs take `gridlock_at_h` and the summary its warning.
+which the KPIs take `gridlock_at_h` and the summary its warning. The watcher only reads: it
+draws no random numbers and changes no lock.
 
-Decisions, where the issue is silent:
-
-* Default `gridlock_after_s` 600 s: ten minutes without a single hop for the members, sixty
-  rounds of `deadlock_check_s`, and twenty of `replan_after_s`. The longest waits the model
-  makes on purpose are shorter or no lock waits at all: an obstacle pause ends in E_101 after
-  5 minutes (the AGV is then down and traffic routes round it), a lost FMS link has the AGV
-  wait Idle at a tag (Req.Err.011, 10 minutes) but the AGVs behind it can still reroute or
-  circulate. A long single lock wait behind a busy station is not a cycle and does not stop
-  the whole fleet. Configurable per scenario.
-* Only the first gridlock is recorded and the watcher then stops: a locked fleet stays locked
-  (no rule in the model breaks a cycle without an escape), and the first time is the finding.
-* The watcher only reads (the waits traffic knows, the recorder's open waits and last hop);
-  it draws no random numbers and changes no lock, so a run that does not lock gives exactly
-  the results it gave before it existed (its timeouts are extra SimPy events, nothing more).
-* "No AGV moves" is read from hop ends: a hop longer than `gridlock_after_s` would look like
-  standing still, which no layout's segment comes near.
+The choices where the issues were silent (the threshold, one gridlock per run, what "no AGV
+moves" means): docs/background/decisions/sim.md.
 """
 
 from __future__ import annotations

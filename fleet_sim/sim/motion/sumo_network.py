@@ -23,8 +23,8 @@ The export is what a SUMO user would build by hand for tape-guided AGVs:
   everywhere), so that a segment's per-type speed limits (``speed_limit_mps_by_type``) are
   SUMO's vClass-specific speed limits: an edge type with a ``<restriction vClass speed>`` per
   limited type (SUMO brakes ahead of a lane slower for the vehicle's class as it does for any
-  slower lane). A one-type fleet whose type the layout gives no limit of its own keeps the
-  single ``agv`` vType without a class and the plain network, as before.
+  slower lane). A one-type fleet whose type the layout gives no limit of its own has the
+  single ``agv`` vType without a class and the plain network.
 * Segments open to some types only (``allowed_types``, ban zones) are not lane permissions: the
   fleet model's routes already keep each type off them and SUMO only drives the hops it is
   given, and netconvert would drop the turns between lanes that share no class, making a
