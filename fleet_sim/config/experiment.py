@@ -67,26 +67,27 @@ Decisions, where the issue is silent:
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, Final, Literal
+from typing import Any
 
-import numpy as np
-from pydantic import Field, Strict, field_validator, model_validator
-
-from fleet_sim.config.decisions import OptimiseConfig, design_space
-from fleet_sim.config.layout import Layout
-from fleet_sim.config.layout_changes import (
-    Change,
-    ChangeSite,
-    LayoutChange,
-    LayoutDiff,
-    layout_diff,
-    parse_changes,
+from fleet_sim.config.decisions import design_space
+from fleet_sim.config.experiment_checks import (
+    check_layout_names,
+    check_scenarios,
+    check_variants,
+    check_vary_type,
+    with_settings,
 )
+from fleet_sim.config.experiment_design import factor_levels, full_factorial, latin_hypercube
+from fleet_sim.config.experiment_spec import BASE_VARIANT as BASE_VARIANT
+from fleet_sim.config.experiment_spec import ExperimentSpec as ExperimentSpec
+from fleet_sim.config.experiment_spec import Target as Target
+from fleet_sim.config.experiment_spec import VariantSpec
+from fleet_sim.config.layout import Layout
+from fleet_sim.config.layout_changes import Change, ChangeSite, LayoutDiff, layout_diff
 from fleet_sim.config.runs import MAX_REPLICATIONS as MAX_REPLICATIONS
 from fleet_sim.config.runs import MAX_RUNS as MAX_RUNS
 from fleet_sim.config.runs import VARIANT_PREFIX as VARIANT_PREFIX
@@ -99,281 +100,14 @@ from fleet_sim.config.runs import point_text as point_text
 from fleet_sim.config.runs import replication_seed as replication_seed
 from fleet_sim.config.runs import run_id as run_id
 from fleet_sim.config.runs import variant_run_id as variant_run_id
-from fleet_sim.config.scenario import (
-    FOLDER_NAME,
-    MAX_FLEET_SIZE,
-    Scenario,
-    is_folder_name,
-    load_scenario,
-    setup_warnings,
-    type_count_path,
-)
+from fleet_sim.config.scenario import Scenario, load_scenario, setup_warnings, type_count_path
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.errors import InputError
-from userfiles.checking import Items, Positive, Problem, StrictModel, Text, validate
+from userfiles.checking import validate
 from userfiles.reading import read_yaml
 
 FLEET = "fleet.size"
 """The factor the sizing search varies."""
-
-LHS_STREAM = 2**32
-
-
-class Range(StrictModel):
-    """A continuous (or integer) factor range, for Latin hypercube designs."""
-
-    min: float
-    max: float
-    integer: bool = False
-
-    @model_validator(mode="after")
-    def _ordered(self) -> Range:
-        if not self.min < self.max:
-            raise Problem("max", self.max, f"a number > min ({self.min})")
-        return self
-
-
-class Target(StrictModel):
-    """A KPI bound that every recommended configuration must meet."""
-
-    kpi: Text
-    at_least: float | None = None
-    at_most: float | None = None
-
-    @model_validator(mode="after")
-    def _one_bound(self) -> Target:
-        if (self.at_least is None) == (self.at_most is None):
-            raise Problem("", {"kpi": self.kpi}, "exactly one of at_least, at_most")
-        return self
-
-    @property
-    def bound(self) -> float:
-        value = self.at_least if self.at_least is not None else self.at_most
-        assert value is not None
-        return value
-
-    @property
-    def higher_is_better(self) -> bool:
-        return self.at_least is not None
-
-    def describe(self) -> str:
-        return f"{self.kpi} {'>=' if self.higher_is_better else '<='} {self.bound:g}"
-
-    def met_by(self, value: float) -> bool:
-        return value >= self.bound if self.higher_is_better else value <= self.bound
-
-
-class SizingConfig(StrictModel):
-    """The fleet-size search of `fleet-sim size`."""
-
-    stopping: Literal["sequential", "fixed"] = "sequential"
-    """sequential: each fleet size starts with min_replications and adds replications (as many
-    at a time as there are workers) only until every target is decided (its 95 % interval
-    clear of the bound: met, or one target failed) or max_replications is reached. fixed:
-    every fleet size runs the experiment's `replications`, no more and no fewer."""
-    min_replications: int = Field(default=2, ge=2, le=MAX_REPLICATIONS)
-    """Replications a fleet size starts with under sequential stopping (a confidence interval
-    needs two)."""
-    min_agvs: Annotated[int, Field(ge=1, le=MAX_FLEET_SIZE)] | None = None
-    """Smallest fleet to consider; default: the lowest fleet.size level, else 1."""
-    max_agvs: Annotated[int, Field(ge=1, le=MAX_FLEET_SIZE)] | None = None
-    """Largest fleet to consider; default: the highest fleet.size level, else 50."""
-    max_replications: int = Field(default=12, ge=2, le=MAX_REPLICATIONS)
-    """Replications a close decision may grow to under sequential stopping (a size still
-    undecided there counts as not meeting the targets)."""
-    vary_type: Text | None = None
-    """With a mixed fleet (the base scenario's fleet.vehicles): the vehicle type whose count
-    the search varies (the factor fleet.vehicles.<type>.count); the other types keep their
-    counts. min_agvs and max_agvs then bound that type's count. Needed with a mixed fleet;
-    not given with a one-type fleet (the search varies fleet.size)."""
-    agv_availability: float = Field(default=1.0, gt=0, le=1)
-    """Share of each AGV-hour available for orders, for the analytic estimate (charging,
-    breaks); 1.0 while the runs model no charging."""
-
-    @model_validator(mode="after")
-    def _ordered(self) -> SizingConfig:
-        if (self.min_agvs is not None and self.max_agvs is not None
-                and self.max_agvs < self.min_agvs):
-            raise Problem("max_agvs", self.max_agvs, f"an integer >= min_agvs ({self.min_agvs})")
-        if self.max_replications < self.min_replications:
-            raise Problem("max_replications", self.max_replications,
-                          f"an integer >= min_replications ({self.min_replications})")
-        return self
-
-
-class WarmupConfig(StrictModel):
-    """How long the warm-up of every run of the experiment is."""
-
-    method: Literal["fixed", "mser5"] = "fixed"
-    """fixed: the scenario's warmup_h. mser5: estimated from the data before the runs start
-    (fleet_sim.study.warmup): pilot runs without warm-up, MSER-5 on their lead times, the
-    longest estimate rounded up to 0.05 h becomes every run's warmup_h."""
-    pilot_replications: int = Field(default=2, ge=1, le=MAX_REPLICATIONS)
-    """Pilot runs per combination of the other factors' levels (mser5)."""
-
-
-class Objective(StrictModel):
-    """What `fleet-sim compare` selects the best variant by (baseline included)."""
-
-    kpi: Text
-    direction: Literal["min", "max"]
-    """min: the lowest mean is best (a lead time); max: the highest (a throughput)."""
-    indifference_zone: Positive
-    """The smallest difference of the KPI's mean worth telling apart, in the KPI's unit:
-    variants closer to the best than this count as good as the best."""
-    probability_correct_selection: float = Field(default=0.95, gt=0.5, lt=1)
-    """The chance of selecting the best when it beats every other by the indifference zone
-    (Kim and Nelson's KN procedure, docs/how-to/whatif.md)."""
-    among: Items[Text] = ()
-    """The variants to select from (at least two; `baseline` names the base scenario);
-    default: every variant and the baseline. A variant that is a scenario rather than a
-    choice (20 % more demand) is compared but not selected."""
-
-
-class CompareConfig(StrictModel):
-    """How `fleet-sim compare` compares the variants with the baseline (docs/how-to/whatif.md)."""
-
-    kpis: Items[Text] = ()
-    """KPIs compared; default: the targets' KPIs, else throughput_per_hour and
-    lead_time_p95_s."""
-    precision: dict[Text, Positive] = Field(default_factory=dict)
-    """KPI -> half-width of the paired difference's interval that is precise enough, in the
-    KPI's unit: a comparison whose interval is that narrow is decided (no difference larger
-    than its interval detected). A KPI without one is decided only by an interval clear of
-    zero (or the replication limit)."""
-    min_replications: int = Field(default=5, ge=2, le=MAX_REPLICATIONS)
-    """Replications of every variant before the first look."""
-    max_replications: int = Field(default=20, ge=2, le=MAX_REPLICATIONS)
-    """Replications a comparison may grow to (doubling from min_replications)."""
-    confidence: float = Field(default=0.95, gt=0.5, lt=1)
-    """Joint confidence of every interval reported, over all comparisons and looks."""
-    objective: Objective | None = None
-
-    @model_validator(mode="after")
-    def _ordered(self) -> CompareConfig:
-        if self.max_replications < self.min_replications:
-            raise Problem("max_replications", self.max_replications,
-                          f"an integer >= min_replications ({self.min_replications})")
-        if len(set(self.kpis)) != len(self.kpis):
-            raise Problem("kpis", list(self.kpis), "distinct KPIs")
-        if self.kpis:
-            for kpi in self.precision:
-                if kpi not in self.kpis:
-                    raise Problem(f"precision.{kpi}", self.precision[kpi],
-                                  "a precision for a compared KPI (one of kpis: "
-                                  f"{', '.join(self.kpis)})")
-        return self
-
-
-BASE_VARIANT: Final = "baseline"
-"""The name of the base scenario as a variant: the baseline unless the file names another."""
-MAX_VARIANTS: Final = 100
-"""Most variants of one experiment (a comparison of more is a design, not a what-if)."""
-MAX_LAYOUT_CHANGES: Final = 200
-"""Most layout changes of one variant: more is another layout file."""
-
-
-class VariantSpec(StrictModel):
-    """One what-if variant: changes over the base scenario (with the experiment's overrides)."""
-
-    description: Text = ""
-    overrides: dict[str, Any] = Field(default_factory=dict)
-    """Scenario fields (dotted paths) set in this variant's runs, over the experiment's
-    overrides; not a factor, not `seed`, not `layout` (use the variant's `layout`)."""
-    layout: Text | None = None
-    """Another layout file for this variant, relative to the experiment file; not when
-    `layout` is a factor."""
-    layout_changes: Annotated[tuple[LayoutChange, ...], Strict(False),
-                              Field(max_length=MAX_LAYOUT_CHANGES)] = ()
-    """Edits of the variant's layout, applied in order: one_way, two_way, close_segment,
-    close_node, speed_limit, add_node, add_segment, add_/move_/remove_ charger, station,
-    parking, station_handling, parking_capacity (docs/how-to/whatif.md)."""
-
-    @field_validator("layout_changes", mode="before")
-    @classmethod
-    def _each_change(cls, value: Any) -> Any:
-        return parse_changes(value)
-
-
-class ExperimentSpec(StrictModel):
-    """The experiment file as written (before the design is expanded)."""
-
-    scenario: Text
-    """Base scenario file, relative to the experiment file."""
-    name: Text = "experiment"
-    """Names the results folder: letters, digits, '_', '.', '-'."""
-    description: Text = ""
-    overrides: dict[str, Any] = Field(default_factory=dict)
-    """Scenario fields (dotted paths) set in every run."""
-    factors: dict[str, Any] = Field(default_factory=dict)
-    """Dotted scenario path -> list of levels, or {min, max, integer} (Latin hypercube)."""
-    design: Literal["full_factorial", "latin_hypercube"] = "full_factorial"
-    samples: int = Field(default=0, ge=0, le=MAX_RUNS)
-    """Design points of a Latin hypercube."""
-    replications: int = Field(default=3, ge=1, le=MAX_REPLICATIONS)
-    master_seed: int = Field(default=1, ge=0)
-    targets: Items[Target] = ()
-    sizing: SizingConfig = SizingConfig()
-    warmup: WarmupConfig = WarmupConfig()
-    compare: CompareConfig = CompareConfig()
-    variants: Annotated[dict[Text, VariantSpec], Field(max_length=MAX_VARIANTS)] = \
-        Field(default_factory=dict)
-    """What-if variants by name: each runs at every design point, with the baseline's seeds
-    (common random numbers)."""
-    baseline: Text | None = None
-    """The variant the others are compared with; default: the base scenario (`baseline`)."""
-    optimise: OptimiseConfig | None = None
-    """What `fleet-sim optimise` may choose and what each choice costs
-    (fleet_sim.config.decisions)."""
-
-    @field_validator("name")
-    @classmethod
-    def _folder_name(cls, name: str) -> str:
-        if not is_folder_name(name):
-            raise Problem("", name, FOLDER_NAME)
-        return name
-
-    @model_validator(mode="after")
-    def _warmup_not_set_twice(self) -> ExperimentSpec:
-        if self.warmup.method == "mser5" and ("warmup_h" in self.overrides
-                                              or "warmup_h" in self.factors
-                                              or any("warmup_h" in v.overrides
-                                                     for v in self.variants.values())):
-            raise Problem("warmup.method", self.warmup.method,
-                          "fixed when warmup_h is an override or a factor (mser5 sets it)")
-        return self
-
-    @field_validator("variants")
-    @classmethod
-    def _variant_names(cls, variants: dict[str, VariantSpec]) -> dict[str, VariantSpec]:
-        for name in variants:
-            if not is_folder_name(name) or len(name) > 40:
-                raise Problem(name, name, "a variant name of at most 40 letters, digits, "
-                                          "'_', '.', '-' (it names run folders)")
-            if name == BASE_VARIANT:
-                raise Problem(name, name, f"another name ({BASE_VARIANT} is the base "
-                                          "scenario)")
-        return variants
-
-    @model_validator(mode="after")
-    def _baseline_is_a_variant(self) -> ExperimentSpec:
-        if self.baseline is not None and self.baseline != BASE_VARIANT \
-                and self.baseline not in self.variants:
-            names = ", ".join([BASE_VARIANT, *self.variants])
-            raise Problem("baseline", self.baseline, f"the name of a variant ({names}; "
-                          f"{BASE_VARIANT}: the base scenario)")
-        return self
-
-    @model_validator(mode="after")
-    def _samples_fit_design(self) -> ExperimentSpec:
-        if self.design == "latin_hypercube" and self.samples < 1:
-            raise Problem("samples", self.samples,
-                          "an integer >= 1 (design points of the Latin hypercube)")
-        if self.design == "full_factorial" and self.samples:
-            raise Problem("samples", self.samples,
-                          "no samples for a full-factorial design (every level combination "
-                          "runs)")
-        return self
 
 
 @dataclass(frozen=True)
@@ -605,34 +339,10 @@ def load_experiment(path: str | Path, settings: Mapping[str, Any] | None = None,
                          f"an existing scenario file (looked for {scenario_file})")
     for key in spec.overrides:
         check_path(file, f"overrides.{key}", key)
-    _check_layout_names(file, "overrides.layout", spec.overrides.get("layout", ""))
+    check_layout_names(file, "overrides.layout", spec.overrides.get("layout", ""))
     if settings:
-        spec = _with_settings(spec, settings, source, scenario_file)
-    levels: dict[str, list[Any]] = {}
-    ranges: dict[str, Range] = {}
-    for key, value in spec.factors.items():
-        check_path(file, f"factors.{key}", key)
-        if key in spec.overrides:
-            raise InputError(file, f"factors.{key}", value,
-                             "a field not also set in overrides (the factor varies it)")
-        if isinstance(value, list):
-            if not value:
-                raise InputError(file, f"factors.{key}", value, "a list of at least one level")
-            if len({repr(v) for v in value}) != len(value):
-                raise InputError(file, f"factors.{key}", value, "distinct levels")
-            if key == "layout":
-                for i, level in enumerate(value):
-                    _check_layout_names(file, f"factors.layout[{i}]", level)
-            levels[key] = value
-        elif isinstance(value, Mapping):
-            if spec.design != "latin_hypercube":
-                raise InputError(file, f"factors.{key}", value,
-                                 "a list of levels ({min, max} ranges need design: "
-                                 "latin_hypercube)")
-            ranges[key] = validate(Range, value, file, f"factors.{key}")
-        else:
-            raise InputError(file, f"factors.{key}", value,
-                             "a list of levels, or {min, max} for a Latin hypercube")
+        spec = with_settings(spec, settings, source, scenario_file)
+    levels, ranges = factor_levels(spec, file)
     n_points = math.prod(len(v) for v in levels.values()) if spec.design == "full_factorial" \
         else spec.samples
     if n_points * spec.replications > MAX_RUNS:
@@ -650,129 +360,13 @@ def load_experiment(path: str | Path, settings: Mapping[str, Any] | None = None,
         points = latin_hypercube(levels, ranges, spec.samples, spec.master_seed,
                                  list(spec.factors))
     experiment = Experiment(spec, path, tuple(tuple(p.items()) for p in points))
-    _check_scenarios(experiment, levels)
-    _check_vary_type(experiment)
-    _check_variants(experiment)
+    check_scenarios(experiment, levels)
+    check_vary_type(experiment)
+    check_variants(experiment)
     if spec.optimise is not None:
         design_space(experiment)
     return experiment
 
-
-def _check_layout_names(file: str, element: str, value: Any) -> None:
-    if not isinstance(value, str):
-        raise InputError(file, element, value, "a layout file (a text: its path, relative to "
-                                               "the experiment file)")
-
-
-def _check_variants(experiment: Experiment) -> None:
-    """Every variant's overrides, layout and layout changes, at every design point: a real
-    scenario and its changed layout, like the base scenario's (`_check_scenarios`)."""
-    spec = experiment.spec
-    file = str(experiment.file)
-    for name, variant in spec.variants.items():
-        at = f"variants.{name}"
-        for key, value in variant.overrides.items():
-            check_path(file, f"{at}.overrides.{key}", key)
-            if key == "layout":
-                raise InputError(file, f"{at}.overrides.layout", value,
-                                 f"the variant's own layout key ({at}.layout), not an override")
-            if key in spec.factors:
-                raise InputError(file, f"{at}.overrides.{key}", value,
-                                 "a field that is not a factor (the factor varies it)")
-        if variant.layout is not None:
-            if "layout" in spec.factors:
-                raise InputError(file, f"{at}.layout", variant.layout,
-                                 "no layout of the variant's own: layout is a factor")
-            path = Path(experiment.file_path(variant.layout))
-            if not path.is_file():
-                raise InputError(file, f"{at}.layout", variant.layout,
-                                 f"an existing layout file, relative to the experiment file "
-                                 f"(looked for {path})")
-        for point in experiment.points or ((),):
-            factors = dict(point)
-            where = f" at design point ({point_text(factors)})" if factors else ""
-            try:
-                scenario = experiment.scenario(factors, name)
-                experiment.layout(scenario, name)
-            except InputError as exc:
-                if exc.file == file:  # a refused layout change names the variant already
-                    raise
-                own = next((k for k in variant.overrides if exc.element == k
-                            or exc.element.startswith((f"{k}.", f"{k}["))), None)
-                if own is not None:  # the variant's own override is wrong
-                    raise InputError(file, f"{at}.overrides.{own}", exc.value,
-                                     f"{exc.expected} ({exc.element}{where})") from None
-                raise InputError(file, f"{at}{where}", exc.value,
-                                 f"{exc.expected} ({exc.element}, in {exc.file})") from None
-def _with_settings(spec: ExperimentSpec, settings: Mapping[str, Any], source: str,
-                   scenario_file: Path) -> ExperimentSpec:
-    """`spec` with `settings` among its overrides, each checked: a dotted path, not seed or
-    layout, not a factor, and a valid scenario with the file's overrides (whose own problems
-    are left to the checks of the file that follow)."""
-    for key, value in settings.items():
-        check_path(source, key, key)
-        if key in spec.factors:
-            raise InputError(source, key, value, f"a field that is not a factor of the "
-                             f"experiment (factors.{key} varies it)")
-        if key == "warmup_h" and spec.warmup.method == "mser5":
-            raise InputError(source, key, value, "no warmup_h with warmup.method: mser5 (it "
-                             "estimates the warm-up)")
-    try:
-        load_scenario(scenario_file, dict(spec.overrides))
-    except InputError:
-        return spec  # the file's own problem: named by the file's checks
-    try:
-        load_scenario(scenario_file, {**spec.overrides, **settings})
-    except InputError as exc:
-        raise InputError(source, exc.element, exc.value, exc.expected) from None
-    return spec.model_copy(update={"overrides": {**spec.overrides, **settings}})
-
-
-def _check_vary_type(experiment: Experiment) -> None:
-    """`sizing.vary_type` names a type of the base scenario's mixed fleet (fleet.size cannot
-    be a factor of a mixed fleet: the scenario refuses it)."""
-    vary = experiment.spec.sizing.vary_type
-    if vary is None:
-        return
-    file = str(experiment.file)
-    types = list(experiment.scenario().fleet.type_profiles)
-    if not experiment.scenario().fleet.vehicles:
-        raise InputError(file, "sizing.vary_type", vary, "no vary_type with a one-type fleet "
-                         f"(the base scenario's fleet is {types[0]} only: the search varies "
-                         "fleet.size)")
-    if vary not in types:
-        raise InputError(file, "sizing.vary_type", vary,
-                         f"a type of the base scenario's fleet.vehicles ({', '.join(types)})")
-
-
-def full_factorial(levels: Mapping[str, list[Any]]) -> list[dict[str, Any]]:
-    """Every combination of levels, the last factor varying fastest."""
-    names = list(levels)
-    return [dict(zip(names, combo, strict=True))
-            for combo in itertools.product(*(levels[n] for n in names))]
-
-
-def latin_hypercube(levels: Mapping[str, list[Any]], ranges: Mapping[str, Range], samples: int,
-                    master_seed: int, order: list[str]) -> list[dict[str, Any]]:
-    """`samples` points; each factor's range (or level list) cut into `samples` strata, each
-    stratum used once, strata paired at random across factors."""
-    rng = np.random.default_rng(np.random.SeedSequence(master_seed, spawn_key=(LHS_STREAM,)))
-    points: list[dict[str, Any]] = [{} for _ in range(samples)]
-    for name in order:
-        u = (rng.permutation(samples) + rng.random(samples)) / samples
-        for i in range(samples):
-            if name in ranges:
-                r = ranges[name]
-                if r.integer:
-                    lo, hi = math.ceil(r.min), math.floor(r.max)
-                    value: Any = int(min(hi, lo + math.floor(u[i] * (hi - lo + 1))))
-                else:
-                    value = float(r.min + u[i] * (r.max - r.min))
-            else:
-                choices = levels[name]
-                value = choices[min(len(choices) - 1, int(u[i] * len(choices)))]
-            points[i][name] = value
-    return points
 
 
 def run_layout(scenario: Scenario, spec: RunSpec) -> Layout:
@@ -783,36 +377,6 @@ def run_layout(scenario: Scenario, spec: RunSpec) -> Layout:
     return changed_layout_for(scenario, spec.scenario_file, spec.layout_changes,
                               ChangeSite(spec.experiment_file, spec.variant))
 
-
-def _check_scenarios(experiment: Experiment, levels: Mapping[str, list[Any]]) -> None:
-    """Build a real scenario for each level alone, then for every design point."""
-    file = str(experiment.file)
-    try:
-        base = experiment.scenario()
-        layout_for(base, str(experiment.scenario_file))
-    except InputError as exc:
-        raise InputError(file, "overrides" if experiment.spec.overrides else "scenario",
-                         exc.value, f"{exc.expected} (scenario field {exc.element}, "
-                         f"in {exc.file})") from None
-    for name, values in levels.items():
-        for i, value in enumerate(values):
-            try:
-                scenario = experiment.scenario({name: value})
-                if name == "layout":
-                    layout_for(scenario, str(experiment.scenario_file))
-            except InputError as exc:
-                raise InputError(file, f"factors.{name}[{i}]", value,
-                                 f"a valid scenario field: {exc.element}: got {exc.value!r}; "
-                                 f"expected {exc.expected}") from None
-    for point in experiment.points:
-        factors = dict(point)
-        try:
-            scenario = experiment.scenario(factors)
-            layout_for(scenario, str(experiment.scenario_file))
-        except InputError as exc:
-            where = point_text(factors)
-            raise InputError(file, f"design point ({where})", exc.value,
-                             f"{exc.expected} (scenario field {exc.element})") from None
 
 
 def experiment_warnings(experiment: Experiment, variant: str | None = None) -> list[str]:
