@@ -2,21 +2,9 @@
 
 Every transition of section 4.2 is a row with its trigger event, its condition (a guard over the
 vehicle's facts) and its action, as the spec words them. Rows the spec does not list but the fleet
-model needs are marked `spec=None` with the reason; each is a reading of the spec taken here:
-
-* Travel to a charger is driving: 4.2.9 (Idle -> Charging on Event_Go_Charge/Event_Low_Battery)
-  is split into Idle -> Moving (purpose to_charger) and Moving -> Charging on arrival and docking,
-  so time in state stays honest. The 4.2.9 guard (a free charger, confirmed by the FMS) stays on
-  the first row.
-* Moving to parking and back is driving too (4.2.8's action "move to the waiting position").
-* Req.Err.011 (FMS heartbeat lost): drive on slowly to the next RFID tag and wait in Idle; resume
-  when the link is back.
-* SafeMode (4.2.14) is left only by an operator rescue, into Maintenance.
-* 4.2.1's POST and 4.2.5/4.2.7's stop accuracy (+/-10 mm) keep their rows and wording but have
-  no guard: the fleet model has no source of POST failures, and its AGVs stop exactly on the
-  node (closed form, or SUMO's stop). Stop accuracy is modelled in `agv_model.dynamics`
-  (bench/stop_accuracy.py), one vehicle at a time. A guard that can never fail would only
-  pretend to check something (docs/background/engine.md).
+model needs are marked `spec=None` with the reason; the readings of the spec behind them (travel
+to a charger and to parking is Moving, the link lost and back, SafeMode's way out, the guards
+left out): docs/background/decisions/sim.md.
 
 Firing an event that has no row for the current state raises `InvalidTransition`, which names the
 AGV, the state and the event. A row whose guard fails does not fire (`fire` returns False).
