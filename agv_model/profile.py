@@ -63,26 +63,6 @@ class Kinematics(StrictModel):
                           f"at most max_speed_mmps ({self.max_speed_mmps})")
         return self
 
-    @property
-    def max_speed_mps(self) -> float:
-        return self.max_speed_mmps / 1000
-
-    @property
-    def accel_mps2(self) -> float:
-        return self.accel_mmps2 / 1000
-
-    @property
-    def decel_mps2(self) -> float:
-        return self.decel_mmps2 / 1000
-
-    @property
-    def turn_speed_mps(self) -> float:
-        return self.turn_speed_mmps / 1000
-
-    @property
-    def length_m(self) -> float:
-        return self.length_mm / 1000
-
 
 class Battery(StrictModel):
     capacity_wh: Positive

@@ -25,6 +25,7 @@ from fleet_sim.cli import main
 from fleet_sim.config.schemas import json_schema
 from fleet_sim.config.standards.factsheet import read_factsheet
 from fleet_sim.config.standards.factsheet_profile import import_factsheet
+from fleet_sim.config.vehicle import kinematics_m
 from fleet_sim.errors import InputError
 from userfiles.checking import validate
 from userfiles.reading import read_yaml
@@ -56,7 +57,9 @@ def test_a_factsheet_becomes_a_profile_that_loads(tmp_path: Path, capsys: Any) -
     assert main(["profile", "import", str(TUGGER), "--out", str(out)]) == 0
     profile = read_profile(out)
     k = profile.kinematics
-    assert (k.max_speed_mps, k.accel_mps2, k.decel_mps2, k.length_m) == (1.2, 0.4, 0.6, 1.35)
+    metres = kinematics_m(k)  # the one conversion of a profile's mm to the vehicle's metres
+    assert (metres["max_speed_mps"], metres["accel_mps2"], metres["decel_mps2"],
+            metres["length_m"]) == (1.2, 0.4, 0.6, 1.35)
     assert profile.title == "T12 tugger (Example Motion)"
     assert profile.document == f"{FACTSHEET}: tugger.factsheet.json"
     assert profile.protocol is None

@@ -182,7 +182,7 @@ def test_a_profile_fills_the_vehicle_and_the_resolved_config_reloads(tmp_path: P
     assert tugger.min_gap_m == 0.8 and tugger.battery.idle_w == 5  # the vehicle's own win
     carriro = load_profile("carriro-ad-plus")
     bridged = scenario.fleet.type_profiles["carriro"].battery
-    per_m = carriro.battery.moving_w / (carriro.kinematics.max_speed_mps * 3600)
+    per_m = carriro.battery.moving_w / (carriro.kinematics.max_speed_mmps / 1000 * 3600)
     assert bridged.drive_wh_per_m == pytest.approx(per_m)
     assert bridged.drive_loaded_wh_per_m == pytest.approx(1.5 * per_m)
     assert bridged.capacity_wh == carriro.battery.capacity_wh

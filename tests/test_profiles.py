@@ -50,7 +50,6 @@ def test_generic_profile_carries_rss_agv_001_7_1_defaults() -> None:
     k = generic.kinematics
     assert (k.max_speed_mmps, k.accel_mmps2, k.decel_mmps2, k.turn_speed_mmps) == (
         1000, 500, 500, 300)
-    assert (k.max_speed_mps, k.accel_mps2, k.decel_mps2, k.turn_speed_mps) == (1.0, 0.5, 0.5, 0.3)
     for key, param in (("max_speed_mmps", "P_001"), ("accel_mmps2", "P_002"),
                        ("decel_mmps2", "P_003"), ("turn_speed_mmps", "P_004")):
         assert generic.sources[f"kinematics.{key}"].startswith(f"RSS-AGV-001 7.1 {param}")

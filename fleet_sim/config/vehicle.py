@@ -13,11 +13,12 @@ Decisions, where the issue is silent:
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Final
 
 from pydantic import Field, field_validator, model_validator
 from pydantic.config import JsonDict
 
+from agv_model.profile import Kinematics
 from agv_model.profile import Profile as AgvModelProfile
 from userfiles.checking import NonNegative, Percent, Positive, Problem, StrictModel, Text
 
@@ -101,6 +102,30 @@ class VehicleProfile(StrictModel):
         return self
 
 
+MM_PER_M: Final = 1000
+"""agv_model's profiles are in the documents' millimetres; the scenario's vehicle in metres."""
+MM_DIGITS: Final = 6
+"""Metres written in mm are rounded to the nanometre: 1.1 m/s is 1100 mm/s, not
+1100.0000000000002."""
+KINEMATICS_MM: Final = {"max_speed_mps": "max_speed_mmps", "accel_mps2": "accel_mmps2",
+                        "decel_mps2": "decel_mmps2", "turn_speed_mps": "turn_speed_mmps",
+                        "length_m": "length_mm"}
+"""A `VehicleProfile` kinematics field -> the agv_model profile's, in mm."""
+
+
+def kinematics_m(kinematics: Kinematics) -> dict[str, float]:
+    """An agv_model profile's kinematics as a `VehicleProfile`'s fields: mm, mm/s, mm/s2 ->
+    m, m/s, m/s2, one to one."""
+    return {field_m: getattr(kinematics, field_mm) / MM_PER_M
+            for field_m, field_mm in KINEMATICS_MM.items()}
+
+
+def mm(metres: float) -> float:
+    """A length, speed or acceleration in metres as a profile writes it (mm, rounded to
+    `MM_DIGITS`)."""
+    return round(metres * MM_PER_M, MM_DIGITS)
+
+
 LOADED_DRIVE_FACTOR = 1.5
 """Assumed, as the defaults above: driving loaded costs 50 % more energy per metre."""
 
@@ -122,16 +147,12 @@ def vehicle_from_profile(profile: AgvModelProfile) -> dict[str, Any]:
     * everything else (min_gap_m, boot and station sub-state times, spin): the scenario's
       defaults, since a profile does not carry them.
     """
-    kin = profile.kinematics
+    kinematics = kinematics_m(profile.kinematics)
     bat = profile.battery
-    drive_wh_per_m = bat.moving_w / (kin.max_speed_mps * 3600.0)
+    drive_wh_per_m = bat.moving_w / (kinematics["max_speed_mps"] * 3600.0)
     return {
         "name": profile.name,
-        "max_speed_mps": kin.max_speed_mps,
-        "accel_mps2": kin.accel_mps2,
-        "decel_mps2": kin.decel_mps2,
-        "turn_speed_mps": kin.turn_speed_mps,
-        "length_m": kin.length_m,
+        **kinematics,
         "battery": {
             "capacity_wh": bat.capacity_wh,
             "drive_wh_per_m": round(drive_wh_per_m, 9),

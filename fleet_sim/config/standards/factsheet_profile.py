@@ -29,14 +29,13 @@ from pydantic import BaseModel
 
 from agv_model.profile import ASSUMED, FACTSHEET, PROFILE_DIR, ProfileFile, profile_names
 from fleet_sim.config.standards.factsheet import Factsheet, FactsheetModel, read_factsheet
+from fleet_sim.config.vehicle import mm
 from fleet_sim.errors import InputError
 from userfiles.checking import validate
 from userfiles.reading import read_yaml
 from userfiles.writing import comment_lines, tidy_numbers
 
 DEFAULT_BASE: Final = "rss-agv-001"
-MM_DIGITS: Final = 6
-"""Figures in mm are rounded to the nanometre: 1.1 m/s is 1100 mm/s, not 1100.0000000000002."""
 
 _NOT_USED: Final[dict[str, str]] = {
     "typeSpecification.seriesDescription": "free text (the title names the series)",
@@ -101,7 +100,7 @@ def factsheet_to_profile(sheet: Factsheet, file_name: str, base: str = DEFAULT_B
     base_file, base_name = _base_file(base)
     written = validate(ProfileFile, read_yaml(base_file), str(base_file))
     physical = sheet.physicalParameters
-    speed_mmps = _mm(physical.speedMax)
+    speed_mmps = mm(physical.speedMax)
     turn_mmps = min(written.kinematics.turn_speed_mmps, speed_mmps)
     turn_source = _from_base(base_name, written.kinematics.source["turn_speed_mmps"])
     if turn_mmps < written.kinematics.turn_speed_mmps:
@@ -110,10 +109,10 @@ def factsheet_to_profile(sheet: Factsheet, file_name: str, base: str = DEFAULT_B
                        "physicalParameters.speedMax")
     kinematics = {
         "max_speed_mmps": speed_mmps,
-        "accel_mmps2": _mm(physical.accelerationMax),
-        "decel_mmps2": _mm(physical.decelerationMax),
+        "accel_mmps2": mm(physical.accelerationMax),
+        "decel_mmps2": mm(physical.decelerationMax),
         "turn_speed_mmps": turn_mmps,
-        "length_mm": _mm(physical.length),
+        "length_mm": mm(physical.length),
         "source": {
             "max_speed_mmps": _cite("physicalParameters.speedMax", physical.speedMax, "m/s"),
             "accel_mmps2": _cite("physicalParameters.accelerationMax", physical.accelerationMax,
@@ -161,10 +160,6 @@ def _base_file(base: str) -> tuple[Path, str]:
         return path, path.stem
     raise InputError("--base", "base", base, "the name of a bundled profile ("
                      f"{', '.join(profile_names())}) or a profile file (.yaml)")
-
-
-def _mm(metres: float) -> float:
-    return round(metres * 1000, MM_DIGITS)
 
 
 def _cite(path: str, value: float, unit: str) -> str:
