@@ -17,7 +17,8 @@ from fleet_sim.analysis.kpis import gridlocked, target_value
 from fleet_sim.analysis.run_summary import summary_text
 from fleet_sim.config.layout import load_layout
 from fleet_sim.model.records import MoveRecord
-from fleet_sim.report.report import gridlock_statement, open_orders_line
+from fleet_sim.report.sections.runs import open_orders_line
+from fleet_sim.report.stalls import gridlock_statement
 from fleet_sim.sim.engine import build_model, simulate
 
 from .conftest import ROOT, make_scenario, write_yaml

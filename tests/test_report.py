@@ -25,19 +25,15 @@ from fleet_sim.analysis.kpis import CATALOGUE
 from fleet_sim.analysis.paired import number_text
 from fleet_sim.analysis.stats import t_quantile
 from fleet_sim.config.experiment import Target, load_experiment
+from fleet_sim.report.answer import recommendations
+from fleet_sim.report.content import Figure, Report, Table
 from fleet_sim.report.render import environment, render_html, write_report
-from fleet_sim.report.report import (
-    Figure,
-    Report,
-    ReportData,
-    RunsSection,
-    ScenarioSection,
-    Table,
-    fmt,
-    question,
-    recommendations,
-    section_idle_waiting,
-)
+from fleet_sim.report.results_folder import ReportData
+from fleet_sim.report.sections.idle_waiting import section_idle_waiting
+from fleet_sim.report.sections.runs import RunsSection
+from fleet_sim.report.sections.scenario import ScenarioSection
+from fleet_sim.report.study_report import question
+from fleet_sim.report.wording import fmt
 from fleet_sim.study.sizing import size_fleet
 from fleet_sim.study.sweep import sweep
 

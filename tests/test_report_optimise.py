@@ -16,9 +16,9 @@ import yaml
 
 from fleet_sim.cli import main
 from fleet_sim.config.experiment import load_experiment
-from fleet_sim.report.compare_report import CompareSection
 from fleet_sim.report.optimise_report import build_optimise_report
 from fleet_sim.report.render import write_report
+from fleet_sim.report.sections.compare_section import CompareSection
 from fleet_sim.study.optimise import optimise
 from fleet_sim.study.optimise_words import answer_statements, guarantee_sentence
 from tests.conftest import ROOT, in_browser, write_yaml

@@ -21,8 +21,11 @@ from fleet_sim.config.layout import load_layout
 from fleet_sim.model.records import Recorder
 from fleet_sim.model.stalls import Held, Stall, StallMeter
 from fleet_sim.report.console import kpi_table, stall_lines
+from fleet_sim.report.content import Report
 from fleet_sim.report.render import render_html
-from fleet_sim.report.report import Report, ReportData, section_charging, stall_statements
+from fleet_sim.report.results_folder import ReportData
+from fleet_sim.report.sections.charging import section_charging
+from fleet_sim.report.stalls import stall_statements
 from fleet_sim.sim.engine import simulate
 from fleet_sim.sim.gridlock import chain_heads, held_up_off_traffic
 from fleet_sim.sim.traffic.locks import Lock

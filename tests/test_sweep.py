@@ -369,7 +369,8 @@ def test_a_stale_lock_is_taken_over(tmp_path: Path) -> None:
 
 
 def test_a_summary_behind_its_run_folders_is_rebuilt_for_the_report(tmp_path: Path) -> None:
-    from fleet_sim.report.report import load, section_runs
+    from fleet_sim.report.results_folder import load
+    from fleet_sim.report.sections.runs import section_runs
     from fleet_sim.study.results import read_summary
 
     out = tmp_path / "out"

@@ -1,5 +1,5 @@
 """The comparison report: a `fleet-sim compare` results folder -> a `Report` (plain data, as
-fleet_sim.report.report's) that fleet_sim.report.render writes as HTML and PDF.
+fleet_sim.report.study_report's) that fleet_sim.report.render writes as HTML and PDF.
 
 The first screen answers in a planner's words, one sentence per variant (and design point):
 "Opportunity charging cuts p95 lead time by 180 s (41 to 320 s)", "Making aisle 3 one-way
@@ -8,30 +8,15 @@ best variant when the file named an objective. Below: the forest plot of paired 
 and their table, the KPIs side by side, each variant's layout with its changes in red, where
 congestion moved (node waits, variant minus baseline), the statistics used, the runs.
 
-Decisions, where the issue is silent:
-
-* A sentence's subject is the variant's `description` from the experiment file (a planner
-  writes "Making aisle 3 one-way"), else "Variant <name>". A KPI whose interval excludes zero
-  is said with a verb by the sign of the difference ("cuts p95 lead time by 180 s (41 to
-  320 s)", "raises ..."); the rest are "nothing we can detect" with their intervals; a
-  comparison still undecided at the replication limit says so, before what it does not change.
-* Numbers are compare.json's (the intervals at the Bonferroni-adjusted level); the KPIs side
-  by side show each variant's own 95 % interval (stats.parquet), which is not the comparison:
-  the caption says so.
-* Where congestion moved: per node, the mean over the replications of the seconds per hour
-  AGVs waited there (node_waits.parquet, fleet_sim.analysis.congestion), variant minus
-  baseline, at the first design point, drawn on the variant's layout.
-* The layouts are drawn from the experiment file named in experiment.resolved.yaml (loaded
-  again); if it is gone or no longer valid, the section says so and the rest stands.
+The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -43,26 +28,15 @@ from fleet_sim.analysis.stats import point_stats
 from fleet_sim.config.experiment import BASE_VARIANT, Experiment, load_experiment, point_text
 from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.report import compare_figures as cfigs
-from fleet_sim.report import figures as figs
+from fleet_sim.report.content import Report, Section, Table, png_figure
 from fleet_sim.report.layout_plot import variant_figure
-from fleet_sim.report.report import Figure, Report, Section, Table
+from fleet_sim.report.sections.compare_section import CompareSection
 from fleet_sim.study.compare import COMPARE_FILE, read_compare
 from fleet_sim.study.results import read_summary
 
 
 def is_compare_folder(out_dir: Path) -> bool:
     return (out_dir / COMPARE_FILE).exists()
-
-
-@dataclass(kw_only=True)
-class CompareSection(Section):
-    """A section of the comparison report: paragraphs, tables, figures (one template)."""
-
-    title: ClassVar[str] = ""
-    template: ClassVar[str] = "compare_section.html.j2"
-    heading: str
-    paragraphs: list[str] = field(default_factory=list)
-    tables: list[Table] = field(default_factory=list)
 
 
 # ---- words ------------------------------------------------------------------------------------
@@ -187,10 +161,6 @@ def _experiment(resolved: Mapping[str, Any]) -> tuple[Experiment | None, str]:
         return None, f"The experiment file {file} could not be read again: {exc}"
 
 
-def _figure(key: str, caption: str, fig: Any) -> Figure:
-    return Figure(key, caption, figs.png_bytes(fig), fig)
-
-
 def _section_differences(data: Mapping[str, Any], rows: Sequence[Mapping[str, Any]],
                          kpis: Sequence[str]) -> CompareSection:
     level = float(data["correction"]["level_each_interval"])
@@ -207,8 +177,8 @@ def _section_differences(data: Mapping[str, Any], rows: Sequence[Mapping[str, An
         f"orders in every variant), with intervals at {level:.3%} each: "
         f"{data['correction']['confidence']:.0%} for all {data['correction']['comparisons']} "
         f"comparisons over up to {data['correction']['looks']} looks together (Bonferroni).")
-    sec.figures.append(_figure("forest", "Paired differences per KPI (dot: mean; bar: "
-                               "interval)", cfigs.forest(rows, kpis, level)))
+    sec.figures.append(png_figure("forest", "Paired differences per KPI (dot: mean; bar: "
+                                  "interval)", cfigs.forest(rows, kpis, level)))
     sec.text += [f"{r['variant']} {point_text(r['point'])} {r['kpi']}: {r['words']}"
                  for r in rows]
     return sec
@@ -247,8 +217,8 @@ def _section_side_by_side(summary: pd.DataFrame, factors: Sequence[str], kpis: S
                           + (f" at {where}" if where else "") + ". The comparison is the "
                           "paired difference above, which is much narrower: the variants "
                           "share their replications' orders.")
-    sec.figures.append(_figure("side_by_side", "KPIs of every variant (mean and 95 % "
-                               "interval)", cfigs.kpis_side_by_side(means, kpis, variants)))
+    sec.figures.append(png_figure("side_by_side", "KPIs of every variant (mean and 95 % "
+                                  "interval)", cfigs.kpis_side_by_side(means, kpis, variants)))
     return sec
 
 
@@ -272,9 +242,9 @@ def _section_layouts(experiment: Experiment | None, variants: Sequence[str],
             settings_only.append(f"{variant} ({changes})" if changes else variant)
             continue
         title = f"{variant}: its layout changes in red (new or changed hops, nodes ringed)"
-        sec.figures.append(_figure(f"layout_{variant}", title,
-                                   variant_figure(drawn.layout, drawn.baseline, drawn.diff,
-                                                  title)))
+        sec.figures.append(png_figure(f"layout_{variant}", title,
+                                      variant_figure(drawn.layout, drawn.baseline, drawn.diff,
+                                                     title)))
     if settings_only:
         sec.paragraphs.append("The baseline's layout, with other settings: "
                               + "; ".join(settings_only) + ".")
@@ -323,8 +293,8 @@ def _section_congestion(out_dir: Path, summary: pd.DataFrame, experiment: Experi
         where = f" at {point_text(point)}" if point else ""
         title = (f"{variant} - {variants[0]}{where}: change of AGV waiting per node "
                  "(s per hour; red more, blue less)")
-        sec.figures.append(_figure(f"waits_{variant}", title, cfigs.wait_difference(
-            drawn.layout, drawn.baseline, {str(k): float(v) for k, v in change.items()}, title)))
+        sec.figures.append(png_figure(f"waits_{variant}", title, cfigs.wait_difference(
+               drawn.layout, drawn.baseline, {str(k): float(v) for k, v in change.items()}, title)))
         top = change[change.abs() > 0].abs().sort_values(ascending=False).head(3).index
         if len(top):
             rows.append([variant, f"{float(mine.sum() - base.sum()):+.0f}",

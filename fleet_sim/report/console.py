@@ -4,20 +4,10 @@ The command line (fleet_sim.cli) only parses arguments, calls the layer that doe
 prints what this module makes of the result; the wording of every summary lives here, beside
 the other ways results are shown (reports, workbooks, the replay page).
 
-Decisions:
+Each function returns its text rather than printing it, so tests and other front ends use
+the same words.
 
-* Each function returns the text (lines joined by newlines, no final newline) rather than
-  printing it, so tests and other front ends can use the same words.
-* Column alignment (`nodes        186`) is part of the wording: the README and the docs quote
-  these lines.
-* A sweep ends with a table per design point (`kpi_table`): the targets' KPIs (without
-  targets, throughput and p95 lead time) as mean ± the half-width of the 95 % interval over the
-  finished runs, named from the KPI catalogue, and a note where runs locked solid, were
-  starved of charging, stood out of service, left orders open or failed. It is printed last so
-  that the answer is what stays on the screen.
-* Each stall has its own words and advice (issue 33, item 7): a gridlock (traffic: limit the
-  AGVs on the floor), charging starvation (spread the charging) and a fleet out of service
-  (repairs); the sentences are the report's (fleet_sim.report.report).
+The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations
@@ -223,7 +213,7 @@ def optimise_lines(outcome: OptimiseOutcome, wall_s: float) -> str:
 def stall_lines(summary: Any) -> list[str]:
     """The lines of a sweep or sizing search whose runs locked solid (gridlock), were starved
     of charging or stood out of service, each with its advice (none if no run did)."""
-    from fleet_sim.report.report import stall_statements
+    from fleet_sim.report.stalls import stall_statements
 
     return [f"  {statement}" for statement in stall_statements(summary)] if len(summary) \
         else []

@@ -6,24 +6,7 @@ A run directory gives `kpis` (one row per KPI: value, unit, meaning), `orders`, 
 (one row per run: factors, seed, every KPI), `stats` (mean and 95 % interval per design point
 and KPI), and `orders`, `events` and `soc` of every run with its `run_id` and its factor levels.
 
-Decisions, where the issue is silent:
-
-* CSV through DuckDB (`COPY ... TO`), one file per table in DIR/export/ (or --out), comma
-  separated with a header, rows in the order of the run's own tables (runs in run-id order);
-  the same run gives the same bytes. XLSX through pandas and openpyxl (the ``export`` extra:
-  ``pip install 'fleet-sim[export]'``; CSV needs nothing more), one workbook
-  (DIR/export.xlsx, or --out) with one sheet per table. A sheet holds at most 1,048,576 rows:
-  a longer table (a big sweep's events) goes on in sheets "events (2)", "events (3)"...; nothing
-  is cut. openpyxl stamps the workbook with the time it was saved, so two exports of one run
-  differ in that stamp only.
-* Missing values (a lead time not yet known, an order never delivered) are empty cells.
-* In the workbook a KPI's value is a number (a cell Excel can sum and chart), text only where
-  the KPI is text (the setup warnings); the CSV file keeps the value as kpis.json writes it.
-  Every sheet's header row is frozen and has an autofilter.
-* The run tables of a sweep carry, after `run_id`, one column per factor holding the run's
-  level (from summary.parquet). The run folders are named `factor=level__r00`, which DuckDB
-  would read as a Hive partition (a column `factor` holding `level__r00`): it is read with
-  `hive_partitioning = false`.
+The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations

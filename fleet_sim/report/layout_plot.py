@@ -1,13 +1,6 @@
 """Draw a layout to PNG (matplotlib, Agg backend): never called inside a simulation.
 
-Decisions, where the issue is silent:
-
-* `labels=True` (`fleet-sim layout FILE --labels`) writes every node's id beside it, so a
-  planner can find an aisle's nodes for `layout_changes`. The font is sized to the spacing of
-  the nodes (the median distance to the nearest other node, as drawn): a label takes at most
-  about 60 % of that gap, between 4 and 9 pt. Where even 4 pt would not fit, the figure grows
-  (up to LABELLED_WIDEST_IN wide) instead; a white halo keeps each id readable over the track.
-* Without labels the figure keeps its size rule: 1 inch per 6 m, 6 to 24 inches wide.
+The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations

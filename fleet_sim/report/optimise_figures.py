@@ -3,15 +3,7 @@ design that was run as a point with its 95 % interval, marked by its verdict, th
 its tolerance drawn, the answer ringed. Axes carry each KPI's name and unit from the KPI
 catalogue (fleet_sim.analysis.kpis), never a raw key.
 
-Decisions, where the issue is silent:
-
-* Price is on the y axis and the KPI on the x axis (one panel per target, sharing the price
-  axis), so the interval of a KPI is a horizontal bar and designs of one price sit side by
-  side on a line; the cheapest design meeting every target is the lowest green point that
-  stands on the right side of every bound.
-* The band of ± the target's tolerance round the bound is shaded: there either verdict may
-  be right (what the guarantee allows), so a point inside it is no surprise whichever way it
-  was judged.
+The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
 """The optimise report: a `fleet-sim optimise` results folder (optimise.json) -> a `Report`
-(plain data, as fleet_sim.report.report's) that fleet_sim.report.render writes as HTML and PDF.
+(plain data, as fleet_sim.report.study_report's) that fleet_sim.report.render writes as HTML
+and PDF.
 
 The first screen answers in a planner's words: "The cheapest system that meets both targets
 (throughput at least 95 % of demand; p95 lead time at most 600 s): 16 AGVs, opportunity
@@ -10,29 +11,7 @@ and the design that comes closest. Below: price against each target's KPI (every
 marked by its verdict), the table of every design, the chosen design's layout with its changes
 in red, what each target costs, and how the answer was found.
 
-Decisions, where the issue is silent:
-
-* The sentences are built here from optimise.json's answer and designs (the KPIs by their
-  names and units from the catalogue, fleet_sim.analysis.kpis), not its ``statement``, which
-  names KPIs by their keys; the numbers are the same. The guarantee is optimise.json's, with
-  the KPIs in words; when no design meets, what it says of the space instead ("no design meets
-  every target by more than its tolerance"); none when the search stopped early.
-* The design named beside the answer: one AGV fewer with the same other choices where the space
-  has it, else the dearest design cheaper than the answer, whatever its verdict (optimise.json's
-  statement names only a design that was run; here a ruled-out or refused one is named with
-  why, so the planner sees why the cheaper design is not the answer); then how the other
-  cheaper designs were decided, counted by verdict. "No cheaper design does" becomes "No
-  cheaper design is shown to meet them" when a cheaper one is undecided.
-* Designs are shown in words (fleet_sim.study.optimise.design_words) when the experiment file
-  can be read again and its design space still matches optimise.json (the same labels in the
-  same order), else by their labels; the layout is drawn only then. If the file is gone, no
-  longer valid, or changed, the layout section says so and the rest stands.
-* The layout drawn is the answer's; when no design meets, the closest design's (the section
-  says which). Its base is the same design without layout changes (the same scenario
-  settings), so the drawing shows only what the layout options change. A design without
-  layout changes is drawn as its layout is.
-* The designs table lists designs by price (the order of examination), every design, the
-  answer's verdict marked "meets (the answer)".
+The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations
@@ -54,9 +33,9 @@ from fleet_sim.config.layout_changes import layout_diff
 from fleet_sim.errors import FleetSimError, InputError
 from fleet_sim.report import figures as figs
 from fleet_sim.report import optimise_figures as ofigs
-from fleet_sim.report.compare_report import CompareSection
+from fleet_sim.report.content import Figure, Report, Section, Table, png_figure
 from fleet_sim.report.layout_plot import variant_figure
-from fleet_sim.report.report import Figure, Report, Section, Table
+from fleet_sim.report.sections.compare_section import CompareSection
 from fleet_sim.study.optimise import OPTIMISE_FILE, design_words
 from fleet_sim.study.optimise_words import (
     and_words,
@@ -151,10 +130,6 @@ def _experiment(out_dir: Path, document: Mapping[str, Any]
     return experiment, space, ""
 
 
-def _figure(key: str, caption: str, fig: Any) -> Figure:
-    return Figure(key, caption, figs.png_bytes(fig), fig)
-
-
 def _section_chart(document: Mapping[str, Any]) -> CompareSection:
     sec = CompareSection(heading="Price against each target")
     designs: list[dict[str, Any]] = document["designs"]
@@ -181,10 +156,10 @@ def _section_chart(document: Mapping[str, Any]) -> CompareSection:
         "is the target; in the grey band round it (± the tolerance) either verdict may be "
         "right. The answer (else the design that comes closest) is ringed in blue. Designs "
         "never run (not needed, ruled out, refused) are in the table below.")
-    sec.figures.append(_figure("price_against_targets",
-                               "Price against each target's KPI, every design run",
-                               ofigs.price_against_targets(points, targets,
-                                                           str(document["currency"]))))
+    sec.figures.append(png_figure("price_against_targets",
+                                  "Price against each target's KPI, every design run",
+                                  ofigs.price_against_targets(points, targets,
+                                                              str(document["currency"]))))
     return sec
 
 
@@ -284,9 +259,9 @@ def _section_layout(document: Mapping[str, Any], experiment: Experiment | None,
         f"with its layout changes in red; options chosen: {'; '.join(chosen)}. "
         f"Against the layout as it is: {'; '.join(what)}.")
     title = "Layout changes in red (new or changed hops, nodes ringed)"
-    sec.figures.append(_figure("layout_answer", f"{words[answer]}: its layout changes in red "
-                               "(new or changed hops, nodes ringed)",
-                               variant_figure(changed, base, diff, title)))
+    sec.figures.append(png_figure("layout_answer", f"{words[answer]}: its layout changes in red "
+                                  "(new or changed hops, nodes ringed)",
+                                  variant_figure(changed, base, diff, title)))
     sec.text += sec.paragraphs
     return sec
 

@@ -1,20 +1,11 @@
-"""`fleet-sim report RESULTS_DIR`: the `Report` of fleet_sim.report.report as a self-contained
-HTML page (Jinja2 templates in ``templates/``) and a PDF, for a planner to hand on.
+"""`fleet-sim report RESULTS_DIR`: the `Report` of a study, a comparison or an optimise search
+(fleet_sim.report.study_report, compare_report, optimise_report) as a self-contained HTML page
+(Jinja2 templates in ``templates/``) and a PDF, for a planner to hand on.
 
-Decisions:
+Every value a template prints is HTML-escaped (autoescape) and nothing is marked safe but
+our own scripts, so names from user files stay text.
 
-* Escaping by construction: the templates are rendered with ``autoescape=True`` (for every
-  template: ``select_autoescape`` matches on the name's last suffix, and ours end in ``.j2``), so
-  every value a template prints is HTML-escaped, names from user files included. Nothing is
-  marked safe: the one value that is not plain text, a figure's data: URI, is base64, which has
-  no character to escape. The report has no scripts. The replay page's scripts are our own
-  plain files in ``static/`` (`static_script`): each is marked safe whole, after checking it
-  cannot end its script element early (no ``</script``, no ``<!--``), as a Jinja ``{% raw %}``
-  include did before; data never goes through it.
-* ``StrictUndefined``: a template that prints a value the code did not give fails loudly
-  instead of leaving a blank in the page.
-* The PDF is written with matplotlib (a text page with the recommendation and each section's
-  plain text, then every figure); it needs no HTML engine.
+The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations
@@ -27,7 +18,8 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 from markupsafe import Markup
 
 from fleet_sim.report import figures as figs
-from fleet_sim.report.report import Report, build_report
+from fleet_sim.report.content import Report
+from fleet_sim.report.study_report import build_report
 from userfiles.writing import atomic_path, write_text_atomic
 
 

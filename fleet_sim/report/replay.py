@@ -2,41 +2,17 @@
 and animates every AGV at its recorded times, with its per-AGV timeline (Gantt) and the order
 lead-time breakdown.
 
-Decisions, where the issue is silent:
+The page is one file that fetches nothing: our own scripts inlined, the run as one JSON
+block (columnar, interned, deterministic: the same run and window give the same bytes).
 
-* Plain canvas and our own JavaScript (static/replay.js, its kinematics twin in
-  static/replay_kinematics.js: plain files, inlined into the page by `render.static_script`, so
-  the page stays one file): no library, nothing fetched. The data is one JSON block in
-  the page (Jinja2's `tojson`, which escapes `<`, `>`, `&` and `'`, so no name from a user file
-  can end the script); names reach the page only as canvas text and `textContent`, never as
-  markup. A Content-Security-Policy meta tag (`default-src 'none'`, inline script and style,
-  data: images) makes the browser refuse any request the page might try.
-* The JSON is columnar (one list per field) and interned: times rounded to the millisecond
-  (an AGV at 1 m/s moves 1 mm in that time), each distinct hop profile (segment, entry and exit
-  speed, curve, limit) written once and drive rows pointing at it, every text once in
-  `strings`. Deterministic: keys sorted, no timestamp, no random id; same run and window, same
-  bytes. Its every object and field is described once, in fleet_sim.report.replay_payload
-  (TypedDicts that mypy holds `page_data` to, and that replay.js's JSDoc typedefs come from).
-* The window (`--from/--to`, hours of simulated time since the start) cuts every table to what
-  is needed from `from` to `to`: the rows that overlap it, plus for each AGV the last
-  placement before it (where it stands when the window opens) and its state, order and SOC then.
-* Parked AGVs are drawn side by side in a small grid beside their parking area's node; the
-  page's `positionsAt(t)` gives the recorded position (the node), `drawn` what was drawn.
-* Colours: the states' are the report's (fleet_sim.report.figures.STATE_COLOURS), the places'
-  and traffic zones' the layout drawing's (fleet_sim.report.layout_plot).
-* Traffic zones are drawn under the track as the layout drawing draws them: mutex and ban
-  zones as dashed outlines round their nodes, same-direction zones as a band along the aisle
-  with an arrow the forward way; each labelled with its id and rule, and, for mutex and
-  same-direction zones, live while anyone holds or waits for it: how many AGVs hold it (and,
-  for a same-direction zone, the way they drive it, its arrow turned that way) and how many
-  wait for it, from the run's zone rows (fleet_sim.analysis.replay.zone_holders_at is the
-  Python twin). The side panel lists each zone's holders and waiters by AGV.
+The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -55,13 +31,25 @@ from fleet_sim.analysis.replay import (
     orders_held,
     state_spells,
 )
+from fleet_sim.config.layout import Layout, Place
 from fleet_sim.config.scenario import load_scenario
 from fleet_sim.errors import InputError
 from fleet_sim.model.states import VehicleState
 from fleet_sim.report.figures import LEAD_COLOURS, STATE_COLOURS
 from fleet_sim.report.layout_plot import KIND_STYLE, PLACE_COLOUR, ZONE_COLOUR, zone_rule
 from fleet_sim.report.render import environment, static_script
-from fleet_sim.report.replay_payload import Agv, Leads, ReplayPayload
+from fleet_sim.report.replay_payload import (
+    Agv,
+    AgvPlacements,
+    AgvSoc,
+    AgvSpells,
+    AgvWaits,
+    Leads,
+    Nodes,
+    Profiles,
+    ReplayPayload,
+    Zones,
+)
 from userfiles.writing import write_text_atomic
 
 REPLAY_FILE = "replay.html"
@@ -72,6 +60,9 @@ STATE_INDEX = {s.value: i for i, s in enumerate(VehicleState)}
 ProgressCallback = Callable[[float, float], None]
 _DIRECTION = {"forward": 1, "backward": -1}
 """How the page's zone rows name the way a same-direction zone is driven (0: a mutex zone)."""
+_ProfileKey = tuple[int, float, float, float, float, float, float, float]
+"""A hop profile: segment index, entry and exit speed, curve length and speed, limit, accel,
+decel."""
 
 
 def _ms(values: Any) -> list[float]:
@@ -119,94 +110,58 @@ def check_window(run_dir: Path, from_h: float | None, to_h: float | None) -> tup
     return lo * 3600.0, hi * 3600.0
 
 
+@dataclass(frozen=True)
+class _Index:
+    """Where each node, segment, place and traffic zone of the layout sits in the page's
+    columns (other objects point at them by these indices)."""
+
+    node_ids: list[str]
+    node: dict[str, int]
+    edges: list[tuple[str, str]]
+    edge: dict[tuple[str, str], int]
+    place_of: dict[str, Place]
+    """The place each node of a place belongs to."""
+    places: list[Place]
+    place: dict[str, int]
+    zone: dict[str, int]
+
+
+def _index(layout: Layout) -> _Index:
+    node_ids = sorted(layout.graph.nodes)
+    edges = sorted(layout.graph.edges)
+    places = sorted(layout.places.values(), key=lambda p: p.id)
+    return _Index(
+        node_ids=node_ids, node={n: i for i, n in enumerate(node_ids)},
+        edges=edges, edge={e: i for i, e in enumerate(edges)},
+        place_of={node: place for place in layout.places.values() for node in place.nodes},
+        places=places, place={p.id: i for i, p in enumerate(places)},
+        zone={z.id: i for i, z in enumerate(layout.traffic_zones)})
+
+
+def _during(rows: pd.DataFrame, kind: str, from_s: float, to_s: float) -> pd.DataFrame:
+    """The moves of one kind that overlap the window."""
+    return rows[(rows["kind"] == kind) & (rows["end_s"] >= from_s) & (rows["start_s"] <= to_s)]
+
+
 def page_data(run: RunRecord, from_s: float, to_s: float) -> ReplayPayload:
     """Everything the page draws, as JSON-ready columns (see the module docstring; every field
     is described in fleet_sim.report.replay_payload)."""
     layout = run.layout
     scenario = run.scenario
     text = _Strings()
-    node_ids = sorted(layout.graph.nodes)
-    node_index = {n: i for i, n in enumerate(node_ids)}
-    place_of = {node: place for place in layout.places.values() for node in place.nodes}
-    edges = sorted(layout.graph.edges)
-    edge_index = {e: i for i, e in enumerate(edges)}
-    corridors = {f"corridor {c.id}": sorted(edge_index[s] for s in c.segments)
-                 for c in layout.corridors}
-
+    index = _index(layout)
     moves = run.moves
-    profiles: dict[tuple[int, float, float, float, float, float, float, float], int] = {}
-    agvs: list[Agv] = []
-    spells = state_spells(run.events, from_s, to_s)
-    held = orders_held(run.events)
-    fleet = scenario.fleet.size
-    profiles_by_agv = scenario.fleet.agv_profiles
-    by_agv = {int(str(a)): g for a, g in moves.groupby("agv", sort=True)} if len(moves) else {}
-    soc_by_agv = {int(str(a)): g for a, g in run.soc.groupby("agv", sort=True)}
-    spells_by_agv = {int(str(a)): g for a, g in spells.groupby("agv", sort=True)}
-    for agv in range(fleet):
-        rows = by_agv.get(agv, moves.iloc[0:0])
-        positional = rows[rows["kind"].isin(POSITIONAL)]
-        starts = positional["start_s"].to_numpy(dtype=float)
-        anchor = max(int(np.searchsorted(starts, from_s, side="right")) - 2, 0)
-        positional = positional.iloc[anchor:]
-        positional = positional[positional["start_s"] <= to_s]
-        p_ref: list[int] = []
-        for kind, u, v, vin, vout, cm, cv, lim, acc, dec in zip(
-                *(positional[c].tolist() for c in ("kind", "u", "v", "v_in_mps", "v_out_mps",
-                                                   "curve_m", "curve_mps", "limit_mps",
-                                                   "accel_mps2", "decel_mps2")),
-                strict=True):
-            if kind == "drive":
-                key = (edge_index[(u, v)], float(vin), float(vout), float(cm), float(cv),
-                       float(lim), float(acc), float(dec))
-                p_ref.append(profiles.setdefault(key, len(profiles)))
-            else:
-                p_ref.append(node_index[u])
-        waits = rows[(rows["kind"] == "wait") & (rows["end_s"] >= from_s)
-                     & (rows["start_s"] <= to_s)]
-        mine = spells_by_agv.get(agv, spells.iloc[0:0])
-        times, ids = held.get(agv, (np.empty(0), np.empty(0, dtype=np.int64)))
-        first = max(int(np.searchsorted(times, from_s, side="right")) - 1, 0)
-        keep = slice(first, int(np.searchsorted(times, to_s, side="right")))
-        soc = soc_by_agv.get(agv, run.soc.iloc[0:0])
-        soc_t = soc["time_s"].to_numpy(dtype=float)
-        soc_keep = slice(max(int(np.searchsorted(soc_t, from_s, side="right")) - 1, 0),
-                         int(np.searchsorted(soc_t, to_s, side="right")))
-        agvs.append({
-            "id": agv, "length_m": profiles_by_agv[agv].length_m,
-            "p": {"t": _ms(positional["start_s"]), "e": _ms(positional["end_s"]),
-                  "k": [KIND_CODES[k] for k in positional["kind"].tolist()],
-                  "a": p_ref, "d": _ms(positional["driven_s"])},
-            "s": {"t": _ms(mine["start_s"]), "e": _ms(mine["end_s"]),
-                  "st": [STATE_INDEX[s] for s in mine["state"].tolist()],
-                  "ev": text.many(mine["event"].tolist()),
-                  "det": text.many(mine["detail"].tolist()),
-                  "o": [int(o) for o in mine["order_id"].tolist()],
-                  "l": [int(bool(x)) for x in mine["loaded"].tolist()]},
-            "o": {"t": _ms(times[keep]), "id": [int(o) for o in ids[keep]]},
-            "b": {"t": _ms(soc_t[soc_keep]),
-                  "v": [round(float(v), 1) for v in soc["soc_pct"].to_numpy()[soc_keep]]},
-            "w": {"t": _ms(waits["start_s"]), "e": _ms(waits["end_s"]),
-                  "n": [node_index[u] for u in waits["u"].tolist()],
-                  "lock": text.many(waits["v"].tolist()),
-                  "h": [int(h) for h in waits["other"].tolist()]},
-        })
-    charger_waits = moves[(moves["kind"] == "charger_wait") & (moves["end_s"] >= from_s)
-                          & (moves["start_s"] <= to_s)] if len(moves) else moves
-    places = sorted(layout.places.values(), key=lambda p: p.id)
-    place_index = {p.id: i for i, p in enumerate(places)}
+    profiles: dict[_ProfileKey, int] = {}
+    agvs = _agvs(run, from_s, to_s, index, profiles, text)
+    charger_waits = _during(moves, "charger_wait", from_s, to_s) if len(moves) else moves
     found = incidents(run.events)
     found = found[(found["time_s"] >= from_s) & (found["time_s"] <= to_s)]
     leads = lead_times(run.orders, moves if len(moves) else None, from_s, to_s)
-    profile_keys = list(profiles)
-    zones = layout.traffic_zones
-    zone_index = {z.id: i for i, z in enumerate(zones)}
-    holds = moves[(moves["kind"] == "zone") & (moves["end_s"] >= from_s)
-                  & (moves["start_s"] <= to_s)] if len(moves) else moves
-    holds = holds[holds["u"].isin(list(zone_index))] if len(holds) else holds
+    holds = _during(moves, "zone", from_s, to_s) if len(moves) else moves
+    holds = holds[holds["u"].isin(list(index.zone))] if len(holds) else holds
     return {
         "meta": {
-            "scenario": scenario.name, "layout": layout.name, "agvs": fleet,
+            "scenario": scenario.name, "layout": layout.name, "agvs": scenario.fleet.size,
             "seed": scenario.seed, "duration_s": scenario.duration_s,
             "warmup_s": scenario.warmup_s, "start_h": scenario.start_h,
             "from_s": from_s, "to_s": to_s,
@@ -214,44 +169,29 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> ReplayPayload:
         },
         "states": [s.value for s in VehicleState],
         "stateColours": [STATE_COLOURS.get(s.key, "#80868b") for s in VehicleState],
-        "nodes": {
-            "id": node_ids,
-            "x": [float(layout.graph.nodes[n]["x"]) for n in node_ids],
-            "y": [float(layout.graph.nodes[n]["y"]) for n in node_ids],
-            "kind": [str(layout.graph.nodes[n]["kind"]) for n in node_ids],
-            "colour": [PLACE_COLOUR[place_of[n].kind] if n in place_of
-                       else KIND_STYLE.get(str(layout.graph.nodes[n]["kind"]),
-                                           ("#9aa0a6", 0))[0] for n in node_ids],
-            "place": [place_index[place_of[n].id] if n in place_of else -1 for n in node_ids],
-        },
-        "segs": {"u": [node_index[u] for u, _ in edges], "v": [node_index[v] for _, v in edges],
-                 "len": [float(layout.graph.edges[e]["length_m"]) for e in edges],
-                 "twoWay": [int(layout.graph.has_edge(v, u)) for u, v in edges]},
-        "corridors": corridors,
-        "places": {"id": [p.id for p in places], "kind": [p.kind for p in places],
-                   "node": [node_index[p.nodes[0]] for p in places],
-                   "capacity": [p.capacity for p in places]},
-        "profiles": {"seg": [k[0] for k in profile_keys], "vin": [k[1] for k in profile_keys],
-                     "vout": [k[2] for k in profile_keys], "cm": [k[3] for k in profile_keys],
-                     "cv": [k[4] for k in profile_keys], "lim": [k[5] for k in profile_keys],
-                     "acc": [k[6] for k in profile_keys], "dec": [k[7] for k in profile_keys]},
+        "nodes": _nodes(layout, index),
+        "segs": {"u": [index.node[u] for u, _ in index.edges],
+                 "v": [index.node[v] for _, v in index.edges],
+                 "len": [float(layout.graph.edges[e]["length_m"]) for e in index.edges],
+                 "twoWay": [int(layout.graph.has_edge(v, u)) for u, v in index.edges]},
+        "corridors": {f"corridor {c.id}": sorted(index.edge[s] for s in c.segments)
+                      for c in layout.corridors},
+        "places": {"id": [p.id for p in index.places], "kind": [p.kind for p in index.places],
+                   "node": [index.node[p.nodes[0]] for p in index.places],
+                   "capacity": [p.capacity for p in index.places]},
+        "profiles": _profiles(list(profiles)),
         "agv": agvs,
         "chargerWaits": {
             "agv": [int(a) for a in charger_waits["agv"]],
             "t": _ms(charger_waits["start_s"]), "e": _ms(charger_waits["end_s"]),
-            "n": [node_index[u] for u in charger_waits["u"].tolist()],
-            "ch": [place_index.get(str(v), -1) for v in charger_waits["v"].tolist()]},
-        "zones": {"id": [z.id for z in zones], "kind": [z.kind for z in zones],
-                  "rule": [zone_rule(z) for z in zones],
-                  "colour": [ZONE_COLOUR[z.kind] for z in zones],
-                  "nodes": [[node_index[n] for n in sorted(z.nodes | set(z.path))]
-                            for z in zones],
-                  "path": [[node_index[n] for n in z.path] for z in zones]},
+            "n": [index.node[u] for u in charger_waits["u"].tolist()],
+            "ch": [index.place.get(str(v), -1) for v in charger_waits["v"].tolist()]},
+        "zones": _zones(layout, index),
         "zoneHolds": {"agv": [int(a) for a in holds["agv"]],
                       "t": _ms(holds["start_s"]), "e": _ms(holds["end_s"]),
-                      "z": [zone_index[str(u)] for u in holds["u"].tolist()],
+                      "z": [index.zone[str(u)] for u in holds["u"].tolist()],
                       "dir": [_DIRECTION.get(str(v), 0) for v in holds["v"].tolist()]},
-        "blocks": [{"u": node_index[b.from_node], "v": node_index[b.to_node],
+        "blocks": [{"u": index.node[b.from_node], "v": index.node[b.to_node],
                     "t": b.at_s, "e": b.at_s + b.duration_s}
                    for b in scenario.incidents.blocks],
         "incidents": {"t": _ms(found["time_s"]), "agv": [int(a) for a in found["agv"]],
@@ -260,6 +200,123 @@ def page_data(run: RunRecord, from_s: float, to_s: float) -> ReplayPayload:
         "leads": _leads(leads),
         "strings": text.strings,
     }
+
+
+def _nodes(layout: Layout, index: _Index) -> Nodes:
+    """The layout's nodes: position, kind, and the colour of their place or kind."""
+    graph = layout.graph
+    return {
+        "id": index.node_ids,
+        "x": [float(graph.nodes[n]["x"]) for n in index.node_ids],
+        "y": [float(graph.nodes[n]["y"]) for n in index.node_ids],
+        "kind": [str(graph.nodes[n]["kind"]) for n in index.node_ids],
+        "colour": [PLACE_COLOUR[index.place_of[n].kind] if n in index.place_of
+                   else KIND_STYLE.get(str(graph.nodes[n]["kind"]), ("#9aa0a6", 0))[0]
+                   for n in index.node_ids],
+        "place": [index.place[index.place_of[n].id] if n in index.place_of else -1
+                  for n in index.node_ids],
+    }
+
+
+def _profiles(keys: list[_ProfileKey]) -> Profiles:
+    """The distinct hop profiles, in the order the drives first used them."""
+    return {"seg": [k[0] for k in keys], "vin": [k[1] for k in keys],
+            "vout": [k[2] for k in keys], "cm": [k[3] for k in keys],
+            "cv": [k[4] for k in keys], "lim": [k[5] for k in keys],
+            "acc": [k[6] for k in keys], "dec": [k[7] for k in keys]}
+
+
+def _zones(layout: Layout, index: _Index) -> Zones:
+    """The traffic zones as the layout drawing draws them: kind, rule, colour, nodes, path."""
+    zones = layout.traffic_zones
+    return {"id": [z.id for z in zones], "kind": [z.kind for z in zones],
+            "rule": [zone_rule(z) for z in zones],
+            "colour": [ZONE_COLOUR[z.kind] for z in zones],
+            "nodes": [[index.node[n] for n in sorted(z.nodes | set(z.path))] for z in zones],
+            "path": [[index.node[n] for n in z.path] for z in zones]}
+
+
+def _agvs(run: RunRecord, from_s: float, to_s: float, index: _Index,
+          profiles: dict[_ProfileKey, int], text: _Strings) -> list[Agv]:
+    """Every AGV's rows in the window, in AGV order (`profiles` and `text` collect the hop
+    profiles and texts they point at)."""
+    moves = run.moves
+    spells = state_spells(run.events, from_s, to_s)
+    held = orders_held(run.events)
+    by_agv = {int(str(a)): g for a, g in moves.groupby("agv", sort=True)} if len(moves) else {}
+    soc_by_agv = {int(str(a)): g for a, g in run.soc.groupby("agv", sort=True)}
+    spells_by_agv = {int(str(a)): g for a, g in spells.groupby("agv", sort=True)}
+    agvs: list[Agv] = []
+    for agv in range(run.scenario.fleet.size):
+        rows = by_agv.get(agv, moves.iloc[0:0])
+        times, ids = held.get(agv, (np.empty(0), np.empty(0, dtype=np.int64)))
+        first = max(int(np.searchsorted(times, from_s, side="right")) - 1, 0)
+        keep = slice(first, int(np.searchsorted(times, to_s, side="right")))
+        agvs.append({
+            "id": agv, "length_m": run.scenario.fleet.agv_profiles[agv].length_m,
+            "p": _placements(rows, from_s, to_s, index, profiles),
+            "s": _spells(spells_by_agv.get(agv, spells.iloc[0:0]), text),
+            "o": {"t": _ms(times[keep]), "id": [int(o) for o in ids[keep]]},
+            "b": _soc(soc_by_agv.get(agv, run.soc.iloc[0:0]), from_s, to_s),
+            "w": _waits(rows, from_s, to_s, index, text),
+        })
+    return agvs
+
+
+def _placements(rows: pd.DataFrame, from_s: float, to_s: float, index: _Index,
+                profiles: dict[_ProfileKey, int]) -> AgvPlacements:
+    """One AGV's positional rows in the window, from the last placement before it: a drive
+    points at its hop profile (added to `profiles` when new), any other row at its node."""
+    positional = rows[rows["kind"].isin(POSITIONAL)]
+    starts = positional["start_s"].to_numpy(dtype=float)
+    anchor = max(int(np.searchsorted(starts, from_s, side="right")) - 2, 0)
+    positional = positional.iloc[anchor:]
+    positional = positional[positional["start_s"] <= to_s]
+    p_ref: list[int] = []
+    for kind, u, v, vin, vout, cm, cv, lim, acc, dec in zip(
+            *(positional[c].tolist() for c in ("kind", "u", "v", "v_in_mps", "v_out_mps",
+                                               "curve_m", "curve_mps", "limit_mps",
+                                               "accel_mps2", "decel_mps2")),
+            strict=True):
+        if kind == "drive":
+            key = (index.edge[(u, v)], float(vin), float(vout), float(cm), float(cv),
+                   float(lim), float(acc), float(dec))
+            p_ref.append(profiles.setdefault(key, len(profiles)))
+        else:
+            p_ref.append(index.node[u])
+    return {"t": _ms(positional["start_s"]), "e": _ms(positional["end_s"]),
+            "k": [KIND_CODES[k] for k in positional["kind"].tolist()],
+            "a": p_ref, "d": _ms(positional["driven_s"])}
+
+
+def _spells(mine: pd.DataFrame, text: _Strings) -> AgvSpells:
+    """One AGV's state spells in the window: state, the event and detail that began each,
+    the order and whether it was loaded."""
+    return {"t": _ms(mine["start_s"]), "e": _ms(mine["end_s"]),
+            "st": [STATE_INDEX[s] for s in mine["state"].tolist()],
+            "ev": text.many(mine["event"].tolist()),
+            "det": text.many(mine["detail"].tolist()),
+            "o": [int(o) for o in mine["order_id"].tolist()],
+            "l": [int(bool(x)) for x in mine["loaded"].tolist()]}
+
+
+def _soc(soc: pd.DataFrame, from_s: float, to_s: float) -> AgvSoc:
+    """One AGV's state of charge in the window, from its last reading before it."""
+    soc_t = soc["time_s"].to_numpy(dtype=float)
+    soc_keep = slice(max(int(np.searchsorted(soc_t, from_s, side="right")) - 1, 0),
+                     int(np.searchsorted(soc_t, to_s, side="right")))
+    return {"t": _ms(soc_t[soc_keep]),
+            "v": [round(float(v), 1) for v in soc["soc_pct"].to_numpy()[soc_keep]]}
+
+
+def _waits(rows: pd.DataFrame, from_s: float, to_s: float, index: _Index,
+           text: _Strings) -> AgvWaits:
+    """One AGV's waits in the window: where, for which lock, behind which AGV."""
+    waits = _during(rows, "wait", from_s, to_s)
+    return {"t": _ms(waits["start_s"]), "e": _ms(waits["end_s"]),
+            "n": [index.node[u] for u in waits["u"].tolist()],
+            "lock": text.many(waits["v"].tolist()),
+            "h": [int(h) for h in waits["other"].tolist()]}
 
 
 def _leads(leads: pd.DataFrame) -> Leads:

@@ -7,14 +7,7 @@ docstring under each field as its description. tests/test_replay.py checks that 
 typedefs are today's and that every field the script reads of the payload is declared here.
 To rewrite the typedefs after changing a type: ``python -m fleet_sim.report.replay_payload``.
 
-Decisions, where the issue is silent:
-
-* TypedDicts, not dataclasses: the payload is plain JSON (`tojson` with sorted keys), and a
-  TypedDict is a dict at run time, so the bytes of the page do not change with the typing.
-* Columnar objects (one list per field, one entry per row) keep the short keys the page has
-  always used; texts that repeat are indices into `strings`.
-* The typedefs are checked against the file rather than inserted while rendering, so the file
-  a reader opens is the file the browser runs.
+The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations
