@@ -5,15 +5,7 @@ drop at B, pick at C, drop at D is one task chain served by one AGV. The plain o
 of two stops (pickup, dropoff). An AGV carries one load at a time: it is loaded between each
 pickup and the dropoff after it, empty between a dropoff and the next pickup.
 
-Decisions, where the issue is silent:
-
-* Stops alternate strictly, starting with a pickup and ending with a dropoff, so a chain has an
-  even number of stops, from 2 to `MAX_STOPS` (20: ten loads, more than any real task chain;
-  a longer chain holds an AGV for hours and is a route plan, not an order).
-* Layout stations are either pickup or dropoff stations, so the kind of each stop is its
-  station's kind; a stop at a station of the wrong kind is refused, naming the stop.
-* In a trace CSV a chain is one row with a ``stops`` cell ``A>B>C>D`` (fleet_sim.config.trace);
-  in a scenario, a flow ``{stops: [A, B, C, D]}`` (fleet_sim.config.scenario.Flow).
+The choices where the issues were silent: docs/background/decisions/config.md.
 """
 
 from __future__ import annotations

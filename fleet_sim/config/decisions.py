@@ -18,27 +18,7 @@ Example (docs/how-to/optimise.md)::
       confidence: 0.95
       more_agvs_never_worse: false          # the search may skip designs by it
 
-Decisions, where the issue is silent:
-
-* A design is one level of every decision (scenario decisions in file order, then the layout
-  groups), enumerated with the last decision varying fastest. Its price is a deterministic
-  sum: per unit of a numeric decision (price_per_unit + yearly_per_unit x horizon_years) x the
-  level, plus each chosen level's or option's price + yearly x horizon_years.
-* A numeric decision is a whole-number range (``min``, ``max``, ``step``); any other is a list
-  of levels with their prices. Every level is checked alone against the base scenario when the
-  file is read, so a key the scenario lacks or a level it refuses is an input error naming
-  ``optimise.decisions.<key>``; so is a decision that is also a factor or an override.
-* A layout group's options are each checked alone, then every combination of options across
-  groups: two options whose changes conflict (the same element changed twice, a node added
-  twice) are refused naming both groups and options.
-* A design whose scenario does not fit its layout (more AGVs than parking and start nodes hold)
-  is not an input error: it is left out of the search, and optimise.json says why.
-* A run of a design is the experiment's run at the design's scenario decisions (as factors)
-  and replication r, seed of replication r in every design (common random numbers), so a
-  design without layout changes shares its runs with `sweep` and `size` of the same
-  decisions; a design with layout changes carries them (and its options in its run id).
-* The tolerance of every target's KPI is required: it is what "meets" means to the
-  guarantee (fleet_sim.analysis.feasibility).
+The choices where the issues were silent: docs/background/decisions/config.md.
 
 fleet_sim.config.experiment reads the ``optimise:`` section with the models here and checks it
 with `design_space` when the file is loaded; what both need (run ids, seeds, the layout cache)

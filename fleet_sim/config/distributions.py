@@ -4,9 +4,8 @@ times, obstacle durations...): ``{dist: triangular, low_s: 10, mode_s: 15, high_
 `TimeDistribution` is a union tagged by ``dist``: one small model per distribution, each taking
 exactly its own parameters (an unknown or missing one is an input error naming the element) and
 knowing its mean (`expected_s`) and how to draw from the numpy Generator it is handed; nothing
-here keeps random state. Decisions: a missing ``dist`` means ``fixed`` (as before the models);
-``normal`` is truncated at zero; ``lognormal`` takes the mean and standard deviation of the time
-itself, not of its logarithm; every parameter is a finite time >= 0 s.
+here keeps random state. The choices where the issues were silent (a missing ``dist``,
+truncation, lognormal's parameters): docs/background/decisions/config.md.
 """
 
 from __future__ import annotations

@@ -20,49 +20,9 @@ a master seed and the targets a planner must meet. Example::
              max_replications: 12}
     warmup: {method: mser5, pilot_replications: 2}   # or fixed: the scenario's warmup_h
 
-Decisions, where the issue is silent:
-
-* Seeds. Replication r of every design point runs with the seed
-  ``SeedSequence(master_seed, spawn_key=(r,))`` (the same child as
-  ``SeedSequence(master_seed).spawn(n)[r]``), reduced to a 32-bit integer for the scenario's
-  ``seed``. The same replication index gets the same seed at every factor level (common random
-  numbers), so comparisons between levels are paired; replications added later (by the sizing
-  search) get the seeds they would have had in a larger experiment. ``seed`` may not be a factor.
-* Validation builds a real scenario for every design point (so a bad dotted path, a bad level or
-  a combination the layout cannot hold, such as more AGVs than parking places, is an error naming
-  the experiment file, the factor and the level). The names of the targets' KPIs are checked
-  at the study layer, which knows the KPIs; this module runs no simulation.
-* Run ids are readable and depend only on the factor values and the replication
-  (``fleet.size=8__r03``), so a sweep and a sizing search over the same experiment share their
-  runs, and adding levels later does not rename finished runs.
-* A Latin hypercube draws `samples` points; a factor given as levels is sampled by stratified
-  index over its levels, one given as ``{min, max}`` uniformly within its stratum (rounded for
-  ``integer: true``). Its random stream is ``SeedSequence(master_seed, spawn_key=(2**32,))``, apart
-  from every replication's.
-* A mixed fleet (the base scenario's ``fleet.vehicles``) is varied one type at a time: the
-  factor (or override) ``fleet.vehicles.<type>.count`` sets that type's count, the others keep
-  theirs; ``fleet.size`` is their sum and cannot be set. `fleet-sim size` varies the type named
-  by ``sizing.vary_type`` (required with a mixed fleet, refused with a one-type fleet), whose
-  count min_agvs and max_agvs then bound; run ids read ``fleet.vehicles.heavy.count=3__r00``.
-  Why one type: "how many heavy tuggers do my eight carriers need beside them" is the
-  planner's question; a search over several counts at once has no single smallest answer.
-* Variants (``variants:``, docs/how-to/whatif.md): name -> overrides over the experiment's, another
-  layout file, layout changes (fleet_sim.config.layout_changes). The baseline is the base
-  scenario (named BASE_VARIANT, ``baseline``) unless ``baseline:`` names a variant; the base
-  scenario is among the variants compared only as the baseline. Every variant runs at every
-  design point, replication r with the base scenario's seed of replication r (common random
-  numbers). The base scenario's run ids and spec.json stay exactly what a sweep makes, so a
-  comparison shares its runs with sweep and size; a named variant's run ids are prefixed
-  ``v=<variant>__`` whatever its role (a run id says what runs, not how it is compared).
-  A variant may not override a factor, ``seed`` or ``layout`` (its own `layout` key says
-  it); every variant is validated at every design point when the file is loaded, so sweep
-  and size refuse a broken variant too, though they run the base scenario only.
-* ``layout`` may be a factor or an override, its values layout files relative to the
-  experiment file (as a variant's `layout`); run ids and the summary show a level as
-  written, the runs' overrides hold the absolute path.
-* Battery and charging traps (fleet_sim.config.scenario.setup_warnings) are said once per
-  experiment (`experiment_warnings`): each kind of trap once, with the first design point's
-  line and how many design points have it, not once per run.
+Replication r of every design point runs with the same seed (common random numbers), so
+comparisons between levels and variants are paired. The choices where the issues were silent:
+docs/background/decisions/config.md.
 """
 
 from __future__ import annotations
@@ -139,7 +99,7 @@ class RunSpec:
 
     def as_json(self) -> dict[str, Any]:
         """The run as spec.json records it; a variant's runs add `variant`, `layout_changes`
-        and `experiment_file` (the base scenario's keep the keys they always had)."""
+        and `experiment_file` (the base scenario's runs have none of them)."""
         plain = {"run_id": self.run_id, "point": self.point, "factors": self.factor_dict(),
                  "replication": self.replication, "seed": self.seed,
                  "scenario_file": self.scenario_file, "overrides": self.override_dict()}

@@ -4,25 +4,8 @@ parking) and segments (magnetic-tape paths between them).
 The file format is described in docs/reference/layout-format.md. Every problem found while
 loading names the file, the element (``segments[12].to``), the bad value and what was expected.
 
-Modelling decisions written down here because the engine relies on them:
-
-* A station's capacity is its number of docking nodes: one AGV per node at a time, as everywhere.
-* A parking area is an off-track buffer of ``capacity`` AGVs reached through its access node: an
-  AGV inside holds no node, so parked AGVs never block traffic.
-* Two-way segments form *corridors*: maximal chains of two-way segments between junctions (nodes
-  that also have one-way segments or meet three or more two-way segments). An AGV must hold a
-  corridor before it enters it (single-track rule), which rules out head-on deadlocks by
-  construction. A dead-end spur to a charger is a corridor too. A corridor covered by a
-  same_direction traffic zone is not one: the zone's rule (AGVs inside all drive it one way)
-  takes the place of the single-track rule.
-* The turn an AGV makes at a node comes from the geometry of its incoming and outgoing segments
-  (left, right, straight, reverse); a segment's ``branch`` key overrides it for AGVs entering it.
-* A segment's ``speed_limit_mps_by_type`` (type -> m/s) only lowers its speed limit for the
-  types named: an AGV drives it at the least of its top speed, the segment's limit and its
-  type's limit there (`Layout.speed_limit_mps`). A limit at or above the segment's own says
-  nothing and is refused, as is one for a type the segment's ``allowed_types`` shut out. The
-  names are not checked against a fleet here (a layout serves many scenarios); a mixed fleet
-  whose layout names a type it lacks is warned (fleet_sim.config.scenario.setup_warnings).
+Two-way segments form single-track corridors, which an AGV holds before it enters, so no two
+AGVs meet head-on. What else the engine relies on, and why: docs/background/decisions/config.md.
 """
 
 

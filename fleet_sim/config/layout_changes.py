@@ -17,38 +17,9 @@ A change is a mapping with one key, its kind::
       - {station_handling: {id: DROP03, handling: {dist: fixed, mean_s: 40}}}
       - {parking_capacity: {id: PARK1, capacity: 20}}
 
-Decisions, where the issue is silent:
-
-* Changes apply in the order listed, to the layout file's own model (`LayoutSpec`), and the
-  result goes through the same validation as a layout file (`layout_from_spec`): nothing here
-  re-implements a layout rule. Segments keep their places in the list (a changed segment is
-  changed where it stands, a new one comes last), so a change that changes nothing gives the
-  very same graph, and the very same runs.
-* A hop of a chain (``one_way``, ``two_way``, ``speed_limit``) or a ``close_segment`` names two
-  nodes joined by a segment in either direction. ``one_way`` leaves exactly the segment from
-  the first node to the second: a two-way segment becomes one-way, a one-way segment the other
-  way round is turned (its ``branch`` goes back to auto, as the branch was said for the other
-  way), and a second segment back the other way is dropped. ``two_way`` makes the hop's
-  segment two-way (and drops a parallel segment back). Both are no-ops where the hop is
-  already so. ``speed_limit`` sets the segment's ``speed_limit_mps`` (both ways of a two-way
-  segment).
-* ``close_node`` removes the node and every segment at it; a node a station, charger or
-  parking area uses is refused (remove or move the place first, in an earlier change).
-* ``add_charger``, ``add_station`` and ``add_parking`` take the layout file's own entries
-  (ChargerSpec, StationSpec, ParkingSpec). A tag or junction node given to a place takes the
-  place's kind (charger, station, parking); a node a place leaves (``remove_*``, ``move_*``)
-  becomes a tag again. ``add_node`` and ``add_segment`` take the file's node and segment
-  entries, for a charger on a new spur.
-* Conflicts. Within one variant a segment's direction, its speed limit, a place's nodes, its
-  handling or capacity may each be set by one change only; closing or adding a segment or a
-  node, and adding or removing a place, owns the whole element: any other change to it is a
-  conflict. Two changes that collide are refused, naming the second and the first.
-* Every refusal is one `InputError` naming the experiment file and, as its element, the
-  variant, the change's index and kind (``variants.aisle3.layout_changes[1] (one_way)``); the
-  value is the element of the layout (a node id, ``A -> B`` for a segment, a place id). When
-  the changed layout fails validation, or the scenario no longer fits it, the change blamed is
-  the last one that touched the element the validation names, else the one change whose
-  removal makes the problem go away, else the last change.
+Changes apply in order to the layout file's own model, and the result goes through the same
+validation as a layout file: nothing here re-implements a layout rule. The choices where the
+issues were silent: docs/background/decisions/config.md.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@ limits of one experiment, run ids and seeds, levels in words, the check of a dot
 path, and the layouts runs drive on (read once per process, changes applied once).
 
 fleet_sim.config.experiment re-exports each of these names, so its users import them from
-there as before; they live here so that the decisions module needs nothing of the experiment
+there; they live here so that the decisions module needs nothing of the experiment
 module at run time.
 """
 

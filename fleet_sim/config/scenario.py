@@ -4,46 +4,9 @@ Every key has a default written here, with its source: RSS-AGV-001 section 7.1 w
 gives a figure, "assumed" where it does not. Unknown keys are errors. The resolved config (every
 default written out) is `resolved(scenario)`, saved with each run.
 
-Decisions, where the issue is silent:
-
-* The models are pydantic (`userfiles.checking.StrictModel`): frozen and hashable; copy one with
-  ``model_copy(update=...)``. Checks that tie fields together are model validators whose errors
-  name the field (``warmup_h``, ``fleet.start_nodes``); checks against the layout are
-  `check_against_layout`.
-* The scenario file's folder, against which the files it names are resolved, is a private
-  attribute (`base_dir`), set from the validation context: no key of the file and not in the
-  schema. It takes part in equality (the same text read from two folders may name two
-  layouts), not in the hash.
-* The resolved config names the layout and the order trace by absolute path, so
-  ``fleet-sim run results/<run>/config.resolved.yaml`` reruns the run from any folder.
-* Battery traps are warned about, not refused (`setup_warnings`, one line each): "how long
-  does the fleet last without charging" is a fair question, and the answer (each AGV runs down
-  and stops with E_201) is in the results. ``fleet-sim run`` prints them; ``sweep`` and
-  ``size`` print each kind once per experiment (`fleet_sim.config.experiment
-  .experiment_warnings`); every run records them in kpis.json (``warnings``).
-
-  - Charging on, but some AGVs cannot reach a charger from where they start (no charger in the
-    layout, or none reachable along one-way segments): `agvs_without_charger` names them.
-    Warned whatever the run's length: charging that cannot happen is a contradiction in the
-    files.
-  - Charging off with a battery that drains: warned when the run is long enough for an AGV
-    working flat out to reach P_050 (20 %), where it stops taking orders (4.2.2) and stands
-    until E_201. A shorter run with charging off is a fair choice and is not warned about.
-    No battery model at all is ``fleet.vehicle.battery: off``.
-
-  How long a battery lasts (`battery_hours`): the energy between two SOCs,
-  E = (from_pct - to_pct) / 100 x capacity_wh, over a power: standing idle, idle_w; working
-  flat out, the larger of handling_w and driving at max_speed_mps with half the distance
-  loaded, idle_w + (drive_wh_per_m + drive_loaded_wh_per_m) / 2 x max_speed_mps x 3600 W (the
-  controller's idle draw goes on while driving, as in fleet_sim.model.battery). With the
-  defaults, 90 % -> 20 % is 672 Wh: 3.4 h flat out (200 W), 33.6 h idle (20 W); 20 % -> 10 %
-  standing idle is 4.8 h. Real work lies in between.
-* The scenario ``name`` is free text (reports show it, escaped); the default run folder is
-  ``results/<folder_name(name)>``, every character outside the experiment name's rule
-  (`is_folder_name`) replaced by ``_``, so ``../x`` or ``/abs`` never writes outside
-  ``results/``. (Refusing such names would refuse files that load today.)
+The resolved config names its files by absolute path, so it reruns from any folder. The
+choices where the issues were silent: docs/background/decisions/config.md.
 """
-
 
 from __future__ import annotations
 
@@ -263,6 +226,6 @@ def resolved(scenario: Scenario) -> dict[str, Any]:
             name = written["profile"]
             if name is not None and name not in profile_names():
                 written["profile"] = str(scenario.path(name).resolve())
-    else:  # a one-type fleet's resolved config is written as it always was
+    else:  # a one-type fleet: no vehicles
         del fleet["vehicles"]
     return plain

@@ -2,13 +2,7 @@
 
 Defaults come from RSS-AGV-001 section 7.1 where the spec gives a figure, "assumed" where not.
 
-Decisions, where the issue is silent:
-
-* ``battery: off`` (YAML ``off``, ``false`` or ``null``) is the switch for the battery model:
-  no drain, no charging, no battery thresholds; SOC is not recorded. The model holds None and
-  the resolved config writes ``battery: null``. ``on``/``true`` is refused: write the figures
-  (or leave the key out for the defaults). The battery is a property of the vehicle, so the
-  switch sits with its figures rather than at the top of the scenario.
+The choices where the issues were silent: docs/background/decisions/config.md.
 """
 
 from __future__ import annotations

@@ -5,25 +5,11 @@ accelerations, size, load handling, protocol limits and features.
 Written from the VDA 5050 2.1.0 document (section 6.15.1) and its JSON schema
 (``json_schemas/factsheet.schema`` at tag 2.1.0 of the VDA5050/VDA5050 repository); nothing of
 either is copied here. Field names, types and required fields are the format's; `fleet-sim
-schema factsheet` publishes this model's JSON Schema. `profile_factsheet` turns a factsheet into
+schema factsheet` publishes this model's JSON Schema. `factsheet_profile` turns a factsheet into
 a vehicle profile.
 
-Decisions, where the format is silent or disagrees with itself:
-
-* Ranges: the format gives units, not ranges. A speed, acceleration or size the simulation
-  divides by or drives with must be > 0 (speedMax, accelerationMax, decelerationMax, length,
-  width, heightMax, wheel sizes); every other quantity, count and time >= 0, and speedMin at
-  most speedMax. uint32 counts are whole numbers in [0, 2^32 - 1].
-* Document and schema disagree: `angularSpeedMin`/`angularSpeedMax` are in the document only
-  (read, optional); `heightMin` is required by the document, optional in the schema (optional);
-  `localizationTypes` and `navigationTypes` are "example values" in the document and a closed
-  list in the schema (any text is read); `envelopes3d[].description` is text in the document
-  and an integer in the schema (either is read); `blockingTypes` is an array of NONE, SOFT,
-  HARD as the document says.
-* Keys the format does not name are read and reported as not used, as for LIF: the schema
-  allows additional properties.
-* `version` must be 2.x.y: the factsheet as modelled here is 2.1.0's (2.0's has the same
-  fields); 3.0 renamed and added fields and is not read yet.
+The choices where the format is silent or disagrees with itself:
+docs/background/decisions/config.md.
 """
 
 from __future__ import annotations

@@ -3,18 +3,9 @@
 The profile is written as every profile is (`agv_model.profile.ProfileFile`: figures in mm,
 mm/s, mm/s2, Wh, W, each with its source), so it loads and checks like a bundled one.
 
-* From the factsheet (cited ``VDA 5050 factsheet, <JSON path> <value>``): top speed
-  (physicalParameters.speedMax), acceleration and deceleration (accelerationMax,
-  decelerationMax: the format gives them with maximum load, the cautious figure) and length.
-* From the base profile (`--base`, default ``rss-agv-001``, the generic vehicle with a Wi-Fi
-  link), cited ``assumed; from base profile <name> (<its source>)``: what a factsheet does not
-  carry. The turn speed (capped at the factsheet's top speed), the battery and the link.
-  `protocol` is null: VDA 5050 speaks JSON over MQTT, which `agv_model.protocols` does not
-  model; the base link stands for the radio hop.
-* Not used, and listed at the top of the written file and by the command: everything else of
-  the factsheet, each with the reason. Pick and drop times in particular are a station's
-  handling time in fleet_sim (the layout's `stations[].handling`), so the command prints them
-  for the planner to carry over.
+The figures come from the factsheet where it has them (top speed, acceleration, deceleration,
+length) and from a base profile where not; what is taken from where, and why:
+docs/background/decisions/config.md.
 """
 
 from __future__ import annotations
