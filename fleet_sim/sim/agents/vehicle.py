@@ -50,7 +50,8 @@ from fleet_sim.sim.traffic.control import Traffic
 
 
 class Vehicle(VehicleCharging, VehicleLink, VehicleTravel, VehicleFaults):
-    """One AGV: its day (`run`) and its orders, with the concerns of its mixins."""
+    """One AGV: its day (`run`) and its orders, with the concerns of its mixins. It builds its
+    driver, whose host it is."""
 
     def __init__(self, agv_id: int, env: simpy.Environment, traffic: Traffic,
                  fleet: FleetManagerLink, recorder: Recorder, scenario: Scenario,

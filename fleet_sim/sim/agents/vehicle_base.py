@@ -278,7 +278,7 @@ class VehicleBase:
         if not self._wake_up.triggered:
             self._wake_up.succeed()
 
-
+    # ---- steps every concern takes --------------------------------------------------------------
     def fail_now(self, code: str) -> NoReturn:
         """A fault found by the AGV's own process: raise it as an interrupt to itself."""
         self.failing = True
