@@ -1,7 +1,5 @@
 """The Incidents section: deadlocks, reroutes, give-way circulations and back-offs against the
 x axis, and the deadlocks in runs of the recommended fleet.
-
-The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations

@@ -1,7 +1,5 @@
 """The Throughput and lead time section: the main KPIs and every target's against the x axis,
 with their 95 % bands and the targets.
-
-The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations

@@ -1,7 +1,5 @@
 """The Utilisation by state section: the mean share of AGV time in each state, as stacked bars
 per series.
-
-The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations

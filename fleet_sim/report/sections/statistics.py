@@ -1,7 +1,5 @@
 """The Statistics section: the mean and 95 % interval of each KPI per design point, the
 intervals too wide to decide, and the paired differences between design points.
-
-The choices where the issues were silent: docs/background/decisions/reports.md.
 """
 
 from __future__ import annotations
