@@ -25,7 +25,8 @@ sys.path.insert(0, str(ROOT))
 import yaml  # noqa: E402
 
 from fleet_sim.config.experiment import load_experiment  # noqa: E402
-from fleet_sim.study.runner import OK, DaskPool, RunResult, run_local, run_serial  # noqa: E402
+from fleet_sim.study.pools import DaskPool, run_local, run_serial  # noqa: E402
+from fleet_sim.study.run_folder import OK, RunResult  # noqa: E402
 
 
 def main() -> None:

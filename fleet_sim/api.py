@@ -15,24 +15,7 @@ command's overrides as keyword arguments, and returns a result object: KPIs as d
 pandas DataFrames, the files written as paths. Bad input raises `InputError` with the message
 the command prints (`fleet-sim: error: ...` without the prefix).
 
-Decisions, where the issue is silent:
-
-* The arguments are the command's, by the same names (`--agvs` is `agvs=`, `--set` is `set=`,
-  a mapping of dotted scenario fields to values, or the command's list of pairs; `--out` is
-  `out=`), and the messages are the command's word for word, so an error names `--agvs` or
-  `--set` as the command does: the command line is to call these functions (issue 34) and
-  the two must never say different things.
-* Nothing is printed unless asked: `progress=True` shows the command's progress display on
-  stderr; setup warnings (battery and charging traps) are returned in `warnings`, not printed.
-* `run` without `out` runs in a temporary directory that is removed once its tables are read
-  (the same code as the command, so the same KPIs and tables, byte for byte); with `out` the
-  run directory stays. The studies write a results folder and need `out` (they resume from
-  it: finished runs are never made again).
-* A loaded `Scenario` with overrides is rebuilt from its resolved config (every default
-  written out, files absolute), the overrides set on it as on a file; its errors name
-  ``<scenario NAME>`` where a file's would name the file. A loaded `Experiment` with `set` is
-  read again from its file with the settings (an experiment changed in memory loses those
-  changes; pass its file instead).
+The choices where the issues were silent: docs/background/decisions/analysis-and-studies.md.
 """
 
 from __future__ import annotations

@@ -7,7 +7,8 @@ import os
 from pathlib import Path
 
 from fleet_sim.config.experiment import RunSpec
-from fleet_sim.study.runner import RunResult, execute_run
+from fleet_sim.study.run_folder import RunResult
+from fleet_sim.study.worker import execute_run
 
 CRASH = "fleet.size=2__r01"
 FAIL = "fleet.size=3__r00"

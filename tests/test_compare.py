@@ -29,7 +29,7 @@ from fleet_sim.analysis.paired import (
 from fleet_sim.cli import main
 from fleet_sim.config.experiment import load_experiment
 from fleet_sim.study.compare import compare
-from fleet_sim.study.runner import LocalPool
+from fleet_sim.study.pools import LocalPool
 from tests.conftest import in_browser, write_yaml
 
 ROOT = Path(__file__).resolve().parents[1]

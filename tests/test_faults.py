@@ -127,7 +127,7 @@ def test_a_sweep_on_a_full_disk_stops_with_one_line_and_resumes_to_the_same_resu
     assert_one_line_error(result, "No space left on device", "ENOSPC")
     # nothing under a final name that is not whole: every run that looks finished checks
     # out, and a database, if there is one, holds its tables
-    from fleet_sim.study.runner import MANIFEST, run_problem
+    from fleet_sim.study.run_folder import MANIFEST, run_problem
 
     for run_dir in (out / "runs").iterdir():
         if (run_dir / MANIFEST).exists() or (run_dir / "kpis.json").exists():
@@ -395,7 +395,8 @@ def test_a_run_that_outlives_its_study_writes_nothing(tmp_path: Path) -> None:
     """A worker still running when its study has stopped (a lost Dask scheduler): the folder's
     lock no longer names its study when it finishes, so it leaves no finished run."""
     from fleet_sim.config.experiment import load_experiment
-    from fleet_sim.study.runner import LOCK_FILE, MANIFEST
+    from fleet_sim.study.run_folder import MANIFEST
+    from fleet_sim.study.study_folder import LOCK_FILE
 
     experiment = load_experiment(experiment_file(tmp_path, duration_h=40, sizes=(2,),
                                                  replications=1))
@@ -403,7 +404,7 @@ def test_a_run_that_outlives_its_study_writes_nothing(tmp_path: Path) -> None:
     (out / "runs").mkdir(parents=True)
     (out / LOCK_FILE).write_text(json.dumps({"pid": 1, "host": "h", "started": "t"}) + "\n")
     (spec,) = experiment.runs()
-    code = ("import sys, pickle; from fleet_sim.study.runner import execute_run; "
+    code = ("import sys, pickle; from fleet_sim.study.worker import execute_run; "
             "spec = pickle.loads(bytes.fromhex(sys.argv[1])); "
             "print(execute_run(spec, sys.argv[2]).status)")
     import pickle
@@ -427,7 +428,7 @@ def test_a_run_made_by_another_version_of_the_model_is_made_again(
     """A results folder from before a change that moves results (issue 33's new defaults):
     resuming it must not mix old runs with new ones. Each stale run is named in one line and
     made again; the summary is the undisturbed one."""
-    from fleet_sim.study.runner import MODEL_KEY, MODEL_VERSION
+    from fleet_sim.study.run_folder import MODEL_KEY, MODEL_VERSION
 
     out = tmp_path / "out"
     shutil.copytree(undisturbed, out)

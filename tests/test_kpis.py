@@ -26,7 +26,8 @@ from fleet_sim.analysis.kpis import (
 from fleet_sim.config.experiment import load_experiment
 from fleet_sim.model.not_dispatched import NotDispatched
 from fleet_sim.model.records import Order, Recorder
-from fleet_sim.study.runner import OK, execute_run
+from fleet_sim.study.run_folder import OK
+from fleet_sim.study.worker import execute_run
 
 from .conftest import LAYOUTS, ROOT, make_scenario, write_yaml
 

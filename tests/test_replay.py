@@ -557,7 +557,8 @@ def test_any_sweep_run_can_be_replayed(tmp_path: Path, capsys: pytest.CaptureFix
     """A sweep keeps no moves: `fleet-sim replay` simulates the run again, writes the page and
     leaves no moves.parquet behind."""
     from fleet_sim.config.experiment import load_experiment
-    from fleet_sim.study.runner import OK, execute_run
+    from fleet_sim.study.run_folder import OK
+    from fleet_sim.study.worker import execute_run
 
     scenario = write_yaml(tmp_path / "s.yaml", {
         "name": "tiny", "layout": str(LAYOUTS / "tiny_loop.yaml"), "duration_h": 0.5,

@@ -19,8 +19,10 @@ import pytest
 
 from fleet_sim.analysis.congestion import node_waits
 from fleet_sim.config.experiment import Experiment, load_experiment
-from fleet_sim.study.runner import CRASHED, FAILED, OK, SweepError, execute_run
+from fleet_sim.study.run_folder import CRASHED, FAILED, OK
+from fleet_sim.study.study_folder import SweepError
 from fleet_sim.study.sweep import sweep
+from fleet_sim.study.worker import execute_run
 
 from . import sweep_helpers
 from .conftest import ROOT, write_yaml
@@ -263,7 +265,7 @@ def test_node_waits_add_up_to_the_engine_blocked_time(tmp_path: Path) -> None:
 
 
 def test_results_folder_of_another_experiment_is_refused(tmp_path: Path) -> None:
-    from fleet_sim.study.runner import SweepError
+    from fleet_sim.study.study_folder import SweepError
 
     out = tmp_path / "out"
     sweep(tiny_experiment(tmp_path, factors={"fleet.size": [1]}, replications=1), out,
@@ -353,7 +355,7 @@ def test_a_second_sweep_into_a_busy_folder_is_refused(tmp_path: Path) -> None:
 
 
 def test_a_stale_lock_is_taken_over(tmp_path: Path) -> None:
-    from fleet_sim.study.runner import LOCK_FILE
+    from fleet_sim.study.study_folder import LOCK_FILE
 
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()

@@ -3,47 +3,7 @@ sequential intervals with the error rate held over looks and comparisons, the ve
 and Kim and Nelson's fully sequential selection of the best. Pure functions on numbers (no
 runs, no files), so each can be tested on synthetic data.
 
-Decisions, where the issue is silent:
-
-* Pairs. Replication r of every variant runs with the baseline's seed r (common random
-  numbers, fleet_sim.config.experiment), so the difference variant - baseline is taken
-  replication by replication and its interval is a one-sample Student t interval of those
-  differences (the shared noise of the orders cancels). A replication where either side has
-  no value (a p95 lead time when nothing was delivered, a failed run) is left out of the
-  pairs; the count of pairs says so.
-* The correction: Bonferroni over the comparisons and over the looks. With K comparisons
-  (variants x design points x compared KPIs) and at most L looks at the data (the schedule
-  of `looks`, fixed before the first run), every interval at every look is a t interval at
-  level 1 - alpha / (K L), alpha = 1 - confidence. By Bonferroni's inequality every interval
-  of every look then covers its true difference with probability at least 1 - alpha together,
-  whichever look the study stops at and whatever it looked at on the way; so the intervals
-  reported at the end, and the verdicts drawn from them, hold at the stated confidence as a
-  family. It is conservative (the looks are strongly correlated); an alpha-spending function
-  (Lan and DeMets 1983) would give narrower intervals at early looks but needs the looks'
-  information fractions; Bonferroni needs nothing and is valid for any stopping rule.
-* Looks: after `min_replications`, then doubling, up to `max_replications` (5, 10, 20 for
-  5..20): few looks keep the correction small, and doubling keeps every worker busy.
-* Decided: the interval excludes zero (the variant is better or worse; "higher"/"lower" for
-  a KPI without a better direction), or its half-width is at most the precision asked for the
-  KPI (no difference larger than the interval's farthest end). A KPI without a precision is
-  decided only by an interval clear of zero. Undecided at the replication limit: the verdict
-  says so, with the interval.
-* Selection: KN (Kim and Nelson 2001, ACM TOMACS 11(3):251-273), the fully sequential
-  indifference-zone procedure that allows common random numbers (it works on the variances of
-  pairwise differences). With k systems, PCS 1 - a, indifference zone d and first-stage size
-  n0: eta = ((2a / (k - 1)) ** (-2 / (n0 - 1)) - 1) / 2, h2 = 2 eta (n0 - 1), S2_il the
-  variance of X_i - X_l over the first n0 replications; at every r >= n0 system i leaves when
-  its mean falls below another survivor's less W_il(r) = max(0, d / (2r) (h2 S2_il / d2 - r)),
-  and the last survivor is selected. Guarantee: if the data are normal and the best system's
-  true mean is at least d better than every other's, it is selected with probability at least
-  1 - a (Kim and Nelson, Theorem 1). Runs come in batches; the screening still goes through
-  r = n0, n0 + 1, ... one replication at a time, so the decision is exactly KN's (a batch may
-  hold replications KN would not have needed: they cost time, not correctness). A cap on the
-  replications stops it early; the best mean among the survivors is then named, without the
-  guarantee, and `KnResult.guaranteed` says so. Survivors whose results are identical in
-  every replication so far (a variant that changes nothing: its runs are byte-identical to
-  the baseline's) are one system: KN would never part them, so the first stands for all and
-  the selection names the others as identical.
+The choices where the issues were silent: docs/background/decisions/analysis-and-studies.md.
 """
 
 from __future__ import annotations

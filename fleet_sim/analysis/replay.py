@@ -2,36 +2,7 @@
 (`fleet-sim replay`, drawn by fleet_sim.report.replay), of the per-AGV timeline and of the order
 lead-time breakdown.
 
-Decisions, where the issue is silent:
-
-* Motion is recorded only when asked (`record_moves`): `moves.parquet` has one row per stretch
-  an AGV drove without stopping, per lock wait and per placement (fleet_sim.model.records.
-  MoveRecord). `fleet-sim run --replay` writes it. A run directory without it (every sweep run,
-  a run made without --replay) is re-simulated from its config.resolved.yaml with moves
-  recorded: the engine is deterministic (same config and seed, same run), and the re-run's
-  events must equal the directory's events.parquet, else the replay is refused (the run was
-  made by another version of fleet_sim). Re-simulating costs the run's time and no disk; the
-  tables other than the moves are always read from the directory's files.
-* Position at a time (`positions_at`) is the one Python definition; the page's JavaScript is
-  its twin and the tests hold them together. On a drive row the AGV is `driven_s + (t -
-  start_s)` seconds into its hop's closed-form profile (fleet_sim.model.kinematics.distance_at),
-  on the straight line from u to v at that share of the segment's length. Between drive rows it
-  stands where the last one ended: a stop at a node, a wait for a lock, an obstacle pause
-  (Paused) or a fault mid-segment. "track" and "parking" rows put it at their node ("parking":
-  in the area beside the track), "off" takes it off the track where it stood.
-* Blocked time is the time an AGV stood waiting for a node or corridor another AGV held (the
-  "wait" rows: exactly the engine's blocked time, `blocked_time_pct`). In the lead-time
-  breakdown it is taken out of the drive it happened in, so the six parts of each order add up
-  to its lead time: wait for assignment, drive empty (assignment to arrival at the pickup: the
-  command's delay, leaving parking and obstacle pauses included), load, drive loaded, unload,
-  blocked.
-* Traffic zones: the "zone" rows are the engine's zone holds (fleet_sim.model.records.
-  MoveRecord): `zone_holders_at` says which AGVs hold each mutex or same-direction zone at a
-  time, and which way they drive a same-direction one; the page shows the same. A run recorded
-  before zone rows existed shows nobody holding.
-* State spells (the Gantt) run from each change of state to the next, clipped to the window;
-  each carries the event and detail that started it (the reason), the order the AGV had and
-  whether it was loaded. An AGV's spells cover the window without gap or overlap.
+The choices where the issues were silent: docs/background/decisions/analysis-and-studies.md.
 """
 
 from __future__ import annotations

@@ -1,32 +1,7 @@
 """Statistics across replications: means, 95 % confidence intervals, paired differences, and
 whether an interval is narrow enough to decide against a target.
 
-Decisions, where the issue is silent:
-
-* Intervals are two-sided Student t intervals of the mean over replications (n - 1 degrees of
-  freedom); with one replication there is no interval (NaN).
-* A design point *meets* a target with 95 % confidence when the whole 95 % interval lies on the
-  good side of the bound, *fails* it when the whole interval lies on the bad side, and is
-  *undecided* otherwise. (Each side is thus a one-sided test at 2.5 %; several targets are not
-  adjusted for multiplicity: every one of them must be met on its own.) A replication with no
-  value for a target's KPI (such as a p95 lead time when nothing was delivered) fails it.
-* Replications needed to decide: the smallest n with t(n-1) * s / sqrt(n) < |mean - bound|, with
-  the sample standard deviation s as it stands; none when the mean sits on the bound.
-* Paired differences (`paired_differences`) compare two design points that differ in one
-  factor, every other factor held fixed, replication by replication: replication r has the
-  same seed at every design point, so common random numbers cancel the noise both share, and
-  the interval is the Student t interval of the differences (`pair_difference`, any KPI).
-  Which pairs (`one_factor_pairs`): for a factor whose levels are all numbers (fleet size,
-  demand), adjacent levels in increasing order (what one more step buys); for any other
-  factor (a policy, true/false), every level against the factor's first level as the
-  experiment file lists it (the reference a planner starts from). A replication run at only
-  one of the two points (a sizing search adds replications where it must) is left out, and
-  so is one without a value on either side; `pairs` says how many were used.
-* Warm-up from the data: MSER-5 (White 1997; Hoad, Robinson & Davies 2010). The output series
-  is cut into batches of 5 and their means Z_1..Z_k; deleting the first d batches leaves the
-  marginal standard error statistic MSER(d) = sum_{j>d} (Z_j - mean_{j>d} Z)^2 / (k - d)^2,
-  and the warm-up is the d that minimises it, searched over the first half of the series only
-  (beyond it the statistic rewards deleting nearly everything); ties go to the shorter warm-up.
+The choices where the issues were silent: docs/background/decisions/analysis-and-studies.md.
 """
 
 from __future__ import annotations

@@ -3,39 +3,10 @@ directory on disk.
 
 The tables are what a planner queries afterwards (events, orders, state of charge, and with
 `--replay` the moves); the KPIs are computed from the records themselves
-(fleet_sim.analysis.kpis), never read back from here. Same scenario and seed, same bytes:
+(fleet_sim.analysis.kpi_sums), never read back from here. Same scenario and seed, same bytes:
 columns, dtypes and row order are fixed below.
 
-Decisions:
-
-* `ParquetTables` is the one writer of events.parquet, orders.parquet, soc.parquet and
-  moves.parquet: a `RecordSink` that appends each batch the recorder hands it as one row group
-  (pyarrow's ParquetWriter), so a run of any length holds one batch at a time. A run kept in
-  memory is written by handing it over to the same sink (`write_run`), in the same batches:
-  both ways give the same bytes.
-* Each batch goes through the same pandas frame builders as the in-memory tables
-  (`events_frame`, `orders_frame`, `soc_frame`, `moves_frame`) and is written with the schema
-  of an empty such frame, pandas metadata included, so `pd.read_parquet` gives back the dtypes
-  of the in-memory tables (`string`, nullable `Int64` AGV of an order never assigned).
-* Row order: events and SOC samples in the order recorded (time order); orders in creation
-  (id) order; moves by AGV, then start time (rows that start together in the order
-  recorded), as before streaming. Orders reach the sink in the order they finish and moves in
-  the order recorded, so those two tables are put in order on the way (`SortedTable`): each
-  batch is sorted and kept, uncompressed, as a run in a scratch Arrow file beside the table;
-  when the run has finished the runs are merged into the Parquet file, a run read only when
-  the merge reaches its first row. Rows come nearly in order (an order finishes within its
-  lead time of its creation; an AGV's moves are recorded as they end), so the merge holds a
-  batch or two at a time, not the table.
-* orders.parquet has a `stops` column (each order's chain of stations, "A>B>C>D") only when
-  the run had a multi-stop order; the merge decides it at the end, when that is known.
-* A run that fails or is interrupted leaves no half-written table under its final name: the
-  files are written as ``.<name>.partial`` (and the scratch files as ``.<name>.runs.partial``)
-  and renamed when the run has finished, all of them only once every one is complete (a disk
-  that fills while the last is merged leaves none under its final name); on an exception the
-  partial files are removed. A process killed outright (SIGKILL, the OOM killer) can leave
-  ``.*.partial`` files: they are never read, and the next run into the folder replaces them.
-  The resolved config, run_info.json and, last, kpis.json are written after the tables, each
-  atomically (userfiles.writing).
+The choices where the issues were silent: docs/background/decisions/analysis-and-studies.md.
 """
 
 from __future__ import annotations

@@ -9,19 +9,7 @@ command of a group is registered as "GROUP NAME" (`layout import`), after `group
 reference page of the commands (docs/reference/commands.md) is generated from the same parser
 (tools/docs_hook.py).
 
-Decisions, where the issues are silent:
-
-* argparse, not click: argparse's messages (``argument --hours: ...``, ``the following
-  arguments are required: ...``) are the ones users, the README and the tests know, and the
-  declarative part click would bring is the small registry below.
-* A group may name a default command: `fleet-sim layout FILE` is `fleet-sim layout check FILE`
-  (the older form, kept). A first word that is not one of the group's commands is the default
-  command's first argument, so a layout file named `import` is checked when written as a path
-  (`./import`).
-* Bad input (a layout, scenario, experiment, trace or profile file, or an argument) ends in one
-  line naming the file or the argument, the element, the value and what was expected, and exit
-  status 2; never a traceback. A fault of the machine (a full disk) ends in one line and exit
-  status 1.
+The choices where the issues were silent: docs/background/decisions/analysis-and-studies.md.
 """
 
 from __future__ import annotations

@@ -47,7 +47,7 @@ from fleet_sim.report.sections.states import section_states
 from fleet_sim.report.sections.statistics import section_statistics
 from fleet_sim.report.stalls import stall_statements
 from fleet_sim.report.wording import and_words, factor_words
-from fleet_sim.study.runner import read_plan, study_running
+from fleet_sim.study.study_folder import read_plan, study_running
 
 
 def progress_text(out_dir: Path, summary: pd.DataFrame) -> str:

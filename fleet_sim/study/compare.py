@@ -12,23 +12,7 @@ Results folder (``results/<experiment>`` by default), as a sweep's (fleet_sim.st
     compare.json           the comparisons (means, paired differences, intervals, verdicts),
                            the correction, the looks, the replications, the selection
 
-Decisions, where the issue is silent:
-
-* Every variant (the baseline included) runs at every design point of the factors, and each
-  comparison is one variant against the baseline at one design point on one KPI. All run the
-  same replications: the pairs need them, and KN screens the systems on common replications.
-* Looks (fleet_sim.analysis.paired.looks): after min_replications, then doubling up to
-  max_replications; the study stops at the first look where every comparison is decided and
-  the selection (if any) has one survivor. `--max-replications` lowers (or raises) the cap
-  for one invocation; the looks, and so the correction, follow from the cap in force.
-* The compared KPIs: `compare.kpis`, else the targets' KPIs, else throughput_per_hour and
-  lead_time_p95_s. Their names are checked against the KPI catalogue before any run.
-* A failed run leaves its replication out of the pairs it belongs to (the count of pairs
-  says so) and out of the selection, which then needs a value of every system at every
-  replication: the selection stops with a note instead.
-* Resumable: finished runs are never recomputed (fleet_sim.study.runner.execute), so a
-  comparison killed at any point, run again, starts where it was; runs already made by a
-  sweep or a sizing search of the same experiment are the baseline's.
+The choices where the issues were silent: docs/background/decisions/analysis-and-studies.md.
 """
 
 from __future__ import annotations
@@ -68,23 +52,14 @@ from fleet_sim.analysis.paired import (
 )
 from fleet_sim.config.experiment import MAX_RUNS, Experiment, RunSpec, point_text
 from fleet_sim.errors import InputError
+from fleet_sim.study.pools import DEFAULT_NO_WORKERS_TIMEOUT_S, DaskPool, LocalPool, make_pool
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
-from fleet_sim.study.runner import (
-    DEFAULT_NO_WORKERS_TIMEOUT_S,
-    OK,
-    DaskPool,
-    LocalPool,
-    RunFn,
-    check_extras,
-    execute,
-    execute_run,
-    folder_lock,
-    make_pool,
-    prepare,
-    write_plan,
-)
+from fleet_sim.study.run_folder import OK
+from fleet_sim.study.runner import check_extras, execute, prepare
+from fleet_sim.study.study_folder import folder_lock, write_plan
 from fleet_sim.study.warmup import largest_fleet, pilot_groups, settle_warmup
+from fleet_sim.study.worker import RunFn, execute_run
 from userfiles.writing import write_json_atomic
 
 DEFAULT_KPIS = ("throughput_per_hour", "lead_time_p95_s")

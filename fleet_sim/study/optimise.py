@@ -59,18 +59,12 @@ from fleet_sim.study.cheapest import (
     Structure,
 )
 from fleet_sim.study.optimise_words import answer_statements, guarantee_sentence, money
+from fleet_sim.study.pools import DEFAULT_NO_WORKERS_TIMEOUT_S, make_pool
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
-from fleet_sim.study.runner import (
-    DEFAULT_NO_WORKERS_TIMEOUT_S,
-    check_extras,
-    execute,
-    folder_lock,
-    make_pool,
-    prepare,
-    write_plan,
-)
+from fleet_sim.study.runner import check_extras, execute, prepare
 from fleet_sim.study.search import RunBudget, RunLimit, drive, run_kpis
+from fleet_sim.study.study_folder import folder_lock, write_plan
 from fleet_sim.study.warmup import settle_warmup
 from userfiles.writing import write_json_atomic
 

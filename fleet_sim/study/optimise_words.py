@@ -6,10 +6,7 @@ time at most 600 s): 16 AGVs, opportunity charging, a fifth charger at C05: 742,
 12 replications it reaches ... No cheaper design does: the same system with 15 AGVs (702,000
 EUR) misses p95 lead time 631 s (604 to 658)."
 
-Decisions: the design named beside the answer is the same system with one AGV fewer where the
-space has it (the comparison a planner makes first), else the dearest design cheaper than the
-answer; the other cheaper designs are summed up by verdict. "No cheaper design does" becomes
-"no cheaper design is shown to meet them" when a cheaper design is undecided.
+The choices where the issues were silent: docs/background/decisions/analysis-and-studies.md.
 """
 
 from __future__ import annotations

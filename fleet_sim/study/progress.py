@@ -5,9 +5,9 @@ On a terminal, a live bar (rich) with what is done, the time elapsed and the tim
 test capturing stderr) plain lines: one at each of `plain_lines` equal steps of the work and at
 its end, so logs stay short. `quiet` shows nothing at all.
 
-Decision: the time left is the time elapsed scaled by the work left over the work done since the
-start (work already done before, such as a resumed sweep's finished runs, does not count as
-speed). The simulation core knows nothing of this: the engine calls a plain callback.
+The time left is the time elapsed scaled by the work left over the work done since the start
+(the choices where the issues were silent: docs/background/decisions/analysis-and-studies.md).
+The simulation core knows nothing of this: the engine calls a plain callback.
 """
 
 from __future__ import annotations

@@ -8,24 +8,7 @@ Files in a results folder::
     sweep.duckdb               DuckDB: table summary, stats; views orders, events, node_waits
                                over every run's Parquet files (with run_id)
 
-Decisions, where the issues are silent:
-
-* summary.parquet and stats.parquet are rewritten at the end of every sweep, sizing search and
-  comparison; one killed before its end leaves them behind its run folders. Readers go through
-  `read_summary`, which compares the summary's (run, status) pairs with the run folders and
-  rebuilds the summary from the folders (in memory: a reader never writes the folder) when
-  they differ, so a report never counts 24 runs when 28 exist. A study ended by an exception
-  (Ctrl-C included) still rewrites the tables on its way out (`tables_written`).
-* Every run a study planned is accounted for: the study tells `tables_written` the runs it
-  asks for as it asks (`PlannedRuns`: a sweep its design, a comparison each look's runs, a
-  search the runs its budget took), and once the tables are written each of them must have
-  its row in the summary, finished or failed with its reason. One that has not (no row, or a
-  row incomplete, damaged or without a reason) ends the study with one line naming it and a
-  non-zero exit, the tables and every run folder kept; when all have, one line says so
-  ("all 12 planned runs are in the summary (11 finished, 1 failed)"). A study ended by an
-  exception is not checked (its own error says what happened).
-* DuckDB views read the Parquet files by absolute path: the database works from any folder;
-  after moving a results folder, run the study again (nothing is recomputed) to rebuild it.
+The choices where the issues were silent: docs/background/decisions/analysis-and-studies.md.
 """
 
 from __future__ import annotations
@@ -43,15 +26,8 @@ import pandas as pd
 
 from fleet_sim.config.experiment import BASE_VARIANT, Experiment
 from fleet_sim.study.progress import Progress
-from fleet_sim.study.runner import (
-    CRASHED,
-    DAMAGED,
-    FAILED,
-    MANIFEST,
-    OK,
-    SweepError,
-    run_problem,
-)
+from fleet_sim.study.run_folder import CRASHED, DAMAGED, FAILED, MANIFEST, OK, run_problem
+from fleet_sim.study.study_folder import SweepError
 from userfiles.writing import atomic_path, fsync_path, temp_path
 
 
@@ -61,9 +37,10 @@ def tables_written(experiment: Experiment, out_dir: Path,
                    quiet: bool = False) -> Iterator[PlannedRuns]:
     """Write the summary tables when the block ends, also when an exception (Ctrl-C, a run
     function that fails to report) ends it, so the tables keep up with the runs finished;
-    then account for every run the block planned (see the module docstring): a line on
-    `stream` (unless `quiet`) when each is in the summary, else SweepError naming those that
-    are not. `columns`: what sets a run apart (default: the experiment's factors)."""
+    then account for every run the block planned (why: the decisions of this module, in
+    docs/background/decisions/analysis-and-studies.md): a line on `stream` (unless `quiet`)
+    when each is in the summary, else SweepError naming those that are not. `columns`: what
+    sets a run apart (default: the experiment's factors)."""
     planned = PlannedRuns()
     try:
         yield planned

@@ -29,7 +29,8 @@ from typing import TypeVar
 from fleet_sim.analysis.kpis import target_value
 from fleet_sim.config.experiment import MAX_RUNS, RunSpec
 from fleet_sim.errors import FleetSimError
-from fleet_sim.study.runner import DaskPool, LocalPool, execute
+from fleet_sim.study.pools import DaskPool, LocalPool
+from fleet_sim.study.runner import execute
 
 Result = TypeVar("Result")
 Search = Generator[list[RunSpec], None, Result]

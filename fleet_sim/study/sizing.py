@@ -92,20 +92,13 @@ from fleet_sim.config.experiment import (
 )
 from fleet_sim.errors import InputError
 from fleet_sim.sim.estimate import Estimate, analytic_estimate
+from fleet_sim.study.pools import DEFAULT_NO_WORKERS_TIMEOUT_S, DaskPool, LocalPool, make_pool
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
-from fleet_sim.study.runner import (
-    DEFAULT_NO_WORKERS_TIMEOUT_S,
-    DaskPool,
-    LocalPool,
-    check_extras,
-    folder_lock,
-    make_pool,
-    prepare,
-    write_plan,
-)
+from fleet_sim.study.runner import check_extras, prepare
 from fleet_sim.study.search import RunBudget as SearchBudget
 from fleet_sim.study.search import RunLimit, ordered_search, run_searches, run_values
+from fleet_sim.study.study_folder import folder_lock, write_plan
 from fleet_sim.study.warmup import largest_fleet, settle_warmup
 
 DEFAULT_MAX_AGVS = 50
@@ -419,8 +412,8 @@ def size_fleet(experiment: Experiment, out_dir: Path, workers: int = 0,
                stream: IO[str] | None = None, max_runs: int = MAX_RUNS,
                dask_timeout_s: float = DEFAULT_NO_WORKERS_TIMEOUT_S) -> list[GroupResult]:
     """Search every group; write sizing.json and refresh the summary tables (holding the
-    results folder: see fleet_sim.study.runner.folder_lock). Raises SizingLimit, after writing
-    them, if the search would need more than `max_runs` runs."""
+    results folder: see fleet_sim.study.study_folder.folder_lock). Raises SizingLimit, after
+    writing them, if the search would need more than `max_runs` runs."""
     spec = experiment.spec
     if not spec.targets:
         raise InputError(str(experiment.file), "targets", [],

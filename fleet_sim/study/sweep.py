@@ -16,21 +16,13 @@ from pathlib import Path
 from typing import IO
 
 from fleet_sim.config.experiment import Experiment
+from fleet_sim.study.pools import DEFAULT_NO_WORKERS_TIMEOUT_S, make_pool
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.results import tables_written
-from fleet_sim.study.runner import (
-    DEFAULT_NO_WORKERS_TIMEOUT_S,
-    RunFn,
-    SweepOutcome,
-    check_extras,
-    execute,
-    execute_run,
-    folder_lock,
-    make_pool,
-    prepare,
-    write_plan,
-)
+from fleet_sim.study.runner import SweepOutcome, check_extras, execute, prepare
+from fleet_sim.study.study_folder import folder_lock, write_plan
 from fleet_sim.study.warmup import largest_fleet, pilot_groups, settle_warmup
+from fleet_sim.study.worker import RunFn, execute_run
 
 
 def sweep(experiment: Experiment, out_dir: Path, workers: int = 0, scheduler: str | None = None,

@@ -10,16 +10,7 @@ warm-up is the creation time of the first order kept, rounded up to 0.05 h, and 
 over the pilots becomes `warmup_h` of every run (an override, so the run folders and their
 resolved configs record it, and a sweep and a sizing search of one experiment share it).
 
-Decisions, where the issue is silent:
-
-* One warm-up for the whole experiment, not one per run: the runs of a design point must be
-  alike to be replications, and paired comparisons across fleet sizes (common random numbers)
-  need the same window at every size.
-* Pilots live in `<results>/pilot/runs/` with run ids `pilot__...`, and the estimate in
-  `<results>/warmup.json`: a study resumed reads it back (and a rerun gives the same figure:
-  the pilots are deterministic). They never count as replications.
-* At least one MSER batch must be kept: the estimate is capped below the run's duration (and
-  MSER-5 searches only the first half of each series anyway).
+The choices where the issues were silent: docs/background/decisions/analysis-and-studies.md.
 """
 
 from __future__ import annotations
@@ -35,8 +26,10 @@ import pandas as pd
 
 from fleet_sim.analysis.stats import mser5_truncation
 from fleet_sim.config.experiment import Experiment, RunSpec
+from fleet_sim.study.pools import DaskPool, LocalPool
 from fleet_sim.study.progress import Progress
-from fleet_sim.study.runner import DaskPool, LocalPool, SweepError, execute
+from fleet_sim.study.runner import execute
+from fleet_sim.study.study_folder import SweepError
 
 ROUND_H = 0.05
 WARMUP_FILE = "warmup.json"
