@@ -8,11 +8,13 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
+import yaml
 
 from fleet_sim.config.scenario import Rules
 from fleet_sim.model.state_machine import transition_for
 from fleet_sim.model.states import VehicleState
 
+from .conftest import write_yaml
 from .test_incidents import ONE_ORDER, events, run, tiny
 
 FAULT_AT_S = 30.0
@@ -100,4 +102,21 @@ def test_a_fault_while_it_looks_for_its_position_is_an_error_like_any_other(
     assert second.time_s == 40.0 and second.from_state == "Moving"
     assert events(out, "Event_Locate") and not events(out, "Event_Located")
     assert events(out, "Event_Switch_Auto")
+    assert out.recorder.orders[0].delivered_s is not None
+
+
+def test_stopped_between_tags_it_creeps_on_to_the_tag_ahead_before_it_turns(
+        tmp_path: Path) -> None:
+    """Reset between SW and S1; the only TYPE_LOC tag, X, is a spur 4 m off SW. It cannot
+    turn back on the tape: it creeps on to S1 and round the loop to X (about 52 m at 0.3 m/s),
+    never straight from SW to X while it holds S1 (a run with the route from the tag behind
+    drove into a corridor it did not hold)."""
+    data = yaml.safe_load(tiny(tmp_path).read_text())
+    data["nodes"].append({"id": "X", "x": -4, "y": 0, "marker": "location"})
+    data["segments"].append({"from": "SW", "to": "X", "direction": "two_way"})
+    out = run(write_yaml(tmp_path / "spur.yaml", data), ONE_ORDER, duration_h=0.5,
+              incidents={"faults": [{"agv": 0, "at_s": FAULT_AT_S, "code": "E_999"}]})
+    locate, located = events(out, "Event_Locate")[0], events(out, "Event_Located")[0]
+    assert locate.detail.endswith("to X") and located.node == "X"
+    assert located.time_s - locate.time_s > 48.0 / 0.3
     assert out.recorder.orders[0].delivered_s is not None

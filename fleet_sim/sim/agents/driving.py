@@ -374,7 +374,10 @@ class Driver:
         up (a deadlock victim, or blocked long with another way) takes the escape."""
         traffic = self.traffic
         self.goal = goal
-        path = traffic.route(self.node, goal, self.id)
+        if self.ahead:  # stopped on the way to a node it holds (a reset): on to it first
+            path = [self.node, *traffic.route(self.ahead[0].node, goal, self.id)]
+        else:
+            path = traffic.route(self.node, goal, self.id)
         markers = traffic.layout.markers
         pass_speed_mps = self.routes.pass_speed_mps
         try_allocate = traffic.try_allocate

@@ -98,15 +98,19 @@ class VehicleFaults(VehicleBase):
         markers = self.traffic.layout.markers
         graph = self.traffic.graph
         with_loc = any(m == "location" for m in markers.values())
-        if with_loc:
-            times = nx.single_source_dijkstra_path_length(graph, self.node,
+        if with_loc:  # (stopped between tags, it cannot turn back: from the tag ahead)
+            ahead = self.driver.ahead
+            origin = ahead[0].node if ahead else self.node
+            times = nx.single_source_dijkstra_path_length(graph, origin,
                                                           weight=self.routes.weight)
             found = sorted((t, n) for n, t in times.items() if markers.get(n) == "location")
-            goal = found[0][1] if found else self.node
+            goal = found[0][1] if found else origin
         else:
             goal = self.driver.next_node or min(graph.successors(self.node), default=self.node)
         self.fire("Event_Locate", f"position unknown after the reset: to {goal}")
         self.marker_speed_mps = self.rules.obstacle_slow_speed_mps
+        if goal == self.node and self.driver.ahead:  # round the loop to where it stopped
+            yield from self.drive(self.driver.ahead[0].node)
         if goal != self.node:
             yield from self.drive(goal)
         self.marker_speed_mps = None
