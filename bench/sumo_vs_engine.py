@@ -39,8 +39,8 @@ def sumo_alone(agvs: int, hours: float, step_s: float, seed: int = 1) -> dict[st
     import numpy as np
 
     from fleet_sim.config.layout import load_layout
-    from fleet_sim.sim.motion.sumo import load_libsumo
-    from fleet_sim.sim.motion.sumo_network import VTYPE_ID, edge_id, export
+    from fleet_sim.sim.sumo.backend import load_libsumo
+    from fleet_sim.sim.sumo.network import VTYPE_ID, edge_id, export
 
     layout = load_layout(ROOT / "layouts" / "warehouse.yaml")
     rng = np.random.default_rng(seed)

@@ -14,7 +14,7 @@ import pytest
 
 from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.config.layout import load_layout
-from fleet_sim.sim.engine import build_model, simulate
+from fleet_sim.sim.engine import build_simulation, simulate
 from fleet_sim.sim.traffic.avoidance import Plans, _Walk
 from fleet_sim.sim.traffic.control import Traffic
 
@@ -30,7 +30,7 @@ def test_every_state_is_shown_safe_after_every_grant_and_plan_with_incidents(
     scenario, layout = scenario_for("warehouse_wifi", 30, 2.0, 240, "avoiding",
                                     base="warehouse_incidents.yaml",
                                     **{"dispatch.max_active_agvs": 30})
-    model = build_model(scenario, layout, (), False, False, None, 10_000)
+    model = build_simulation(scenario, layout, (), False, False, None, 10_000)
     traffic = model.traffic
     checked = {"grants": 0, "plans": 0}
     proofs: set[str] = set()
@@ -157,8 +157,8 @@ def test_the_walk_lets_go_of_a_node_once_the_body_has_cleared_it() -> None:
     the middle of a busy run on the fulfilment centre, whose 3.6 m diagonal hops are shorter
     than the clearance, so the body covers two nodes at times."""
     scenario, layout = scenario_for("fulfilment_centre", 60, 1.0, 1000, "avoiding",
-                                    **{"fleet.vehicle.length_m": 3.4})  # clears 3.9 m: more
-    model = build_model(scenario, layout, (), False, False, None, 10_000)  # than its 3.6 m hops
+                                    **{"fleet.vehicle.length_m": 3.4})  # clears 3.9 m
+    model = build_simulation(scenario, layout, (), False, False, None, 10_000)
     model.env.run(until=1200.0)
     traffic = model.traffic
     plans = traffic.strategy.plans
@@ -201,7 +201,7 @@ def test_a_refused_grant_is_walked_again_once_an_agv_the_walk_got_stuck_on_has_m
     52,000 failed walks and 600 of 780 s on the fulfilment centre at 200 AGVs."""
     scenario, layout = scenario_for("warehouse_same_direction", 60, 0.5, 300, "avoiding",
                                     **{"dispatch.max_active_agvs": 60})
-    model = build_model(scenario, layout, (), False, False, None, 10_000)
+    model = build_simulation(scenario, layout, (), False, False, None, 10_000)
     plans = model.traffic.strategy.plans
     assert plans is not None
     counts = {"walks": 0, "cycles": 0, "look-ahead walks": 0, "asked without a walk": 0}
@@ -268,7 +268,7 @@ def test_the_walk_keeps_out_of_a_junction_until_it_can_drive_on() -> None:
                              demand={"rate_per_hour": 0},
                              fleet={"size": 3, "start_nodes": ["W", "E", "S"]},
                              dispatch={"park_idle": False}, traffic={"policy": "avoiding"})
-    model = build_model(scenario, layout)
+    model = build_simulation(scenario, layout)
     traffic = model.traffic
     plans = traffic.strategy.plans
     assert plans is not None
@@ -303,7 +303,7 @@ def test_a_blocked_agv_takes_another_way_after_replan_after_s_as_a_checked_plan(
                              fleet={"size": 2, "start_nodes": ["N0", "N1"]},
                              dispatch={"park_idle": False},
                              traffic={"policy": "avoiding", "replan_after_s": replan_after_s})
-    model = build_model(scenario, layout)
+    model = build_simulation(scenario, layout)
     env = model.env
     mover, stander = model.vehicles
     mover.process = env.process(mover.drive("N2"))

@@ -13,7 +13,7 @@ from fleet_sim.config.layout import Layout
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.model.records import Order
 from fleet_sim.sim.demand import Demand, resolved_flows
-from fleet_sim.sim.engine import build_model, simulate
+from fleet_sim.sim.engine import build_simulation, simulate
 
 from .conftest import make_scenario
 
@@ -48,7 +48,7 @@ def test_poisson_demand_rate_and_time_of_day_profile(tiny_layout: Layout) -> Non
                              demand={"rate_per_hour": 30, "profile": [
                                  {"from_h": 0, "multiplier": 1.0},
                                  {"from_h": 2, "multiplier": 3.0}]})
-    model = build_model(scenario, tiny_layout)
+    model = build_simulation(scenario, tiny_layout)
     model.env.run(until=4 * 3600)
     times = [o.created_s for o in model.recorder.orders]
     low = sum(1 for t in times if t < 7200)
@@ -110,7 +110,7 @@ def test_common_random_numbers_across_fleet_sizes_and_policies(
         scenario = make_scenario("warehouse.yaml", duration_h=1, warmup_h=0, seed=seed,
                                  fleet={"size": size}, dispatch={"policy": policy},
                                  demand={"rate_per_hour": 120})
-        model = build_model(scenario, warehouse_layout)
+        model = build_simulation(scenario, warehouse_layout)
         model.env.run(until=3600)
         return [(o.created_s, o.pickup, o.dropoff, o.pickup_handling_s, o.dropoff_handling_s)
                 for o in model.recorder.orders]

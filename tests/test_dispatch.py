@@ -9,7 +9,7 @@ import pytest
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.sim.agents.dispatch import POLICIES, FirstComeFirstServed, NearestIdle
-from fleet_sim.sim.engine import build_model, simulate
+from fleet_sim.sim.engine import build_simulation, simulate
 
 from .conftest import make_scenario
 
@@ -42,7 +42,7 @@ def test_the_scenario_names_the_policy(tiny_layout: Layout) -> None:
     assert set(POLICIES) == {"nearest_idle", "fcfs"}
     scenario = make_scenario(duration_h=0.1, warmup_h=0, dispatch={"policy": "fcfs"},
                              demand={"rate_per_hour": 0})
-    assert isinstance(build_model(scenario, tiny_layout).fleet.policy, FirstComeFirstServed)
+    assert isinstance(build_simulation(scenario, tiny_layout).fleet.policy, FirstComeFirstServed)
 
 
 @pytest.mark.parametrize("policy,expected_agv", [("nearest_idle", 1), ("fcfs", 0)])

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from fleet_sim.config.layout import Layout, load_layout
-from fleet_sim.sim.engine import build_model, simulate
+from fleet_sim.sim.engine import build_simulation, simulate
 
 from .conftest import DATA, make_scenario, trapezoid_s, write_yaml
 
@@ -31,7 +31,7 @@ def test_look_ahead_passes_a_node_at_speed_or_brakes_before_a_held_one(
         scenario = make_scenario(duration_h=0.1, warmup_h=0, demand={"rate_per_hour": 0},
                                  fleet={"size": len(start_nodes), "start_nodes": start_nodes},
                                  dispatch={"park_idle": False})
-        model = build_model(scenario, tiny_layout, record_occupancy=True)
+        model = build_simulation(scenario, tiny_layout, record_occupancy=True)
         agv = model.vehicles[0]
         agv.process = model.env.process(agv.drive("S3"))
         model.env.run(until=30)
@@ -47,7 +47,7 @@ def test_a_whole_drive_with_a_turn_by_hand(tiny_layout: Layout) -> None:
     scenario = make_scenario(duration_h=0.1, warmup_h=0, demand={"rate_per_hour": 0},
                              fleet={"size": 1, "start_nodes": ["K"]},
                              dispatch={"park_idle": False})
-    model = build_model(scenario, tiny_layout, record_occupancy=True)
+    model = build_simulation(scenario, tiny_layout, record_occupancy=True)
     agv = model.vehicles[0]
     drive = model.env.process(agv.drive("P"))
     agv.process = drive
@@ -128,7 +128,7 @@ def test_deadlock_built_on_purpose_is_detected_and_resolved() -> None:
     scenario = make_scenario(str(DATA / "deadlock_ring.yaml"), duration_h=1, warmup_h=0,
                              fleet={"size": 4, "start_nodes": ["N0", "N1", "N2", "N3"]},
                              demand={"rate_per_hour": 0}, dispatch={"park_idle": False})
-    model = build_model(scenario, layout)
+    model = build_simulation(scenario, layout)
     goals = {0: "N2", 1: "N3", 2: "N0", 3: "N1"}  # each two nodes ahead: all wait on the next
     drives = []
     for vehicle in model.vehicles:
@@ -185,7 +185,7 @@ def test_an_agv_whose_re_entry_wait_is_broken_waits_again_and_never_shares_a_nod
     scenario = make_scenario(duration_h=0.1, warmup_h=0, demand={"rate_per_hour": 0},
                              fleet={"size": 2, "start_nodes": ["S1", "P"]},
                              dispatch={"park_idle": False})
-    model = build_model(scenario, tiny_layout)
+    model = build_simulation(scenario, tiny_layout)
     env, traffic = model.env, model.traffic
     comer, holder = model.vehicles
     comer.driver.leave_track()

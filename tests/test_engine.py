@@ -16,7 +16,7 @@ import pytest
 from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.analysis.tables import orders_table, write_run
 from fleet_sim.config.layout import Layout
-from fleet_sim.sim.engine import build_model, simulate
+from fleet_sim.sim.engine import build_simulation, simulate
 
 from .conftest import HALF_LOOP_S, ROOT, make_scenario, scenario_for
 
@@ -29,13 +29,13 @@ def test_the_fleet_starts_in_parking_or_on_its_start_nodes(warehouse_layout: Lay
     4 places); with them, each AGV stands on its node, holding it."""
     scenario = make_scenario(duration_h=0.1, warmup_h=0, fleet={"size": 3},
                              demand={"rate_per_hour": 0})
-    model = build_model(scenario, tiny_layout)
+    model = build_simulation(scenario, tiny_layout)
     assert [v.id for v in model.vehicles] == [0, 1, 2]
     assert [(v.node, v.parked_in.id if v.parked_in else None) for v in model.vehicles] == \
         [("K", "PARK")] * 3
     assert model.fleet.parking_free == {"PARK": 1}
     assert model.traffic.node_locks["K"].is_free  # parked AGVs are off the track
-    placed = build_model(make_scenario(duration_h=0.1, warmup_h=0, demand={"rate_per_hour": 0},
+    placed = build_simulation(make_scenario(duration_h=0.1, warmup_h=0, demand={"rate_per_hour": 0},
                                        fleet={"size": 2, "start_nodes": ["S1", "N3"]}),
                          tiny_layout)
     assert [(v.node, v.parked_in) for v in placed.vehicles] == [("S1", None), ("N3", None)]

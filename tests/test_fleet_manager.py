@@ -30,7 +30,7 @@ from fleet_sim.model.records import EventRecord, Order, Recorder
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.agents.fleet_manager import FleetManager
 from fleet_sim.sim.commands import CommandPath
-from fleet_sim.sim.engine import RunOutput, build_model, simulate
+from fleet_sim.sim.engine import RunOutput, build_simulation, simulate
 from fleet_sim.sim.traffic.control import Traffic
 from fleet_sim.sim.traffic.reactive import ReactivePolicy
 
@@ -211,7 +211,7 @@ def test_an_agv_failing_while_it_waits_for_a_charger_gives_it_up(spurs_layout: L
         fleet={"size": 3, "vehicle": {"battery": {"initial_soc_pct": 32}}},
         demand={"rate_per_hour": 60}, incidents={"faults": [
             {"agv": 2, "at_s": 1000.0, "code": "E_999"}]})
-    model = build_model(scenario, spurs_layout)
+    model = build_simulation(scenario, spurs_layout)
     model.env.run(until=scenario.duration_s)
     waits = [e for e in model.recorder.events if e.agv == 2 and e.time_s <= 1000.0
              and e.event == "not_dispatched" and e.detail == "waiting_for_charger"]
@@ -264,7 +264,7 @@ def test_orders_are_never_lost(warehouse_layout: Layout) -> None:
     """Every order created is waiting, being served, or delivered at the end of a run."""
     scenario = make_scenario("warehouse.yaml", duration_h=2, warmup_h=0, seed=9,
                              fleet={"size": 6}, demand={"rate_per_hour": 200})
-    model = build_model(scenario, warehouse_layout)
+    model = build_simulation(scenario, warehouse_layout)
     model.env.run(until=2 * 3600)
     waiting = {o.id for o in model.fleet.waiting}
     serving = {v.order.id for v in model.vehicles if v.order is not None}

@@ -23,7 +23,7 @@ from fleet_sim.config.scenario import (
 from fleet_sim.config.standards.factsheet_profile import import_factsheet
 from fleet_sim.config.trace import TraceOrder
 from fleet_sim.errors import InputError
-from fleet_sim.sim.engine import build_model, simulate
+from fleet_sim.sim.engine import build_simulation, simulate
 from tests.conftest import DATA, LAYOUTS
 
 AISLE_NODES = {"A1", "Q", "A3"}
@@ -62,7 +62,7 @@ def mixed(folder: Path, **fields: Any) -> dict[str, Any]:
 def run_mixed(folder: Path, **fields: Any) -> Any:
     scenario = parse_scenario(mixed(folder, **fields), "<test>", folder)
     layout = load_layout_for(scenario, "<test>")
-    model = build_model(scenario, layout, record_occupancy=True)
+    model = build_simulation(scenario, layout, record_occupancy=True)
     model.env.run(until=scenario.duration_s)
     return scenario, layout, model
 
@@ -134,7 +134,7 @@ def test_an_order_no_type_may_serve_fails_when_created(tmp_path: Path) -> None:
     data["fleet"] = {"vehicles": [{"type": "wide", "count": 2}]}
     scenario = parse_scenario(data, "<test>", tmp_path)
     layout = load_layout(tmp_path / "aisle_loop.yaml")
-    model = build_model(scenario, layout, [TraceOrder(10.0, "PICK2", "DROP"),
+    model = build_simulation(scenario, layout, [TraceOrder(10.0, "PICK2", "DROP"),
                                            TraceOrder(20.0, "PICK", "DROP")])
     model.env.run(until=600)
     lost, served = model.recorder.orders
@@ -255,7 +255,7 @@ def run_limited(folder: Path, limits: dict[tuple[str, str], dict[str, float]],
             "demand": {"rate_per_hour": 60}, "charging": {"enabled": False}}
     scenario = parse_scenario(data, "<test>", folder)
     layout = load_layout_for(scenario, "<test>")
-    model = build_model(scenario, layout, record_occupancy=True)
+    model = build_simulation(scenario, layout, record_occupancy=True)
     model.env.run(until=scenario.duration_s)
     return scenario, layout, model
 
@@ -317,7 +317,7 @@ def test_a_one_type_fleet_named_in_a_limit_drives_at_it(tmp_path: Path) -> None:
     data = {"layout": "limited_loop.yaml", "duration_h": 0.5, "warmup_h": 0.1,
             "fleet": {"size": 1}, "charging": {"enabled": False}}
     scenario = parse_scenario(data, "<test>", tmp_path)
-    model = build_model(scenario, load_layout_for(scenario, "<test>"), record_occupancy=True)
+    model = build_simulation(scenario, load_layout_for(scenario, "<test>"), record_occupancy=True)
     model.env.run(until=scenario.duration_s)
     assert min(segment_times(model, {0}, ("P", "S3"))) >= 4 / 0.25 - 1e-9
     limited_layout(tmp_path, {("P", "S3"): {"heavy": 0.25}})

@@ -19,7 +19,7 @@ from fleet_sim.config.layout import load_layout
 from fleet_sim.model.records import MoveRecord
 from fleet_sim.report.sections.runs import open_orders_line
 from fleet_sim.report.stalls import gridlock_statement
-from fleet_sim.sim.engine import build_model, simulate
+from fleet_sim.sim.engine import build_simulation, simulate
 
 from .conftest import ROOT, make_scenario, write_yaml
 
@@ -75,7 +75,7 @@ def test_a_locked_run_counts_its_open_waits_names_the_gridlock_and_shows_open_or
 def test_an_unresolvable_cycle_is_named_with_its_members_and_nodes() -> None:
     """Each AGV sent two nodes ahead: all four wait for the next one's node, no escape."""
     scenario = make_scenario(str(RING), **{**RING_FIELDS, "demand": {"rate_per_hour": 0}})
-    model = build_model(scenario, load_layout(RING))
+    model = build_simulation(scenario, load_layout(RING))
     goals = {0: "N2", 1: "N3", 2: "N0", 3: "N1"}
     for vehicle in model.vehicles:
         vehicle.process = model.env.process(vehicle.drive(goals[vehicle.id]))

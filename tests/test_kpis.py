@@ -346,7 +346,7 @@ def test_idle_while_waiting_streamed_in_small_batches_is_the_whole_run_figure(
     whole-run computation, to the last bit, and the matched spells let go."""
     from fleet_sim.analysis.kpi_sums import KpiSums
     from fleet_sim.config.layout import load_layout
-    from fleet_sim.sim.engine import build_model
+    from fleet_sim.sim.engine import build_simulation
 
     from .test_tables import eventful, feature_rich
 
@@ -359,7 +359,7 @@ def test_idle_while_waiting_streamed_in_small_batches_is_the_whole_run_figure(
             feature_rich(tmp_path)]
     seen: set[NotDispatched] = set()
     for scenario, layout in runs:
-        whole = build_model(scenario, layout)
+        whole = build_simulation(scenario, layout)
         whole.env.run(until=scenario.duration_s)
         expected = whole_run_idle_waiting(whole.recorder, scenario.warmup_s,
                                           scenario.duration_s)
@@ -367,7 +367,7 @@ def test_idle_while_waiting_streamed_in_small_batches_is_the_whole_run_figure(
         seen |= {r for r, s in expected[1].items() if s > 0}
         for batch_rows in (7, 5000):
             sums = KpiSums(scenario.warmup_s, scenario.duration_s)
-            model = build_model(scenario, layout, sink=sums, batch_rows=batch_rows)
+            model = build_simulation(scenario, layout, sink=sums, batch_rows=batch_rows)
             model.env.run(until=scenario.duration_s)
             model.recorder.finish()
             assert sums.idle_waiting.seconds() == expected

@@ -14,7 +14,7 @@ from fleet_sim.model.records import EventRecord
 from fleet_sim.model.state_machine import TABLE, TRANSITIONS, InvalidTransition
 from fleet_sim.model.states import VehicleState
 from fleet_sim.sim.agents.vehicle import Vehicle
-from fleet_sim.sim.engine import Model, build_model
+from fleet_sim.sim.engine import Simulation, build_simulation
 
 from .conftest import make_scenario
 
@@ -57,7 +57,7 @@ def test_rows_not_in_the_spec_say_why() -> None:
 
 @dataclass
 class Harness:
-    model: Model
+    model: Simulation
     agv: Vehicle
 
     def events(self) -> list[EventRecord]:
@@ -69,7 +69,7 @@ def harness(tiny_layout: Layout) -> Harness:
     """One AGV on the tiny loop whose process is never started: the test fires events itself."""
     scenario = make_scenario(duration_h=1, warmup_h=0, fleet={"size": 1, "start_nodes": ["S1"]},
                              demand={"rate_per_hour": 0})
-    model = build_model(scenario, tiny_layout)
+    model = build_simulation(scenario, tiny_layout)
     agv = model.vehicles[0]
     return Harness(model, agv)  # its own process is still booting (5 s): time never moves
 

@@ -15,7 +15,7 @@ import yaml
 from fleet_sim.config.layout import Layout, load_layout
 from fleet_sim.config.vehicle import VehicleProfile
 from fleet_sim.errors import InputError
-from fleet_sim.sim.motion.sumo_network import edge_id, export, read_edges
+from fleet_sim.sim.sumo.network import edge_id, export, read_edges
 
 from .conftest import LAYOUTS, ROOT, write_yaml
 
@@ -145,7 +145,7 @@ def test_a_mixed_fleet_gets_a_vtype_and_a_class_per_type(tmp_path: Path) -> None
     """One vType per vehicle type, each with a SUMO class of its own; a segment's per-type
     speed limits are its edge type's class restrictions (the network is read back and
     checked); a one-type fleet the layout gives no limit keeps the plain `agv` vType."""
-    from fleet_sim.sim.motion.sumo_network import read_class_limits, vehicle_classes
+    from fleet_sim.sim.sumo.network import read_class_limits, vehicle_classes
 
     data = yaml.safe_load((LAYOUTS / "tiny_loop.yaml").read_text("utf-8"))
     data["segments"][2]["speed_limit_mps_by_type"] = {"heavy": 0.4}

@@ -72,17 +72,17 @@ def test_closed_form_runs_never_load_libsumo() -> None:
 def test_one_sumo_simulation_per_process() -> None:
     code = ("from tests.conftest import make_scenario, LAYOUTS\n"
             "from fleet_sim.config.layout import load_layout\n"
-            "from fleet_sim.sim.engine import build_model\n"
+            "from fleet_sim.sim.engine import build_simulation\n"
             "from fleet_sim.errors import SimulationError\n"
             "layout = load_layout(LAYOUTS / 'tiny_loop.yaml')\n"
             "scenario = make_scenario(duration_h=0.1, warmup_h=0.0, motion='sumo')\n"
-            "first = build_model(scenario, layout)\n"
+            "first = build_simulation(scenario, layout)\n"
             "try:\n"
-            "    build_model(scenario, layout)\n"
+            "    build_simulation(scenario, layout)\n"
             "except SimulationError as exc:\n"
             "    print('refused:', exc)\n"
             "first.close()\n"
-            "build_model(scenario, layout).close()\n"
+            "build_simulation(scenario, layout).close()\n"
             "print('again ok')\n")
     result = _python(code)
     assert "refused: a SUMO simulation is already running" in result.stdout
@@ -109,10 +109,10 @@ def test_bad_motion_settings_are_named(fields: dict[str, object], element: str,
 MIXED_RUN = """
 import json, sys
 from fleet_sim.config.scenario import load_scenario, load_layout_for
-from fleet_sim.sim.engine import build_model
+from fleet_sim.sim.engine import build_simulation
 scenario = load_scenario(sys.argv[1])
 layout = load_layout_for(scenario, sys.argv[1])
-model = build_model(scenario, layout, record_occupancy=True)
+model = build_simulation(scenario, layout, record_occupancy=True)
 model.env.run(until=scenario.duration_s)
 sumo = model.motion_backend.sumo
 types = {vid: sumo.vehicle.getTypeID(vid) for vid in sumo.vehicle.getIDList()}

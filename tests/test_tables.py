@@ -44,7 +44,7 @@ from fleet_sim.model.records import (
     QueueLength,
     SocSample,
 )
-from fleet_sim.sim.engine import build_model, simulate
+from fleet_sim.sim.engine import build_simulation, simulate
 
 from .conftest import LAYOUTS, make_scenario, write_yaml
 from .test_multistop import four_station_loop
@@ -171,7 +171,7 @@ def test_a_streaming_recorder_holds_at_most_a_batch(charger_loop: Path) -> None:
     scenario = eventful(charger_loop, duration_h=24.0)
     layout: Layout = load_layout(charger_loop)
     sink = CountingSink()
-    model = build_model(scenario, layout, record_moves=True, sink=sink, batch_rows=batch_rows)
+    model = build_simulation(scenario, layout, record_moves=True, sink=sink, batch_rows=batch_rows)
     rec = model.recorder
     held: dict[str, int] = Counter()
     for step in range(1, 24 * 6 + 1):
@@ -186,7 +186,7 @@ def test_a_streaming_recorder_holds_at_most_a_batch(charger_loop: Path) -> None:
     rec.finish()
     assert rec.rows_held() == 0 and sink.closed == 1
     assert max(held.values()) < batch_rows and max(sink.largest.values()) <= batch_rows
-    memory = build_model(scenario, layout, record_moves=True)  # the same run, in memory
+    memory = build_simulation(scenario, layout, record_moves=True)  # the same run, in memory
     memory.env.run(until=scenario.duration_s)
     assert sink.rows["moves"] == len(memory.recorder.moves) > 50 * batch_rows
     memory = simulate(scenario, layout).recorder

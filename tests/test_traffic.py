@@ -155,7 +155,7 @@ class LastMember:
 
 
 def test_the_victim_chosen_by_the_strategy_gets_a_deadlock_victim_cause(ring: Layout) -> None:
-    traffic = make_traffic(ring, policy=LastMember())
+    traffic = make_traffic(ring, victim_choice=LastMember())
     clients = four_in_a_ring(traffic)
     assert traffic.strategy.resolve_deadlock(clients[0]) is None  # someone else moves
     victim = clients[3]

@@ -25,7 +25,7 @@ from fleet_sim.config.scenario import load_layout_for, load_scenario, parse_scen
 from fleet_sim.errors import InputError
 from fleet_sim.model.records import OccupancySpell
 from fleet_sim.report.layout_plot import ZONE_COLOUR, draw_layout, zone_rule
-from fleet_sim.sim.engine import build_model
+from fleet_sim.sim.engine import build_simulation
 from fleet_sim.sim.traffic.locks import ZoneLock
 from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate
 from tests.conftest import DATA, LAYOUTS, ROOT
@@ -63,7 +63,7 @@ def run_loop(folder: Path, capacity: int) -> tuple[Any, dict[str, Any]]:
                                "demand": {"rate_per_hour": 60},
                                "charging": {"enabled": False}}, "<test>", folder)
     layout = load_layout_for(scenario, "<test>")
-    model = build_model(scenario, layout, record_occupancy=True)
+    model = build_simulation(scenario, layout, record_occupancy=True)
     model.env.run(until=scenario.duration_s)
     return model, compute_kpis(model.recorder, scenario, layout.name)
 
@@ -102,7 +102,7 @@ def test_a_banned_type_never_enters_a_ban_zone(tmp_path: Path) -> None:
                                                   {"from": "PICK2", "to": "DROP"}]},
         "charging": {"enabled": False}}, "<test>", tmp_path)
     layout = load_layout_for(scenario, "<test>")
-    model = build_model(scenario, layout, record_occupancy=True)
+    model = build_simulation(scenario, layout, record_occupancy=True)
     model.env.run(until=scenario.duration_s)
     for spell in model.recorder.occupancy:
         if spell.agv in (2, 3):
@@ -171,7 +171,7 @@ def run_crossing(folder: Path, zones: list[dict[str, Any]] | None = None) -> tup
     crossing(folder, zones)
     scenario = parse_scenario(crossing_scenario(folder), "<test>", folder)
     layout = load_layout_for(scenario, "<test>")
-    model = build_model(scenario, layout, record_occupancy=True)
+    model = build_simulation(scenario, layout, record_occupancy=True)
     model.env.run(until=scenario.duration_s)
     return model, compute_kpis(model.recorder, scenario, layout.name)
 
@@ -428,7 +428,7 @@ def test_the_bundled_same_direction_warehouse_keeps_every_aisle_one_way() -> Non
     scenario = load_scenario(ROOT / "experiments" / "warehouse_same_direction.yaml")
     scenario = scenario.model_copy(update={"duration_h": 3.0})
     layout = load_layout_for(scenario, "<test>")
-    model = build_model(scenario, layout, record_occupancy=True)
+    model = build_simulation(scenario, layout, record_occupancy=True)
     model.env.run(until=3 * 3600.0)
     occupancy = model.recorder.occupancy + still_held(model)
     shared_aisles = 0
@@ -466,7 +466,7 @@ def test_agvs_put_inside_the_aisle_and_faults_keep_it_one_way(tmp_path: Path) ->
         {"agv": i % 6, "at_s": 900 + 311 * i, "code": "E_999"} for i in range(24)]}
     scenario = parse_scenario(raw, "<test>", tmp_path)
     layout = load_layout_for(scenario, "<test>")
-    model = build_model(scenario, layout, record_occupancy=True)
+    model = build_simulation(scenario, layout, record_occupancy=True)
     model.env.run(until=scenario.duration_s)
     most, _ = one_way_at_a_time(aisle_spells(model.recorder.occupancy + still_held(model)))
     assert most >= 2

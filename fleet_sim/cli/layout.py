@@ -42,7 +42,7 @@ def _layout(args: argparse.Namespace) -> int:
     draw_layout(layout, png, labels=args.labels)
     print(f"  drawing      {png}")
     if args.sumo is not None:
-        from fleet_sim.sim.motion.sumo_network import export
+        from fleet_sim.sim.sumo.network import export
 
         network = export(layout, args.sumo)
         print(f"  SUMO network {network.net_file} (+ plain .nod/.edg/.con.xml, "

@@ -97,7 +97,7 @@ class Scenario(StrictModel):
     motion: Literal["closed_form", "sumo"] = "closed_form"
     """How AGVs move between nodes: closed_form (exact trapezoidal profiles per hop,
     fleet_sim.model.kinematics) or sumo (SUMO's car-following model through libsumo,
-    fleet_sim.sim.motion.sumo, stepping with SimPy; dispatching, states, charging, incidents and
+    fleet_sim.sim.sumo.backend, stepping with SimPy; dispatching, states, charging, incidents and
     traffic locks stay in the SimPy model). See docs/background/sumo.md."""
     sumo: SumoConfig = SumoConfig()
     _base_dir: str = PrivateAttr(default=".")

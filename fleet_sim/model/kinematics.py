@@ -31,7 +31,7 @@ class Motion:
 
 
 class MotionBackend(Protocol):
-    """Moves AGVs instead of the closed form (fleet_sim.sim.motion.sumo.SumoMotion): the driver
+    """Moves AGVs instead of the closed form (fleet_sim.sim.sumo.backend.SumoMotion): the driver
     asks it for each hop and waits for the events it hands back; locks stay with the driver."""
 
     def hop(self, agv_id: int, prev: str | None, u: str, v: str, after: str | None,

@@ -57,7 +57,9 @@ PROGRESS_STEPS = 20
 
 
 @dataclass
-class Model:
+class Simulation:
+    """One simulation built and ready to run: its SimPy environment and the parts in it."""
+
     env: simpy.Environment
     traffic: Traffic
     fleet: FleetManager
@@ -86,9 +88,10 @@ class RunOutput:
     """Admission `auto`: the limit in force and the bottleneck it was derived from."""
 
 
-def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
-                record_occupancy: bool = False, record_moves: bool = False,
-                sink: RecordSink | None = None, batch_rows: int = BATCH_ROWS) -> Model:
+def build_simulation(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (),
+                     record_occupancy: bool = False, record_moves: bool = False,
+                     sink: RecordSink | None = None,
+                     batch_rows: int = BATCH_ROWS) -> Simulation:
     env = simpy.Environment()
     profile = scenario.fleet.vehicle
     motion = Motion(profile.max_speed_mps, profile.accel_mps2, profile.decel_mps2,
@@ -102,7 +105,7 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
     recorder.zone_wait_s = {z: 0.0 for z in traffic.zone_ids}
     recorder.stalls = StallMeter(scenario.fleet.size, stall_threshold_pct(scenario))
     if scenario.motion == "sumo":  # imported here: closed-form runs never load libsumo
-        from fleet_sim.sim.motion.sumo import SumoMotion
+        from fleet_sim.sim.sumo.backend import SumoMotion
 
         traffic.motion_backend = SumoMotion(env, layout, scenario)
     arrivals, handling, backoff, incident, link = np.random.SeedSequence(scenario.seed).spawn(5)
@@ -134,7 +137,7 @@ def build_model(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] 
         v.start()
     demand.start()
     env.process(watch(env, traffic, vehicles, recorder, scenario.traffic.gridlock_after_s))
-    return Model(env, traffic, fleet, vehicles, demand, recorder, traffic.motion_backend,
+    return Simulation(env, traffic, fleet, vehicles, demand, recorder, traffic.motion_backend,
                  None if neck is None or limit is None else (limit, neck))
 
 
@@ -196,7 +199,7 @@ def simulate(scenario: Scenario, layout: Layout, trace: Sequence[TraceOrder] = (
     closed at the end; the recorder keeps the running totals). `record_moves`: also every
     drive, lock wait and placement of every AGV (the replay's data; it changes nothing else)."""
     wall_start = time.perf_counter()
-    model = build_model(scenario, layout, trace, record_occupancy, record_moves, sink,
+    model = build_simulation(scenario, layout, trace, record_occupancy, record_moves, sink,
                         batch_rows)
     end = scenario.duration_s
     try:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from fleet_sim.errors import FleetSimError
-from fleet_sim.sim.motion import require_backend
+from fleet_sim.sim.sumo import require_backend
 
 MOTIONS = ("closed_form", "sumo")
 COLUMNS = (("throughput_per_hour", "throughput /h", "{:.1f}"),

@@ -20,7 +20,7 @@ import yaml
 from fleet_sim.config.experiment import FLEET, Experiment, RunSpec
 from fleet_sim.config.scenario import VEHICLE_TYPES
 from fleet_sim.errors import require_extra
-from fleet_sim.sim.motion import require_backend
+from fleet_sim.sim.sumo import require_backend
 from fleet_sim.study.pools import DEFAULT_NO_WORKERS_TIMEOUT_S, DaskPool, LocalPool, run_local
 from fleet_sim.study.progress import Progress
 from fleet_sim.study.run_folder import MANIFEST, OK, RunResult, run_problem

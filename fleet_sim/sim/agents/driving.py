@@ -6,7 +6,7 @@ hop after it without waiting (`Traffic.try_allocate`, the look-ahead); with it, 
 through the next node at the highest speed from which it could still stop at the one after;
 without it, it brakes to stop at the next node. Each hop's time is closed form
 (fleet_sim.model.kinematics), or, when the traffic has a motion backend (`motion: sumo`,
-fleet_sim.sim.motion.sumo), the time SUMO takes to drive it. See fleet_sim.sim.traffic and
+fleet_sim.sim.sumo.backend), the time SUMO takes to drive it. See fleet_sim.sim.traffic and
 docs/background/engine.md for the rules.
 
 The driver is a client of the reservation table (`TrafficClient`): traffic control decides what

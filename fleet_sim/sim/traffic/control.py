@@ -66,9 +66,9 @@ from fleet_sim.sim.traffic.allocation import (
     SameDirectionModule,
 )
 from fleet_sim.sim.traffic.deadlock import (
-    DeadlockPolicy,
     Escape,
     GentlestEscapeFirst,
+    VictimChoice,
 )
 from fleet_sim.sim.traffic.locks import Claim
 from fleet_sim.sim.traffic.policy import TrafficPolicy
@@ -96,7 +96,7 @@ class Traffic:
     """The reservation table: node and corridor locks, keyed by client."""
 
     def __init__(self, env: simpy.Environment, layout: Layout, motion: Motion,
-                 recorder: Recorder, policy: DeadlockPolicy | None = None,
+                 recorder: Recorder, victim_choice: VictimChoice | None = None,
                  costs: RouteCosts | None = None, config: TrafficConfig | None = None, *,
                  strategy: Callable[[Traffic], TrafficPolicy]) -> None:
         self.env = env
@@ -107,7 +107,8 @@ class Traffic:
         self.motion = motion
         self.routes = Routes(layout, motion)
         self.recorder = recorder
-        self.policy: DeadlockPolicy = policy if policy is not None else GentlestEscapeFirst()
+        self.victim_choice: VictimChoice = (victim_choice if victim_choice is not None
+                                            else GentlestEscapeFirst())
         table = self.table = Reservations(env, layout)
         """What is held, by whom, and what is queued (the view the modules and policies get)."""
         self.node_locks = table.node_locks

@@ -2,13 +2,13 @@
 
 A wait-for cycle is AGV a waiting for a lock b holds, b for one c holds, ..., back to a. Each
 member's possible escape lets go of the lock the member before it waits for (`Escape`); the
-`DeadlockPolicy` handed to `Traffic` picks which member moves. The victim, when it is not the AGV
+`VictimChoice` handed to `Traffic` picks which member moves. The victim, when it is not the AGV
 that found the cycle, is interrupted with a `DeadlockVictim` cause carrying its escape (like
 SimPy's `Preempted`: an object with fields, not a string).
 
 Decisions where the spec is silent (RSS-AGV-001 has no traffic rules):
 
-* The default policy (`GentlestEscapeFirst`) prefers the move that disturbs least: giving up a
+* The default choice (`GentlestEscapeFirst`) prefers the move that disturbs least: giving up a
   corridor reserved but not entered (`yield`), then another route (`reroute`), then driving on
   and coming back round (`circulate`), then one hop back (`backoff`); among members with the
   same kind, the first in wait order (starting from the AGV that looked).
@@ -121,7 +121,7 @@ def _still_cycle(members: frozenset[int], waiting: Mapping[int, Lock]) -> bool:
     return cycle is not None and frozenset(cycle) == members
 
 
-class DeadlockPolicy(Protocol):
+class VictimChoice(Protocol):
     """Picks the member of a wait-for cycle that moves, and its escape."""
 
     def choose(self, options: Sequence[tuple[int, Escape | None]]) -> tuple[int, Escape] | None:
@@ -131,7 +131,7 @@ class DeadlockPolicy(Protocol):
 
 
 class GentlestEscapeFirst:
-    """The default policy: the gentlest kind of escape any member has; the first such member."""
+    """The default choice: the gentlest kind of escape any member has; the first such member."""
 
     ORDER: tuple[EscapeKind, ...] = ("yield", "reroute", "circulate", "backoff")
 

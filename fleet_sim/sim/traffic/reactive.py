@@ -3,7 +3,7 @@ each part of a hop in turn, and wait-for cycles are found and broken.
 
 * A wait-for cycle is looked for whenever an AGV starts waiting (fleet_sim.sim.traffic.deadlock),
   and, while a cycle it was found in may still stand, every `deadlock_check_s` while it waits. A
-  cycle is recorded and resolved by the `DeadlockPolicy` handed to `Traffic`: one member takes
+  cycle is recorded and resolved by the `VictimChoice` handed to `Traffic`: one member takes
   another route or backs off (fleet_sim.sim.traffic.escapes).
 * Why only then: an AGV waits for one lock at a time, so the wait-for graph has at most one edge
   out of each AGV, and a lock passed on goes to an AGV that thereby stops waiting. The only
@@ -217,7 +217,7 @@ class ReactivePolicy:
         # Member i holds the lock that member i-1 waits for; its escape must let go of it.
         options = [(m.id, self.escapes.escape_for(m, self.table.waiting[cycle[i - 1]]))
                    for i, m in enumerate(members)]
-        chosen = self.traffic.policy.choose(options)
+        chosen = self.traffic.victim_choice.choose(options)
         if chosen is None:
             if new:
                 client.note("deadlock_unresolved", f"agvs {names}: no free way out yet")

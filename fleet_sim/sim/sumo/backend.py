@@ -15,7 +15,7 @@ over the first `turn_length_m` of the edge. A marker or comm-loss speed cap is t
 maximum speed. A mixed fleet: each AGV is inserted as its type's vType (top speed,
 acceleration, deceleration, length, gap), its turn waypoints use its type's turn speed, and a
 segment's per-type speed limits are its class's limits in SUMO's network
-(fleet_sim.sim.motion.sumo_network.vehicle_classes). Obstacles and line searches hold the
+(fleet_sim.sim.sumo.network.vehicle_classes). Obstacles and line searches hold the
 vehicle (brake to the creep speed or to a stop) and let it go again; a fault halts it;
 leaving the track removes it; the next hop inserts it again at the node where it comes back.
 
@@ -42,8 +42,8 @@ import simpy
 from fleet_sim.config.layout import Layout
 from fleet_sim.config.scenario import Scenario
 from fleet_sim.errors import SimulationError, optional_import
-from fleet_sim.sim.motion import NEEDED_BY, require_backend
-from fleet_sim.sim.motion.sumo_network import VehicleClass, edge_id, export, vehicle_classes
+from fleet_sim.sim.sumo import NEEDED_BY, require_backend
+from fleet_sim.sim.sumo.network import VehicleClass, edge_id, export, vehicle_classes
 
 STOP_S = 1e9
 """Duration of the stop that holds an AGV at a node until its next hop resumes it."""

@@ -1,4 +1,4 @@
-"""Motion backends other than the closed form: SUMO through libsumo (the ``sumo`` extra).
+"""The SUMO motion backend (`motion: sumo`): SUMO through libsumo (the ``sumo`` extra).
 
 `require_backend` checks, without importing libsumo, that a backend's extra is installed,
 so that a command fails in one line before any work (fleet_sim.errors.MissingExtra).
@@ -18,7 +18,7 @@ def require_backend(motion: str, needed_by: str = NEEDED_BY) -> None:
     """Raise MissingExtra unless `motion`'s extra is installed (closed_form needs none):
     libsumo, and netconvert (from the eclipse-sumo wheel, or a SUMO on PATH)."""
     if motion == "sumo":
-        from fleet_sim.sim.motion.sumo_network import sumo_binary
+        from fleet_sim.sim.sumo.network import sumo_binary
 
         require_extra("libsumo", "sumo", needed_by)
         sumo_binary("netconvert", needed_by)

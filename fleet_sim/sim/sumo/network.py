@@ -10,7 +10,7 @@ The export is what a SUMO user would build by hand for tape-guided AGVs:
   attribute and ``--precision 6``; `check_network` reads the result back and compares).
 * No internal junction lanes (``--no-internal-links``): a vehicle leaves one edge and is on the
   next, so the distance driven is the sum of the layout's segment lengths. The slow branch curve
-  after a turn (Req.Nav.005) is not geometry here; the motion backend (fleet_sim.sim.motion.sumo)
+  after a turn (Req.Nav.005) is not geometry here; the motion backend (fleet_sim.sim.sumo.backend)
   makes it a waypoint at the turn speed over the first ``turn_length_m`` of the edge.
 * Every turn a layout allows is a connection, U-turns included (AGVs reverse at dead ends).
 * The vehicle type comes from the vehicle profile: length, top speed, acceleration and
