@@ -163,19 +163,9 @@ class AvoidingPolicy:
                 shown = blocker if blocker is not None else self.table.node_locks[hop.node]
                 if start is None:
                     start = env.now
-                    if isinstance(shown.key, ZoneLock):
-                        zone_wait = shown.key.zone_id
-                    self.traffic.recorder.wait_began(client_id, start, zone_wait)
-                    if self.traffic.recorder.record_moves:
-                        holder = shown.holder
-                        self.traffic.open_waits[client_id] = (start, str(shown.key),
-                                                       -1 if holder is None else holder)
+                    zone_wait = self._wait_began(client_id, shown)
                 if self.table.waiting.get(client_id) is not shown:
-                    if client_id in self.table.waiting:
-                        self.table.stop_waiting(client_id)
-                    self.table.start_waiting(client_id, shown)
-                    client.began_waiting(shown)
-                    self._record_cycle(client)
+                    self._waits_for(client, shown)
                 wake = self._wake_on(blocker)
                 if needs_of is None:  # driving: blocked long, another way (checked as a plan)
                     waited = env.now - start + 1e-9
@@ -206,6 +196,26 @@ class AvoidingPolicy:
                 self.traffic.close_wait(client)
                 if zone_wait is not None and start < env.now:
                     self.traffic.recorder.zone_waited(zone_wait, start, env.now)
+
+    def _wait_began(self, client_id: int, shown: Lock) -> str | None:
+        """Record the start of a wait like any lock wait, for `shown`; the zone it is for,
+        if a zone."""
+        zone_wait = shown.key.zone_id if isinstance(shown.key, ZoneLock) else None
+        recorder = self.traffic.recorder
+        recorder.wait_began(client_id, self.table.env.now, zone_wait)
+        if recorder.record_moves:
+            holder = shown.holder
+            self.traffic.open_waits[client_id] = (self.table.env.now, str(shown.key),
+                                                  -1 if holder is None else holder)
+        return zone_wait
+
+    def _waits_for(self, client: TrafficClient, shown: Lock) -> None:
+        """The client now waits for `shown` (a wait-for cycle it closes is recorded)."""
+        if client.id in self.table.waiting:
+            self.table.stop_waiting(client.id)
+        self.table.start_waiting(client.id, shown)
+        client.began_waiting(shown)
+        self._record_cycle(client)
 
     def _replan_safely(self, client: TrafficClient) -> bool:
         """Avoiding, blocked `replan_after_s`: another route to the goal whose first node is

@@ -111,31 +111,7 @@ class Traffic:
                                             else GentlestEscapeFirst())
         table = self.table = Reservations(env, layout)
         """What is held, by whom, and what is queued (the view the modules and policies get)."""
-        self.node_locks = table.node_locks
-        self.junction_locks = table.junction_locks
-        self.corridor_locks = table.corridor_locks
-        self.zone_locks = table.zone_locks
-        self.waiting = table.waiting
-        self.clients = table.clients
-        self.nodes_held = table.nodes
-        self.corridors_held = table.corridors
-        self.zones_held = table.zones
-        self.request = table.request
-        self.free = table.free
-        self.withdraw = table.withdraw
-        self.turned = table.turned
-        self.entered_corridor = table.entered_corridor
-        self.held_locks = table.held_locks
-        self.corridors_of = table.corridors_of
-        self.zones_of = table.zones_of
-        self.holds_corridor = table.holds_corridor
-        self.node_holder = table.node_holder
-        self.holders = table.holders
-        self.blocks_others = table.blocks_others
-        self.past_m = table.past_m
-        self.clearance_m = table.clearance_m
-        self.start_waiting = table.start_waiting
-        self.stop_waiting = table.stop_waiting
+        self._share(table)
         self.next_nodes = {n: tuple(sorted(self.graph.successors(n))) for n in self.graph.nodes}
         """Node -> the nodes a segment leads to from it, sorted (escapes look in that order)."""
         self.blocks: dict[tuple[str, str], list[tuple[float, float]]] = {}
@@ -166,20 +142,53 @@ class Traffic:
         self.open_waits: dict[int, tuple[float, str, int]] = {}
         """With moves recorded: client id -> the lock wait under way (since_s, lock,
         holder)."""
+        self._take_modules(table)
+        self.strategy: TrafficPolicy = strategy(self)
+        """How hops are granted (`traffic.policy`, fleet_sim.sim.traffic.policies)."""
+
+    def _share(self, table: Reservations) -> None:
+        """The table's state and writes, under the names the drive and the policies use."""
+        self.node_locks = table.node_locks
+        self.junction_locks = table.junction_locks
+        self.corridor_locks = table.corridor_locks
+        self.zone_locks = table.zone_locks
+        self.waiting = table.waiting
+        self.clients = table.clients
+        self.nodes_held = table.nodes
+        self.corridors_held = table.corridors
+        self.zones_held = table.zones
+        self.request = table.request
+        self.free = table.free
+        self.withdraw = table.withdraw
+        self.turned = table.turned
+        self.entered_corridor = table.entered_corridor
+        self.held_locks = table.held_locks
+        self.corridors_of = table.corridors_of
+        self.zones_of = table.zones_of
+        self.holds_corridor = table.holds_corridor
+        self.node_holder = table.node_holder
+        self.holders = table.holders
+        self.blocks_others = table.blocks_others
+        self.past_m = table.past_m
+        self.clearance_m = table.clearance_m
+        self.start_waiting = table.start_waiting
+        self.stop_waiting = table.stop_waiting
+
+    def _take_modules(self, table: Reservations) -> None:
+        """The allocation modules (fleet_sim.sim.traffic.allocation), in the order a queued
+        request takes what a hop needs."""
         self.modules: tuple[AllocationModule, ...] = (
             CorridorModule(table), MutexZoneModule(table), SameDirectionModule(table),
             NodeModule(table))
         """What a hop needs, in the order a queued request takes it (allocation)."""
         self.active_modules = tuple(
             m for m in self.modules
-            if m.name == "node" or (m.name == "corridor" and layout.corridors)
-            or (m.name == "mutex" and layout.mutex_zones_at)
-            or (m.name == "same_direction" and layout.direction_zones_at))
+            if m.name == "node" or (m.name == "corridor" and self.layout.corridors)
+            or (m.name == "mutex" and self.layout.mutex_zones_at)
+            or (m.name == "same_direction" and self.layout.direction_zones_at))
         """The modules this layout has resources for (the others never need anything)."""
         self.modules_before_node: tuple[AllocationModule, ...] = tuple(
             m for m in self.active_modules if m.name != "node")
-        self.strategy: TrafficPolicy = strategy(self)
-        """How hops are granted (`traffic.policy`, fleet_sim.sim.traffic.policies)."""
 
     @property
     def version(self) -> int:
