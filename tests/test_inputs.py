@@ -293,3 +293,19 @@ def test_did_you_mean_offers_only_a_close_key() -> None:
     assert closest("sd_s", ["dist", "low_s", "mode_s", "high_s"]) is None
     assert closest("top_speed_kmh", ["max_speed_mmps", "turn_speed_mmps"]) is None
     assert closest("colour", ["size", "vehicle", "vehicles"]) is None
+
+
+def test_more_aliases_than_allowed_are_refused_before_anything_is_built(tmp_path: Path) -> None:
+    """An alias is counted in the composed document (libyaml's parser composes in C): 1,000
+    are read, the 1,001st is refused, naming the line of the node it refers to."""
+    from userfiles.reading import MAX_YAML_ALIASES
+
+    for count, refused in ((MAX_YAML_ALIASES, False), (MAX_YAML_ALIASES + 1, True)):
+        path = tmp_path / f"aliases{count}.yaml"
+        path.write_text("a: &a 1\nb:\n" + "".join("  - *a\n" for _ in range(count)), "utf-8")
+        if refused:
+            with pytest.raises(InputError, match=rf"line 1: got 'alias number {count} \(of the "
+                                                 r"node on this line\)'; expected at most"):
+                read_yaml(path)
+        else:
+            assert read_yaml(path)["b"] == [1] * count

@@ -32,29 +32,16 @@ class _Refused(Exception):
         self.expected = expected
 
 
-class _Loader(yaml.SafeLoader):
-    """SafeLoader that refuses duplicate keys and alias bombs.
+class Checks:
+    """What a safe loader adds to refuse duplicate keys and alias bombs.
 
-    Aliases are counted while composing, and the size of the document with its aliases
-    expanded is computed (each node once) before anything is constructed, so a bomb costs
-    nothing. A duplicate key in one mapping (not one brought in by a ``<<`` merge) is an error
-    naming the key and both lines."""
-
-    def __init__(self, stream: str) -> None:
-        super().__init__(stream)
-        self._aliases = 0
-
-    def compose_node(self, parent: Any, index: Any) -> Any:
-        if self.check_event(yaml.AliasEvent):
-            self._aliases += 1
-            if self._aliases > MAX_YAML_ALIASES:
-                mark = self.peek_event().start_mark  # type: ignore[no-untyped-call]
-                raise _Refused(f"line {mark.line + 1}", f"alias number {self._aliases}",
-                               f"at most {MAX_YAML_ALIASES} aliases (*name) in one file")
-        return super().compose_node(parent, index)
+    The document is composed (an alias is the node it names, not a copy), then its size with
+    its aliases expanded and the number of aliases are computed (each node once) before
+    anything is constructed, so a bomb costs nothing. A duplicate key in one mapping (not one
+    brought in by a ``<<`` merge) is an error naming the key and both lines."""
 
     def get_single_node(self) -> Any:
-        node = super().get_single_node()
+        node = super().get_single_node()  # type: ignore[misc]
         if node is not None:
             _check_expanded_size(node)
         return node
@@ -65,7 +52,7 @@ class _Loader(yaml.SafeLoader):
             for key_node, _ in node.value:
                 if key_node.tag == "tag:yaml.org,2002:merge":
                     continue
-                key = self.construct_object(key_node, deep=True)
+                key = self.construct_object(key_node, deep=True)  # type: ignore[attr-defined]
                 line = key_node.start_mark.line + 1
                 try:
                     first = seen.get(key)
@@ -76,7 +63,13 @@ class _Loader(yaml.SafeLoader):
                                    f"each key once per mapping (key {key!r} is already on "
                                    f"line {first})")
                 seen[key] = line
-        return super().construct_mapping(node, deep=deep)
+        return super().construct_mapping(node, deep=deep)  # type: ignore[misc]
+
+
+_Loader: Any = type("_Loader", (Checks, getattr(yaml, "CSafeLoader", yaml.SafeLoader)), {})
+"""A safe loader with the `Checks`, on libyaml's parser where PyYAML was built with it (about
+ten times faster on a large layout, bench/layout_loading.py), else on PyYAML's own: both give
+the same data, and the checks run on either."""
 
 
 def _check_expanded_size(root: Any) -> None:
@@ -85,6 +78,7 @@ def _check_expanded_size(root: Any) -> None:
     size: dict[int, int] = {}
     on_path: set[int] = set()
     stack: list[tuple[Any, bool]] = [(root, False)]
+    _count_aliases(root)
     while stack:
         node, done = stack.pop()
         key = id(node)
@@ -106,6 +100,25 @@ def _check_expanded_size(root: Any) -> None:
         on_path.add(key)
         stack.append((node, True))
         stack.extend((c, False) for c in _children(node) if id(c) not in size)
+
+
+def _count_aliases(root: Any) -> None:
+    """Refuse more than MAX_YAML_ALIASES aliases: in the composed document an alias is one
+    more reference to a node already referred to."""
+    seen = {id(root)}
+    stack = [root]
+    aliases = 0
+    while stack:
+        for child in _children(stack.pop()):
+            if id(child) not in seen:
+                seen.add(id(child))
+                stack.append(child)
+                continue
+            aliases += 1
+            if aliases > MAX_YAML_ALIASES:
+                raise _Refused(f"line {child.start_mark.line + 1}",
+                               f"alias number {aliases} (of the node on this line)",
+                               f"at most {MAX_YAML_ALIASES} aliases (*name) in one file")
 
 
 def _children(node: Any) -> list[Any]:
@@ -148,7 +161,7 @@ def read_yaml(path: Path) -> Any:
     (and the line)."""
     file = str(path)
     text = read_text(path)
-    loader: _Loader | None = None
+    loader: Any = None
     try:
         loader = _Loader(text)  # checks the characters at once
         return loader.get_single_data()
