@@ -425,7 +425,7 @@ class Driver:
                 if not on_plan:
                     on_plan = traffic.declare(self, goal)
                 nxt = traffic.plan_step(self.id, 1)
-                if nxt is None:  # at the end of the old plan: a parking access
+                if nxt is None:  # at the end of the plan in force: a parking access
                     yield from self._through_parking(goal)
                     on_plan = True
                     continue

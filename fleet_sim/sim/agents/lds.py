@@ -16,18 +16,10 @@ stands still sees it within range. Which reading holds is `rules.agv_ahead`:
   one ahead (not even in the P_005 slowing zone, `rules.lds_slow_m`, 1.5 m): an AGV lets go
   of a node only once its rear is `lds_slow_m` past it (not `min_gap_m`), so queues need more
   track. On layouts whose segments are longer than an AGV plus `lds_slow_m` (every bundled
-  one) this is exactly the model before the reading existed.
+  one) this gives the same results as leaving the AGV ahead out of the LDS altogether.
 
-Where the documents are silent (see docs/background/spec-readings.md):
-
-* A waiting AGV's place in the lock table and the time of its next hop stay those of its tag:
-  the closing up is not credited (the AGV sets off from its tag when granted), so the reading
-  adds the pauses, their restart and E_101, and takes nothing away.
-* The AGV ahead counts while it stands (waiting, at a station, down, charging on the track);
-  one driving away is followed, not paused for. A wait that began behind a moving AGV is
-  looked at again every `LOOK_AGAIN_S` while it lasts (the AGV ahead may stop, or break down).
-* Only waits for a node (the queue on the track) are LDS waits; a corridor, zone or the
-  avoiding policy's safety check holds the AGV at its tag with nobody in front.
+The readings: docs/background/spec-readings.md; the choices where the documents are silent:
+docs/background/decisions/sim.md.
 """
 
 from __future__ import annotations

@@ -10,23 +10,11 @@ and same-direction zones it enters), and `Traffic` grants it all or nothing
 resource is one `AllocationModule`: it names the locks of its kind the hop needs that the AGV
 does not hold yet (`needs`), and answers whether one may be granted now (`may_allocate`).
 
-Decisions (the issue is silent):
+The modules' order is the order in which a queued request takes its parts (corridors, mutex
+zones, same-direction zones, the node): an AGV reserves a corridor or an aisle before the node
+from which it drives in, since waiting there it would block the way out.
 
-* The order in which a queued request takes its parts is fixed by the order of the modules:
-  corridors, mutex zones, same-direction zones, the node (an AGV reserves a corridor or an
-  aisle before the node from which it drives in; waiting there, it would block the way out).
-  A look-ahead grant takes every part at the same instant, so its order is not observable.
-* A queued request that gives up keeps what it held before it asked; of what it took for the
-  hop, it gives back the corridors, and, once it got past them, the zones it is not inside (a
-  same-direction zone it took for an aisle it was about to drive into from the node it stands
-  on is given back only when the failing part was a same-direction zone or when the AGV then
-  finds another way, `Traffic.give_up`): exactly the rollback the driver did before.
-* A look-ahead grant takes nothing it would have to wait for, so it schedules no SimPy event
-  (fleet_sim.sim.traffic.locks.Claim.grant_at_once).
-* The deadlock-avoiding policy (`traffic.policy: avoiding`, fleet_sim.sim.traffic.avoidance)
-  answers "may it allocate?" for the hop as a whole, beside these modules: every part free and
-  the grant keeping every AGV's plan finishable; the reactive policy finds and breaks cycles
-  (fleet_sim.sim.traffic.deadlock).
+The choices where the issues were silent: docs/background/decisions/sim.md.
 """
 
 from __future__ import annotations

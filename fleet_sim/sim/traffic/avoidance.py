@@ -16,12 +16,12 @@ y. The state is safe when this graph has no cycle: finish the AGVs in reverse to
 order (Habermann's sequence). Traffic keeps it acyclic:
 
 * **A grant** to AGV a of resources R (free, and on a's plan) adds edges t -> a for the AGVs t
-  whose plans need something in R. The graph was acyclic; the grant closes a cycle exactly when
-  a reaches such a t (`may_grant`: a depth-first walk from a, skipped when nobody else's plan
-  needs R).
+  whose plans need something in R. The graph is acyclic before the grant, which closes a cycle
+  exactly when a reaches such a t (`may_grant`: a depth-first walk from a, skipped when nobody
+  else's plan needs R).
 * **A new plan** for a adds edges from a to the holders of what it needs; it closes a cycle
-  exactly when one of them reaches a (`may_declare`). A refused plan leaves the old one in
-  force: the AGV drives on along it (to parking, at worst) and asks again at every node.
+  exactly when one of them reaches a (`may_declare`). A refused plan leaves the plan in force
+  as it is: the AGV drives on along it (to parking, at worst) and asks again at every node.
 * Advancing along a plan, letting go of a lock and driving off into parking only remove edges.
 * **A cyclic graph** may still be safe: `_Walk` drives every AGV forward one node at a time
   and, if all get off the track, keeps the order of moves as the *witness*. A request that is
@@ -34,8 +34,8 @@ order (Habermann's sequence). Traffic keeps it acyclic:
 * The walk keeps a member out of a junction (a node more than one segment leads into) while
   the node after it is held, unless nobody else can move: standing in it, the member would
   block who crosses there, and the greedy walk would close a cycle of waits in a state that
-  is safe (what happened in the dense states of 300 AGVs on the fulfilment centre). Any order
-  of legal moves is a witness, so this changes which order is found, never what is granted.
+  is safe (as in the dense states of 300 AGVs on the fulfilment centre). Any order of legal
+  moves is a witness, so this changes which order is found, never what is granted.
 * A blocked AGV takes another route as reactive traffic does after `replan_after_s`
   (`AvoidingPolicy._replan_safely`), as a new plan the check accepts (`may_declare`) or not at all.
 
@@ -44,24 +44,8 @@ resources another AGV holds; its next hop is free and granting it adds edges int
 only, so it is granted. A wait-for cycle needs every member to wait for a resource another
 member holds, which is an edge of the claim graph for each: never while it is acyclic.
 
-Decisions (the issue and RSS-AGV-001 are silent):
-
-* The exit is the parking access nearest the goal by free-flow time, whatever its room: the
-  check assumes an AGV can drive off there (true up to the parking capacity with one area;
-  with several, an AGV told a nearer area is full declares its way to another, checked).
-* A zone that holds several AGVs counts as needing every holder gone (an edge to each): that
-  can only refuse more, never grant an unsafe state.
-* AGVs placed on the track at the start (`fleet.start_nodes`) get their exit plans unchecked.
-* An AGV that stands still for a while (handling, charging, an obstacle, a fault being
-  repaired) still finishes its plan in the argument: it will move on, and until it does the
-  AGVs behind it wait, which is a queue, not a deadlock.
-* The cost: an AGV that must go round a loop to reach parking needs the nodes of the AGVs
-  behind it, so two AGVs following each other round a loop may not both hold their places;
-  the one behind waits until the one ahead is clear of its plan (docs/background/engine.md
-  gives the figures). Driving the plans forward node by node instead of whole ("can the AGVs
-  get off the track one step at a time?") refuses far less, but a check that only finds one
-  such order is not closed under the moves it allows: on the warehouse at 40 AGVs every
-  request came to be refused (tried 2026-11-27; see engine.md).
+The choices where the issues were silent (the exit, zones with several holders, AGVs standing
+still, what the check costs): docs/background/decisions/sim.md.
 """
 
 from __future__ import annotations
@@ -350,8 +334,8 @@ class Plans:
                      node: str) -> bool:
         """May the client's move to `node`, further on in the witness, be made now? Yes if no
         move before it in the witness takes any of `locks`: made first, it holds nothing those
-        moves need (what it lets go of sooner only helps them), and from its old place on the
-        witness goes on as before. The move is put first and counted as made."""
+        moves need (what it lets go of sooner only helps them), and the rest of the witness
+        holds unchanged. The move is put first and counted as made."""
         witness = self.witness
         assert witness is not None
         taken = {lock for lock, _ in locks}

@@ -82,8 +82,8 @@ class AvoidingPolicy:
 
     def declare(self, client: TrafficClient, goal: str) -> bool:
         """Make the route from where the client stands to `goal`, and on to the nearest
-        parking access, its plan if the state stays safe with it; False: refused, the old plan
-        stays in force."""
+        parking access, its plan if the state stays safe with it; False: refused, the plan in
+        force stays."""
         return self._declare_path(client.id, self.traffic.route(client.node, goal, client.id))
 
     def _declare_path(self, client_id: int, path: list[str]) -> bool:

@@ -6,13 +6,7 @@ member's possible escape lets go of the lock the member before it waits for (`Es
 that found the cycle, is interrupted with a `DeadlockVictim` cause carrying its escape (like
 SimPy's `Preempted`: an object with fields, not a string).
 
-Decisions where the spec is silent (RSS-AGV-001 has no traffic rules):
-
-* The default choice (`GentlestEscapeFirst`) prefers the move that disturbs least: giving up a
-  corridor reserved but not entered (`yield`), then another route (`reroute`), then driving on
-  and coming back round (`circulate`), then one hop back (`backoff`); among members with the
-  same kind, the first in wait order (starting from the AGV that looked).
-* A cycle is counted once while it persists with the same members (`KnownCycles`).
+The choices where the issues were silent: docs/background/decisions/sim.md.
 """
 
 from __future__ import annotations

@@ -57,7 +57,7 @@ class Claim(Request):
     waiting on a claim that is being made, and processing it would do nothing (SimPy's
     `_trigger_get` finds no release queued). It is marked granted and processed at once
     (`grant_at_once`), which saves one event per lock taken without waiting (the look-ahead
-    and most hops) and leaves the order of every other event as it was."""
+    and most hops) and leaves the order of every other event unchanged."""
 
     node = ""
     """For a node lock: the node (set by traffic control when it makes the claim)."""

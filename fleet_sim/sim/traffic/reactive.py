@@ -1,23 +1,16 @@
 """The reactive traffic policy (`traffic.policy: reactive`, the default): an AGV queues for
 each part of a hop in turn, and wait-for cycles are found and broken.
 
-* A wait-for cycle is looked for whenever an AGV starts waiting (fleet_sim.sim.traffic.deadlock),
-  and, while a cycle it was found in may still stand, every `deadlock_check_s` while it waits. A
-  cycle is recorded and resolved by the `VictimChoice` handed to `Traffic`: one member takes
-  another route or backs off (fleet_sim.sim.traffic.escapes).
-* Why only then: an AGV waits for one lock at a time, so the wait-for graph has at most one edge
-  out of each AGV, and a lock passed on goes to an AGV that thereby stops waiting. The only
-  change that can close a cycle is therefore an AGV starting to wait, and the cycle then runs
-  through it. AGVs that no cycle was found for do not walk their wait chains again while they
-  wait (`Reservations.suspects`): before, every blocked AGV walked its whole chain every
-  `deadlock_check_s` when anything had changed anywhere, which in a long queue cost (queue
-  length)^2 per check period, the largest cost of a congested run with 200 AGVs.
-* Giving way: an AGV that has waited `give_way_after_s` for a corridor or a side track while
-  another AGV queues behind it drives on and comes back round (circulates) instead of blocking
-  the main loop. This keeps loops flowing, which avoids most deadlocks by construction.
+A wait-for cycle is looked for when an AGV starts waiting, the only change that can close one
+(an AGV waits for one lock at a time, and a lock passed on goes to an AGV that thereby stops
+waiting), and again every `deadlock_check_s` only for the AGVs a cycle was found for
+(`Reservations.suspects`): walking every blocked AGV's whole chain every check period would
+cost (queue length)^2 per period in a long queue. A blocked AGV that sees the same
+`Reservations.version` as at its last look has nothing new to find. An AGV blocked
+`give_way_after_s` with another queued behind it gives way (circulates), which keeps loops
+flowing.
 
-A blocked AGV that sees the same `Reservations.version` as at its last look has nothing new to
-find.
+The choices where the issues were silent: docs/background/decisions/sim.md.
 """
 
 from __future__ import annotations
@@ -189,7 +182,7 @@ class ReactivePolicy:
         claim = self.table.request(client_id, need.lock, direction=need.direction)
         if not (yield from self._wait_zone(client, zone_id, need.lock, claim)):
             return False
-        if held is not None:  # a turn inside: the old claim ends here
+        if held is not None:  # a turn inside: the claim it held ends here
             self.traffic.record_zone(client_id, zone_id, held, since)
             self.table.turned(client_id, claim)
             client.note("zone_turn", f"{zone_id} {DIRECTION_NAMES[need.direction]}")

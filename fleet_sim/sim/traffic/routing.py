@@ -1,34 +1,15 @@
 """Routes and hop kinematics on a layout: what traffic control asks about the track.
 
-* Routes follow the shortest free-flow travel time (length / min(limit, VEL_MAX)), from
-  per-destination tables computed once (Dijkstra on the reversed graph). A vehicle type's
-  routes (mixed fleets) use its own top speed and, where a segment gives one, the segment's
-  speed limit for that type (`speed_limit_mps_by_type`): both the route costs and the hop
-  kinematics below, so a type slowed in an aisle also routes around it when that is quicker.
-* Detours (`route_avoiding`) keep off given nodes and segments; they are computed when an AGV is
-  blocked and cached by (source, destination, what to avoid), the most recent
-  `DETOUR_CACHE_SIZE` questions only (a long run asks ever new ones). The search is A* on plain
-  adjacency lists, guided by the free-flow time to the destination from the unrestricted table
-  (exact where nothing is avoided, never an overestimate): it looks at little more than the
-  detour itself, where networkx's search on a filtered graph view looked at most of the layout
-  through slow view filters (10 ms per detour on the 627-node distribution centre, the largest
-  cost of a congested run).
-* Each hop's pieces (a branch curve at the turn speed, then the rest of the segment) and the
-  highest speed from which an AGV can still stop at the node after are cached per (prev, u, v),
-  and each hop's closed-form time per (prev, u, v, entry speed, end speed bound): the speeds an
-  AGV enters and may leave a hop with come from a small set (0, a pass speed, the limit), so a
-  run computes each combination once and looks it up thereafter (the same floats: `traverse`
-  is a pure function).
-* `edge[(u, v)]` is the segment's attribute dict (the graph's own), for the engine's hot path
-  (networkx's edge views cost a few microseconds per look-up).
-
-* Route costs (`route_costed`, scenario `traffic.congestion_cost_s` / `weak_wifi_cost_s`, off by
-  default): the same A* with extra seconds per segment, which a caller (Traffic) computes from
-  the locks or the layout. Extra costs are never negative, so the free-flow heuristic still
-  never overestimates and the route found is the cheapest.
+Routes follow the shortest free-flow travel time (length / min(limit, VEL_MAX)), a vehicle
+type's own (its top speed, its segment speed limits); route costs (`route_costed`) add seconds
+per segment. Detours and costed routes are an A* search on plain adjacency lists, guided by the
+free-flow table; detours and hop times are cached. Both matter because traffic asks for them on
+the engine's hot path, each time an AGV is blocked or drives a hop.
 
 `Routes` holds no locks and no clock; it only needs the layout and the vehicle's motion limits
 (the fleet sizing estimate uses it too).
+
+The choices where the issues were silent: docs/background/decisions/sim.md.
 """
 
 from __future__ import annotations

@@ -8,38 +8,13 @@ lock: a banned type's routes keep off them (fleet_sim.config.layout.Layout.type_
 
 Same-direction zones (openTCS's "same direction only" blocks). The zone is a two-way aisle, its
 nodes listed in order; its lock is a `DirectionGate`, whose claims carry a direction (FORWARD:
-from the first node listed towards the last; BACKWARD). Decisions:
+from the first node listed towards the last; BACKWARD). An AGV takes it for the direction of
+the hop by which it enters the aisle, before it takes the end node from which it drives in;
+claims are granted first come, first served, and `blockers` names whom a claim waits for, so
+the wait-for graph follows them (fleet_sim.sim.traffic.deadlock.find_cycle).
 
-* The direction of a pass is the direction of the hop by which the AGV enters the aisle: it
-  asks for the zone with that direction before it takes the end node from which it drives in
-  (as it would take a single-track corridor: waiting there, it would block the way out). Every
-  hop along the aisle is checked against the AGV's claim: it never drives the other way on the
-  claim it holds.
-* A claim is granted when no other AGV holds the zone in the other direction and the zone has
-  room (`capacity`, default no limit but one AGV per node), in the order asked (first come,
-  first served): one that wants the other direction is not overtaken by later AGVs going the
-  way the AGVs inside go, so it waits for the AGVs inside to leave, not for a gap in a stream.
-* Turning round inside. An AGV alone in the zone may turn round (after a drop-off in the
-  aisle, its next stop behind it): it asks for the other direction ahead of every waiting AGV
-  and, being alone, gets it at once. With other AGVs in the zone it drives on: while it holds
-  the zone with others, its routes, detours and escapes keep off the aisle's hops the other way
-  (Traffic.against), so it leaves by the far end, and the layout check makes sure a way round
-  leads back (fleet_sim.config.layout). (Should it have to drive back all the same, its type
-  having no way round, it waits inside until it is alone.) An AGV put on the track inside the
-  aisle (a start node, back from a repair) takes the zone in the direction of the AGVs inside
-  (forward if none).
-* Deadlocks: a claim waits for every AGV holding the zone the other way (all of them must
-  leave), else, when the zone is full, for the AGV that entered first, else for the AGV asking
-  before it (first come, first served). `blockers` names them, and the wait-for graph follows
-  each (fleet_sim.sim.traffic.deadlock.find_cycle), so a cycle through any of them is found and
-  broken like any other.
-
-Deadlocks through a mutex zone: a zone of capacity 1 is one lock with one holder, so a wait-for
-cycle through it is found and broken like any other (its waiters keep off the zone's nodes when
-they look for another way). For a zone of capacity N > 1 the wait-for graph follows the AGV that
-entered first (`Lock.holder`): a cycle through a later entrant is not seen. It is rare (every AGV
-inside must wait for an AGV waiting outside) and the other rules (give way, replan) still apply;
-the zone's waits show in `zone_wait_s.<zone>`.
+The choices where the issues were silent (directions, turning round inside, deadlocks through
+a zone): docs/background/decisions/sim.md.
 """
 
 from __future__ import annotations
