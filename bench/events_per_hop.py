@@ -3,7 +3,7 @@ bench/engine_scaling.py's ring comparison, and the bare SimPy ring beside them.
 
 Every event the environment schedules is counted by its kind (Timeout, Claim, Released,
 FirstOf...) and by the fleet_sim function that made it (the first caller outside SimPy and the
-engine's lean SimPy parts in fleet_sim/sim/traffic/locks.py and fleet_sim/sim/clock.py:
+engine's lean SimPy parts in fleet_sim/sim/traffic/locks.py:
 `move` is a hop's drive, `wait` a blocked AGV's periodic look for a deadlock or another way,
 `free` the Released event of a lock given back, `grant` a claim granted to an AGV that waited
 for it, `_handle` the load and unload sub-states...). Events per hop and wall microseconds per
@@ -34,8 +34,8 @@ from engine_scaling import SHIFTS, bare_ring, model_run  # noqa: E402
 
 from fleet_sim.model import records  # noqa: E402
 
-LEAN_PARTS = {"fleet_sim/sim/clock.py": None,
-              "fleet_sim/sim/traffic/locks.py": {"__init__", "_check", "release"}}
+LEAN_PARTS: dict[str, set[str] | None] = {
+    "fleet_sim/sim/traffic/locks.py": {"__init__", "_check", "release"}}
 """The engine's own SimPy parts (file -> functions, None: all): their callers are counted,
 as SimPy's are (`grant`, in locks.py, is counted itself)."""
 

@@ -1,10 +1,12 @@
 """The documents: pictures and relative links point at files that exist; quoted messages are
-today's; the README's commands and options exist and its DuckDB one-liner works; the site
+today's; the README's commands and options exist and its DuckDB one-liner works; every file
+path and module the docs cite exists; the nav's titles and the pages' titles are unique; the site
 builds with --strict (broken links and anchors fail) and its generated reference pages hold the
 KPI catalogue and every file kind's schema."""
 
 from __future__ import annotations
 
+import ast
 import importlib.util
 import json
 import os
@@ -14,6 +16,7 @@ import subprocess
 import sys
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import pytest
 
@@ -227,3 +230,138 @@ def test_the_source_documents_are_cited_by_title_never_by_file() -> None:
                  path.read_bytes().decode("utf-8", errors="replace").splitlines(), 1)
              for match in FILE_CITATION.finditer(line)]
     assert found == []
+
+
+PACKAGES = ("fleet_sim", "agv_model", "userfiles")
+CITED_PATH = re.compile(r"(?<![\w./-])((?:fleet_sim|agv_model|userfiles|tests|bench|tools|docs|"
+                        r"experiments|layouts)/[\w./-]*[\w/])(::\w+)?(?![<*{])")
+CITED_MODULE = re.compile(r"(?<![\w./-])((?:fleet_sim|agv_model|userfiles)(?:\.[A-Za-z_]\w*)+)")
+PLACEHOLDER = re.compile(r"/[A-Z]{2,}\b")
+"""`layouts/NAME.yaml`, `docs/studies/YYYY-MM-<what>.md`: a name the reader chooses."""
+
+
+def _citing_texts() -> list[tuple[Path, str]]:
+    """The texts that cite files and modules: the README, the docs, pyproject.toml, the
+    Makefile, mkdocs.yml, the comments of the bundled experiments and layouts, and the module
+    docstrings of the code, the tools, the benches and the tests."""
+    files = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")), ROOT / "pyproject.toml",
+             ROOT / "Makefile", ROOT / "mkdocs.yml",
+             *sorted((ROOT / "experiments").glob("*.yaml")),
+             *sorted((ROOT / "layouts").glob("*.yaml"))]
+    texts = [(path, path.read_text(encoding="utf-8")) for path in files]
+    for top in (*PACKAGES, "bench", "tools", "tests"):
+        for path in sorted((ROOT / top).rglob("*.py")):
+            docstring = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8")))
+            if docstring:
+                texts.append((path, docstring))
+    return texts
+
+
+def _top_level_names(body: list[Any]) -> dict[str, Any]:
+    """The names a module (or class) body defines or imports, guarded ones included."""
+    names: dict[str, Any] = {}
+    for node in body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names[node.name] = node
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names.update((n.id, node) for t in targets for n in ast.walk(t)
+                         if isinstance(n, ast.Name))
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            names.update(((a.asname or a.name).split(".")[0], node) for a in node.names)
+        elif isinstance(node, (ast.If, ast.Try)):
+            blocks = [node.body, node.orelse, *(h.body for h in getattr(node, "handlers", []))]
+            for block in blocks:
+                names.update(_top_level_names(block))
+    return names
+
+
+def _module_exists(dotted: str) -> bool:
+    """A dotted name exists if it is a module or package, or a name such a module defines (a
+    class's member too; a package's lazily loaded name is one its __init__ spells out)."""
+    parts = dotted.split(".")
+    for length in range(len(parts), 0, -1):
+        base = ROOT.joinpath(*parts[:length])
+        source = base / "__init__.py" if base.is_dir() else base.with_suffix(".py")
+        if not source.is_file():
+            continue
+        rest = parts[length:]
+        if not rest:
+            return True
+        text = source.read_text(encoding="utf-8")
+        names = _top_level_names(ast.parse(text).body)
+        if rest[0] not in names:
+            return f'"{rest[0]}"' in text
+        node = names[rest[0]]
+        if len(rest) > 1 and isinstance(node, ast.ClassDef):
+            return rest[1] in _top_level_names(node.body) or any(
+                isinstance(n, ast.Attribute) and n.attr == rest[1] for n in ast.walk(node))
+        return True
+    return False
+
+
+def _path_exists(path: str, test: str | None) -> bool:
+    target = ROOT / path.rstrip(".")
+    if test is None:
+        return target.exists()
+    return target.is_file() and f"def {test[2:]}(" in target.read_text(encoding="utf-8")
+
+
+def test_every_path_and_module_the_docs_cite_exists() -> None:
+    """Every file path (`fleet_sim/sim/engine.py`, `tests/test_docs.py::test_...`,
+    `docs/how-to/install.md`) and dotted module name (`fleet_sim.sim.traffic.control.Traffic`)
+    that the README, the docs, the build files, the bundled files' comments and the module
+    docstrings cite exists: a module that moves takes its citations with it. A path written by
+    a command (after `--out`) and a placeholder (`layouts/NAME.yaml`) are not citations."""
+    texts = _citing_texts()
+    assert len(texts) > 200
+    stale = []
+    for path, text in texts:
+        for match in CITED_PATH.finditer(text):
+            cited, test = match.groups()
+            written = text[:match.start()].endswith("--out ")
+            if not written and not PLACEHOLDER.search(cited) and not _path_exists(cited, test):
+                stale.append(f"{path.relative_to(ROOT)}: {cited}{test or ''}")
+        stale += [f"{path.relative_to(ROOT)}: {match.group(1)}"
+                  for match in CITED_MODULE.finditer(text)
+                  if not match.group(1).endswith((".py", ".md", ".yaml"))
+                  and not _module_exists(match.group(1))]
+    assert stale == []
+
+
+def _nav_titles(items: list[Any]) -> list[str]:
+    """Every title of mkdocs.yml's nav, sections' and pages' alike (an untitled entry has none)."""
+    titles = []
+    for item in items:
+        if isinstance(item, dict):
+            for title, value in item.items():
+                titles.append(title)
+                if isinstance(value, list):
+                    titles += _nav_titles(value)
+    return titles
+
+
+def _page_title(page: Path) -> str:
+    """A page's H1: its first `# ` line outside a fenced block."""
+    fenced = False
+    for line in page.read_text(encoding="utf-8").splitlines():
+        fenced ^= line.startswith("```")
+        if not fenced and line.startswith("# "):
+            return line[2:].strip()
+    return ""
+
+
+def test_the_nav_titles_and_the_page_titles_are_unique() -> None:
+    """No two entries of the site's nav and no two pages share a title (`Layout files: how to
+    write one` and `Layout file format (generated reference)`), so a reader knows which page a
+    title names; every page has a title."""
+    import yaml
+
+    nav = yaml.safe_load((ROOT / "mkdocs.yml").read_text(encoding="utf-8"))["nav"]
+    titles = [t.casefold() for t in _nav_titles(nav)]
+    assert len(titles) > 50
+    assert sorted({t for t in titles if titles.count(t) > 1}) == []
+    pages = {page: _page_title(page) for page in sorted((ROOT / "docs").rglob("*.md"))}
+    assert [str(p.relative_to(ROOT)) for p, title in pages.items() if not title] == []
+    h1s = [title.casefold() for title in pages.values()]
+    assert sorted({t for t in h1s if h1s.count(t) > 1}) == []
