@@ -37,6 +37,8 @@ from fleet_sim.errors import InputError
 from userfiles.writing import check_out_dir
 
 if TYPE_CHECKING:
+    from fleet_sim.config.layout import Layout
+    from fleet_sim.sim.engine import RunOutput
     from fleet_sim.study.compare import CompareOutcome
     from fleet_sim.study.optimise import OptimiseOutcome
     from fleet_sim.study.runner import SweepOutcome
@@ -204,37 +206,20 @@ def run(scenario: PathLike | Scenario, *, agvs: Agvs = None, hours: float | None
     Raises:
         InputError: bad input, with the command's message.
     """
-    from fleet_sim.analysis.tables import read_tables, stream_run
+    from fleet_sim.analysis.tables import read_tables
     from fleet_sim.config.scenario import load_layout_for, setup_warnings
-    from fleet_sim.config.trace import load_trace
-    from fleet_sim.study.progress import Progress
 
     loaded, file = _scenario(scenario, _settings(set), agvs, hours, seed)
-    if replay and loaded.motion != "closed_form":
-        raise InputError(file, "motion", loaded.motion,
-                         "closed_form with --replay: a replay draws the closed-form speed "
-                         "profile; with SUMO moving the AGVs their positions between nodes are "
-                         "not recorded")
+    check_replay(loaded, file, replay)
     if replay and out is None:
         raise InputError("--replay", "", True, "a run directory (out=...) to write "
                          "replay.html into")
     layout = load_layout_for(loaded, file)
     if out is not None:
         check_out_dir(Path(out), "--out")
-    trace = []
-    if loaded.demand.kind == "trace":
-        assert loaded.demand.trace_csv is not None
-        trace = load_trace(loaded.path(loaded.demand.trace_csv), layout)
     with _run_dir(out) as run_dir:
-        with Progress(loaded.duration_s, quiet=not progress, plain_lines=4) as bar:
-            def simulated(now_s: float, end_s: float) -> None:
-                bar.update(now_s, f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h "
-                                  f"({now_s / end_s:.0%})")
-
-            output, _ = stream_run(loaded, layout, run_dir, trace, progress=simulated,
-                                   record_moves=replay)
+        output, kpis = simulate_into(loaded, layout, run_dir, replay=replay, quiet=not progress)
         tables = read_tables(run_dir)
-        kpis: dict[str, Any] = json.loads((run_dir / "kpis.json").read_text(encoding="utf-8"))
     page = None
     if replay:
         from fleet_sim.report.replay import write_replay
@@ -243,6 +228,37 @@ def run(scenario: PathLike | Scenario, *, agvs: Agvs = None, hours: float | None
     return RunResult(loaded, kpis, tables.orders, tables.events, tables.soc,
                      None if out is None else run_dir, page, output.wall_s, output.sim_events,
                      tuple(w.text for w in setup_warnings(loaded, layout)))
+
+
+def check_replay(scenario: Scenario, file: str, replay: bool) -> None:
+    """A replay needs the closed-form motion (`run`, `fleet-sim run --replay`)."""
+    if replay and scenario.motion != "closed_form":
+        raise InputError(file, "motion", scenario.motion,
+                         "closed_form with --replay: a replay draws the closed-form speed "
+                         "profile; with SUMO moving the AGVs their positions between nodes are "
+                         "not recorded")
+
+
+def simulate_into(scenario: Scenario, layout: Layout, run_dir: Path, *, replay: bool,
+                  quiet: bool) -> tuple[RunOutput, dict[str, Any]]:
+    """Simulate `scenario` on `layout` (its order trace read, if it has one), its tables and
+    kpis.json streamed into `run_dir`, with the progress display unless `quiet`: the run of
+    `run` and of `fleet-sim run`. Returns the run and its KPIs."""
+    from fleet_sim.analysis.tables import stream_run
+    from fleet_sim.config.trace import load_trace
+    from fleet_sim.study.progress import Progress
+
+    trace = []
+    if scenario.demand.kind == "trace":
+        assert scenario.demand.trace_csv is not None
+        trace = load_trace(scenario.path(scenario.demand.trace_csv), layout)
+    with Progress(scenario.duration_s, quiet=quiet, plain_lines=4) as bar:
+        def simulated(now_s: float, end_s: float) -> None:
+            bar.update(now_s, f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h "
+                              f"({now_s / end_s:.0%})")
+
+        return stream_run(scenario, layout, run_dir, trace, progress=simulated,
+                          record_moves=replay)
 
 
 @contextmanager

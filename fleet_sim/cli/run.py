@@ -11,7 +11,6 @@ from pathlib import Path
 from fleet_sim.cli.arguments import AGVS, HOURS_ARG, QUIET, SEED_ARG, SETTINGS, WINDOW_HOURS
 from fleet_sim.cli.registry import arg, command
 from fleet_sim.cli.shared import check_out_dir, fresh_dir, warn_setup
-from fleet_sim.errors import InputError
 
 
 @command(
@@ -27,35 +26,19 @@ from fleet_sim.errors import InputError
         help="also record every AGV's motion (moves.parquet) and write replay.html"),
     SETTINGS)
 def _run(args: argparse.Namespace) -> int:
-    from fleet_sim.analysis.tables import stream_run
+    from fleet_sim.api import check_replay, simulate_into
     from fleet_sim.config.overrides import load_scenario
     from fleet_sim.config.scenario import folder_name, load_layout_for
-    from fleet_sim.config.trace import load_trace
     from fleet_sim.report.console import replay_line, run_lines
-    from fleet_sim.study.progress import Progress
 
     scenario = load_scenario(args.scenario, args.settings, agvs=args.agvs, hours=args.hours,
                              seed=args.seed)
-    if args.replay and scenario.motion != "closed_form":
-        raise InputError(str(args.scenario), "motion", scenario.motion,
-                         "closed_form with --replay: a replay draws the closed-form speed "
-                         "profile; with SUMO moving the AGVs their positions between nodes are "
-                         "not recorded")
+    check_replay(scenario, str(args.scenario), args.replay)
     layout = load_layout_for(scenario, str(args.scenario))  # bad input: no results folder
     out = args.out or fresh_dir(Path("results") / folder_name(scenario.name))
     check_out_dir(out, "--out" if args.out else "results folder")
     warn_setup(scenario, layout)
-    trace = []
-    if scenario.demand.kind == "trace":
-        assert scenario.demand.trace_csv is not None
-        trace = load_trace(scenario.path(scenario.demand.trace_csv), layout)
-    with Progress(scenario.duration_s, quiet=args.quiet, plain_lines=4) as progress:
-        def simulated(now_s: float, end_s: float) -> None:
-            progress.update(now_s, f"simulated {now_s / 3600:.2f} of {end_s / 3600:.2f} h "
-                                   f"({now_s / end_s:.0%})")
-
-        run, figures = stream_run(scenario, layout, out, trace, progress=simulated,
-                                  record_moves=args.replay)
+    run, figures = simulate_into(scenario, layout, out, replay=args.replay, quiet=args.quiet)
     print(run_lines(figures, out, run.wall_s, run.sim_events))
     if args.replay:  # moves.parquet was streamed with the other tables
         from fleet_sim.report.replay import write_replay
