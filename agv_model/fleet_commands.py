@@ -24,7 +24,8 @@ CarriRo AD+ (CarriRo AD+ External Serial Interface API Reference, version 1.4)
 KTM-02 (KTM-02 command list, コントローラからKTM-02へ送信するコマンド)
 - assign: GoStraightAlongLineCmd (0x06) at speed 255 (全速力); the robot follows the line.
 - stop: StopCmd (0x16), not EmergencyStopCmd (0x09). The device's reply holds its ACK and the
-  MovingFinishCmd sent at the same instant (see `agv_model.protocols.ktm02`, decision 9).
+  MovingFinishCmd sent at the same instant (KTM-02 decision 9,
+  docs/background/decisions/protocols.md).
 - resume: GoStraightAlongLineCmd at 255 again: the document has no resume command.
 - status: RequestStatusCmd (0x0d); the reply is ACK + SendStatusCmd (ロボットの状態).
 TABO (TABO robot command sheet)

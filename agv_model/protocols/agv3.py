@@ -8,50 +8,8 @@ are required and lower-case ones optional, case does not matter; ``?`` makes a g
 separated by one or more spaces, extra ones are ignored; ';' chains commands on the same level,
 a leading ':' goes back to the root, ``*`` commands have no level.
 
-Decisions where the document is silent or contradicts itself:
-
-1. Short and long forms: "stora bokstäver ... är nödvändig medans små är frivilliga". We accept
-   the short form, the long form and anything between (``NAVI``), looser than SCPI, which only
-   knows the two ends. Nothing else: ``NA`` and ``NAVX`` are unknown.
-2. Line endings: the footnote says every string ends with "\\r\\n", the chaining example shows
-   replies ending "\\n\\r". We follow the footnote; ``Agv3Device(reply_terminator=b"\\n\\r")``
-   reproduces the example byte for byte.
-3. Chaining keeps the level of the previous command's parent (as SCPI does); a ``*`` command
-   leaves the level alone; an unknown command leaves it alone too. Empty segments are skipped;
-   an empty line is not answered. Each command of a chain gets its own reply line.
-4. A set normally answers an empty line; STArt and STOp answer "Starting..." and
-   "Stopping..." as in the chaining example. Errors ("en sträng med ett felmeddelande", text
-   not given) answer ``ERROR: <what>``, naming the identifier and the problem.
-5. Arguments are case-sensitive ("Argument är ej okänsliga ... om inget annat anges"), so
-   ``ROL lead`` is an error. Numbers outside the stated sets (PICKUp/DROPOff station 0-3,
-   count 0-10) are errors, and the order is kept. PASSengers takes a whole number >= 0 (no upper
-   bound is stated).
-6. STATus answers "<state>" alone when the info column is empty, "<state> <info>" otherwise.
-7. EStop set latches the stop; the document has no command to release it, so the simulation
-   calls `Agv3Device.release_estop`. While latched, STArt answers an error.
-8. STATus, BATtery, PICKUp?, DROPOff? and PASSengers? read the emulated vehicle's own state,
-   which changes by itself as it drives: STARTED while it looks for the line, LEADING or
-   FOLLOWING <leader id | -1> on the main road, STATION ENTER, STOPPED and EXIT at a station
-   it has an order for, FAULT line not found or FAULT battery low; the world it drives in and
-   the readings of the STATus table are in `agv_model.protocols.agv3_vehicle`. BATtery answers
-   "<volts with six decimals>V", the example's form "1.092556V"; that figure is also the full
-   battery's reading.
-9. The 0.25 s reply limit ("Om inget returneras inom 0.25s") is ``REPLY_TIMEOUT_S`` for hosts;
-   the device's assumed ``reply_delay_s`` (0.01 s) stays well inside it.
-10. Line and reply length: the document states neither; its only bound is that 0.25 s. A
-   device that quoted whatever it got would, after line noise, spend minutes sending error
-   text at the wire's pace before it could answer again. So the device reads lines of at most
-   ``LINE_LIMIT_BYTES`` (256) bytes: every command of the tree once, in long form with its
-   longest arguments and each from the root as `Agv3Codec.encode_chain` writes it, is a line of
-   190 bytes; the fleet's own ``assign`` line is 27. Past the limit the rest of the line is
-   dropped up to its terminator, and the line gets one error, ``line longer than 256 bytes
-   b'<start>...'``, when the terminator comes, however the bytes were cut into pieces.
-   Received text quoted in an error is cut to ``QUOTE_LIMIT_CHARS`` (32) characters ending
-   ``...'``, and an error line is at most ``ERROR_LINE_MAX_BYTES`` (128) bytes: 0.13 s at the
-   AGV-3 profile's assumed 9600 8N1, so that the answer to the next short command still comes
-   within the 0.25 s. Each ';' segment still gets its own line (decision 3): a line of junk
-   answers at most one error line per segment, and noise with no ';' in a line (random bytes
-   are seldom ASCII) one error line per line.
+The readings where the document is silent, damaged or contradicts itself, numbered as the
+code cites them ("decision 3"): docs/background/decisions/protocols.md.
 """
 
 from __future__ import annotations

@@ -8,48 +8,8 @@ Frame ("コマンドの書式"): ``[0]`` start byte 0xAA, ``[1]`` command, ``[2.
 packet size counts the whole frame). Two-byte fields are low byte first, as the table's
 "下位バイト 上位バイト" row says.
 
-Decisions where the document is silent or unclear:
-
-1. Verify code: no algorithm is given. We use `sum16`, the low 16 bits of the sum of every frame
-   byte except the two verify bytes (our reading: the document has none). Pass another function
-   as ``Ktm02Codec(verify=...)`` / ``Ktm02Device(verify=...)`` to replace it.
-2. "コマンドID" names two things: the class code column of both command tables (0x01..0x18) and
-   the frame's Id part. We read byte ``[1]`` ("コマンド") as the class code and byte ``[4]``
-   (the Id part) as a frame number 1..255 that each sender counts up, skipping 0 ("1～255の数値,
-   0を含まない"). ACK/NAK parameter 1 is the frame number answered; 0 when it cannot be known
-   ("0はNAKを返す時，コマンドIDがわからないときに使われる"): junk bytes, a bad size field, a
-   frame number of 0, or a timeout before byte ``[4]`` arrived. A frame with a bad verify code is
-   answered with the frame number it carries (the host needs it to resend). A run of junk (bytes
-   up to the next start byte) gets one NAK however the bytes arrive: junk that follows junk
-   within ``frame_timeout_s`` continues its run. A serial port hands bytes over in any grouping
-   (the emulator one at a time), and the answer must not depend on it.
-3. The device ACKs every frame it accepts, then sends the data a request asks for
-   (RequestStatusCmd -> SendStatusCmd, RequestMomentarySpeedCmd/RequestAveragedSpeedCmd ->
-   SendSpeedCmd, RequestDistanceCmd -> SendDistanceCmd, RequestImagePackageCmd ->
-   SendImagePackageCmd). ACK/NAK from the host are never answered; host NAKs are recorded.
-4. Parameters the device cannot use (an unknown image size code, a package size outside 58..506,
-   a direction other than 0/1, a wrong parameter count) are answered with NAK
-   UNKNOWN_COMMAND_ERROR ("コマンドが理解できない"); the document has no other error kind.
-5. MoveFreelyCmd: the 2010-12-15 note says "パラメタを4ビット"; we read four one-byte
-   parameters (right speed, right direction, left speed, left direction), since four bits
-   cannot hold a speed. Speeds sent to KTM-02 are 0..255 ("スピード 0～255の数値, 0で停止,
-   255で全速力") and scaled to mm/s with the device setting ``full_speed_mmps``.
-6. TakePictureCmd: image package size limits 58..506, default 506 ("画像パッケージサイズ" in the
-   receive table, after the 2011-02-25 change); image size default 0x05 320x240. The frame may
-   omit trailing parameters (0, 1 or 3 parameter bytes); omitted ones take those defaults.
-7. Image packages: the padding example uses package size 256 from before the 2011-02-25 change;
-   the rule is the same for 58..506. The pad byte is the character '0' (0x30) as written
-   ("'0'を246バイト分だけ付加"); ``Ktm02Device(pad_byte=0)`` pads with zero bytes instead.
-   After a picture is taken the device sends SendImagePackageNumCmd unsolicited; each
-   RequestImagePackageCmd then gets the next package (ids from 1); a request with no package
-   left is answered NAK UNKNOWN_COMMAND_ERROR.
-8. SendDistanceCmd's distance (0..254, no unit given) is a sensor reading the simulation sets
-   (`Ktm02Device.distance_reading`); ResetCmd has no target for it, so it is not an odometer.
-9. MovingFinishCmd is sent whenever a motion ends: a timed motion completes (settings
-   ``straight_time_s``/``rotate_time_s``), a StopCmd/EmergencyStopCmd, a speed of 0, or a reset.
-   The robot state reports TAKING_PICTURE while the camera works, whatever the wheels do.
-10. TIMEOUT_ERROR: a frame started (0xAA seen) but not complete within ``frame_timeout_s`` of
-    simulated time is dropped and answered NAK TIMEOUT_ERROR.
+The readings where the document is silent, damaged or contradicts itself, numbered as the
+code cites them ("decision 3"): docs/background/decisions/protocols.md.
 """
 
 from __future__ import annotations

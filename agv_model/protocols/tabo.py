@@ -9,49 +9,8 @@ Wire format: ``NAME`` or ``NAME:arg,arg...`` (the コマンド column), replies 
 only its group letter, so `Reply.name` is that letter ("m") for ACK/NAK/FIN and the command
 name ("GBI") for values.
 
-Decisions where the sheet is silent, damaged or contradicts itself:
-
-1. Line ending: the sheet gives none. Both directions end lines with LF (``TERMINATOR``); a CR
-   before the LF is accepted on input.
-2. The all-stop command is printed as Cyrillic "Х"; we use Latin ``X``. Any line starting with
-   ``X`` is the all-stop, whatever follows (X row, メモ).
-3. Clamping (MLI/MLL/MDD/BDL: -410..410 mm/s; MTI/MTL: -1080..1080 deg/s, 引数補足 and メモ):
-   values beyond a limit become the limit. LED outputs are clamped to 0..255 and correction
-   values to -99..99 (SLV/STV rows; the SLD/STD rows lost their limits, we use the same). MLL
-   distance and MTL angle limits are blank in the sheet ("最小値: 最大値:"); none is applied.
-4. MLL/MTL: a speed of 0 or a distance/angle of 0 is refused ("無限ループとなるため実行できない"),
-   and speed and distance/angle must share a sign ("速度と距離の正負は一致させる事"); both are
-   answered NAK:m. Clamping cannot create a 0, so the order does not matter.
-5. The 300 mm/s step rule (MLI/MLL/MDD/BDL メモ: "現在速度との差が300以上の目標値を指定した場合、
-   モーターが追従しない"): when a non-zero wheel target differs by 300 mm/s or more from that
-   wheel's current speed, the motors do not follow and motion is unchanged. The sheet does not
-   say the command is refused, so the default answer is ACK:m; ``step_rule_reply="nak"``
-   answers NAK:m instead. A target of 0 (停止) is always followed, so the robot can always stop.
-   MTI/MTL are in deg/s and carry no such note: they always follow, and the wheel speeds the
-   rule compares with count as 0 after them (the sheet gives no track width to convert).
-6. FIN:m is sent when an MLL distance or MTL angle completes, at command time + |distance| /
-   |speed| (speeds change at once; the sheet gives no acceleration), lengthened by the SLD/STD
-   distance correction (x0.1 %). A new motor command, X or BHL cancels the motion and its FIN.
-   FIN:l likewise ends an LAL fade. LAL's arguments are "[TBD]"; we follow the example
-   "LAL:5000,16,0,16" (time ms, then colour).
-7. LED colour order: the LSI/LAI column heads read red, blue, green, but the examples
-   ("LSI,1,0,128,0 右側LED半点灯(緑)", "LAI:0,128,0 半点灯(緑)", "LAL:5000,16,0,16 紫色") only make
-   sense as red, green, blue, as does BDL's "R:0-9 G:0-9 B:0-9". We use R, G, B. BDL's three
-   digits 0..9 scale to 0..255. "LSI,1,..." with a comma after the name is a typo for ``:``.
-8. BWT's examples say "WML:1"/"WML:0" and BHL mentions "MSL"; we read them as BWT and MLL.
-9. NAK is documented for the m and b groups only. A malformed argument list (wrong count, not
-   an integer, LED id not 1/2, negative fade time) gets NAK:<its group> for every group, by
-   analogy; CES/CER and the getters have no group letter, so a malformed one is not answered.
-   Unknown commands are not answered either (the sheet defines no reply); the device records
-   both in ``TaboDevice.ignored``. BHL with nothing to stop answers NAK:b.
-10. Memory (SLV..STD, SDN, CMR rows and メモ): set values take effect in volatile memory at
-    once; restart (CES, CER) writes them to non-volatile memory; GLV/GTV/GLD/GTD return the
-    values read at boot ("起動時の補正値が戻される"); CMR restores factory values at the next
-    restart; SDN's name (up to the NUL, at most 15 characters) shows after a restart.
-11. The getters' replies are printed "gsv", "gtv", "gsd" (leftovers of older names SSV/SSD);
-    we send them as printed and use "gtd" for GTD, whose row was lost.
-12. CES (sleep) and CER (reset) are not answered. A sleeping TABO ignores input until `wake`;
-    a resetting one until ``reboot_time_s`` has passed.
+The readings where the document is silent, damaged or contradicts itself, numbered as the
+code cites them ("decision 3"): docs/background/decisions/protocols.md.
 """
 
 from __future__ import annotations
