@@ -129,13 +129,6 @@ class FirstOf(Event):
 class Lock(simpy.Resource):
     """An exclusive lock on a node or a corridor: a SimPy resource of capacity one."""
 
-    QUIET_RELEASE = True
-    """Let go of with nobody waiting, no `Released` event is scheduled: its only work, offering
-    the lock to the first waiting claim, would find none, and a claim made before it would
-    have been processed is granted at once anyway (the lock has room and nobody waits). False
-    where a waiting claim may be refused for a reason other than room (a same-direction
-    zone's direction), so a later offer can grant it."""
-
     def __init__(self, env: simpy.Environment, key: LockKey) -> None:
         super().__init__(env, capacity=1)
         self.key = key
@@ -160,12 +153,9 @@ class Lock(simpy.Resource):
         self.users.append(claim)
         return claim
 
-    def release(  # type: ignore[override]
-            self, request: simpy.resources.resource.Request) -> Released | None:
-        """Let go of `request` (one of the users): see `Released` and `QUIET_RELEASE`."""
+    def release(self, request: simpy.resources.resource.Request) -> Released:  # type: ignore[override]
+        """Let go of `request` (one of the users): see `Released`."""
         self.users.remove(request)
-        if self.QUIET_RELEASE and not self.put_queue:
-            return None
         return Released(self)
 
     def _do_put(self, event: Claim) -> None:  # type: ignore[override]  # only Claims here

@@ -70,7 +70,6 @@ class DirectionGate(Gate):
     no limit), granted in the order asked (turns first)."""
 
     PutQueue = _TurnsFirst
-    QUIET_RELEASE = False
 
     def __init__(self, env: simpy.Environment, key: ZoneLock, capacity: int | None) -> None:
         super().__init__(env, key, capacity if capacity is not None else sys.maxsize)
