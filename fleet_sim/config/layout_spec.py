@@ -166,6 +166,15 @@ def is_timestamp(text: str) -> bool:
     return True
 
 
+def checked_timestamp(text: str) -> str:
+    """`text` if it is an ISO 8601 date and time in UTC (`is_timestamp`), else a Problem for
+    the field being checked."""
+    if not is_timestamp(text):
+        raise Problem("", text, "an ISO 8601 date and time in UTC such as "
+                                "2017-04-15T11:40:03.12Z")
+    return text
+
+
 class LifInfo(StrictModel):
     """How the layout is named in a VDMA LIF file (`fleet-sim layout export --lif`); `fleet-sim
     layout import` writes the values of the file it read, where they differ from these
@@ -191,10 +200,7 @@ class LifInfo(StrictModel):
     @field_validator("export_timestamp")
     @classmethod
     def _iso_8601(cls, text: str) -> str:
-        if not is_timestamp(text):
-            raise Problem("", text, "an ISO 8601 date and time in UTC such as "
-                                    "2017-04-15T11:40:03.12Z")
-        return text
+        return checked_timestamp(text)
 
 
 class LayoutSpec(StrictModel):

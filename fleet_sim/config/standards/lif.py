@@ -32,7 +32,7 @@ from fleet_sim.config.layout_spec import (
     SpeedLimitsByType,
     TrafficZoneSpec,
     ZoneSpec,
-    is_timestamp,
+    checked_timestamp,
 )
 from userfiles.checking import NonNegative, Positive, Problem, StrictModel, validate
 from userfiles.reading import read_json
@@ -134,10 +134,7 @@ class MetaInformation(LifModel):
     @field_validator("exportTimestamp")
     @classmethod
     def _iso_8601(cls, text: str) -> str:
-        if not is_timestamp(text):
-            raise Problem("", text, "an ISO 8601 date and time in UTC such as "
-                                    "2017-04-15T11:40:03.12Z")
-        return text
+        return checked_timestamp(text)
 
     @field_validator("lifVersion")
     @classmethod
