@@ -5,6 +5,7 @@ back (`held_back`). See fleet_sim.sim.agents.lds."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -106,6 +107,11 @@ class Ahead:
         self.standing = True
         self.departed_s = departed_s
         self.accel_mps2 = accel_mps2
+        self.hop_ends_s: float | None = None
+        self.halted: list[Callable[[], None]] = []
+
+    def when_halted(self, tell: Callable[[], None]) -> None:
+        self.halted.append(tell)
 
 
 class Behind:
@@ -141,7 +147,7 @@ def test_it_moves_on_once_the_way_is_clear_beyond_1_2_m_for_2000_ms(granted_s: f
 
     def drive() -> Any:
         yield env.timeout(40.0)
-        watch.began_waiting(lambda: (0, ahead))
+        watch.began_waiting(lambda: (0, ahead, True))
         yield env.timeout(10.0)  # it set off at 50 s
         ahead.standing, ahead.departed_s = False, env.now
         yield env.timeout(granted_s)  # traffic grants the node
@@ -174,3 +180,60 @@ def test_a_fault_while_paused_after_the_grant_lets_go_of_the_node(tmp_path: Path
     failed = named(out, "Event_Critical_Error", 1)[0]
     assert failed.from_state == "Paused" and failed.time_s == 161.0
     assert all(o.delivered_s is not None for o in out.recorder.orders)
+
+
+@pytest.mark.parametrize("drives_on", [False, True])
+def test_behind_a_driving_agv_the_pause_begins_at_the_first_look_after_its_hop(
+        drives_on: bool) -> None:
+    """The AGV ahead drives a hop that ends at 45.6 s and stops there: the AGV behind, waiting
+    since 40 s and looking every second from 40.3 s, is paused at its first look after the
+    hop's end, 46.3 s; had the AGV ahead driven on, it is not paused."""
+    env = simpy.Environment()
+    behind = Behind()
+    behind.env = env
+    watch = AgvAhead(env, Rules(), 0.5, behind)
+    ahead = Ahead(0.0, 0.5)
+    ahead.standing, ahead.hop_ends_s = False, 45.6
+
+    def hop() -> Any:
+        yield env.timeout(45.6)
+        ahead.standing = not drives_on
+        ahead.hop_ends_s = 50.0 if drives_on else None
+
+    def wait() -> Any:
+        yield env.timeout(40.0)
+        watch.began_waiting(lambda: (0, ahead, True))
+        yield env.timeout(9.0)
+        watch.waiting = False
+
+    env.process(hop())
+    env.process(wait())
+    env.run(until=60.0)
+    assert behind.log == ([] if drives_on else [("paused", pytest.approx(46.3))])
+
+
+def test_behind_an_agv_a_fault_halts_on_its_hop_the_pause_begins_at_the_next_look() -> None:
+    """The AGV ahead drives a hop planned to end at 50 s; a fault halts it at 44 s. The AGV
+    behind, looking every second from 40.3 s, is paused at 44.3 s, its first look after the
+    halt (not at the hop's planned end)."""
+    env = simpy.Environment()
+    behind = Behind()
+    behind.env = env
+    watch = AgvAhead(env, Rules(), 0.5, behind)
+    ahead = Ahead(0.0, 0.5)
+    ahead.standing, ahead.hop_ends_s = False, 50.0
+
+    def fault() -> Any:
+        yield env.timeout(44.0)
+        ahead.standing, ahead.hop_ends_s = True, None
+        for tell in ahead.halted:
+            tell()
+
+    def wait() -> Any:
+        yield env.timeout(40.0)
+        watch.began_waiting(lambda: (0, ahead, True))
+
+    env.process(fault())
+    env.process(wait())
+    env.run(until=60.0)
+    assert behind.log == [("paused", pytest.approx(44.3))]

@@ -95,8 +95,31 @@ def _script(seed: int, lean: bool, env: simpy.Environment | None = None) -> list
 
 
 @pytest.mark.parametrize("seed", range(30))
-def test_lean_parts_behave_as_simpy(seed: int) -> None:
+def test_lean_parts_behave_as_simpy(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Event for event, with every release scheduling its `Released` event as SimPy's does."""
+    monkeypatch.setattr(Lock, "QUIET_RELEASE", False)
     assert _script(seed, lean=True) == _script(seed, lean=False)
+
+
+def test_a_release_with_nobody_waiting_schedules_no_event() -> None:
+    """`Lock.QUIET_RELEASE`: let go of with nobody waiting, a lock schedules nothing and is
+    free at once (a claim in the same instant is granted while being made); with a claim
+    waiting, it schedules the `Released` that grants it; a same-direction zone always does."""
+    env = simpy.Environment()
+    lock = Lock(env, NodeLock("n"))
+    first = lock.claim(1)
+    queued_before = len(env._queue)
+    assert lock.release(first) is None and len(env._queue) == queued_before
+    second = lock.claim(2)
+    assert second.triggered and lock.holder == 2
+    waiting = lock.claim(3)
+    assert not waiting.triggered
+    assert lock.release(second) is not None
+    env.run()
+    assert waiting.processed and lock.holder == 3
+    zone = DirectionGate(env, ZoneLock("d"), None)
+    claim = DirectedClaim(zone, 1, FORWARD)
+    assert claim.triggered and zone.release(claim) is not None
 
 
 def _find_cycle_by_search(start: int, waiting: Mapping[int, Lock]) -> list[int] | None:

@@ -139,6 +139,10 @@ class Driver:
         self._drive_open: tuple[str, str, float, float] | None = None
         """With moves recorded: the stretch being driven (u, v, since_s, driven_s)."""
         self._in_hop = False
+        self._hop_ends_s: float | None = None
+        """When the hop under way ends as planned (closed form); None with a motion backend."""
+        self._halt_watchers: list[Callable[[], None]] = []
+        """Told if a fault stops the AGV during the hop under way (`when_halted`)."""
         self.halted_mid_hop = False
         """Stopped by a fault on the way to `next_node` (until it drives again)."""
         self.departed_s = 0.0
@@ -170,19 +174,21 @@ class Driver:
         return {h.node: h.behind_m for h in self.held}
 
     def began_waiting(self, lock: Lock) -> None:
-        """Traffic makes the AGV wait for `lock`: on a drive, its LDS may see the AGV ahead."""
+        """Traffic makes the AGV wait for `lock`: on a drive, its LDS may see the AGV ahead
+        (once the hop's wait is for its node: a corridor or a zone is asked for first)."""
         if self.lds is not None and self.next_node is not None:
             self.lds.began_waiting(self._agv_ahead)
 
-    def _agv_ahead(self) -> tuple[int, Ahead] | None:
-        """The AGV standing on (or with its body over) the node this one waits for, if any."""
+    def _agv_ahead(self) -> tuple[int, Ahead, bool] | None:
+        """The AGV holding the node this one waits for, and whether it stands on that node or
+        its body is still over it; None if it waits for no node or nobody holds it."""
         found = self.traffic.node_holder(self.id)
         if found is None:
             return None
         ahead, node = found
-        if not isinstance(ahead, Driver) or not ahead.covers(node):
+        if not isinstance(ahead, Driver):
             return None
-        return ahead.id, ahead
+        return ahead.id, ahead, ahead.covers(node)
 
     def covers(self, node: str) -> bool:
         """Whether the AGV stands on `node` or its body is still over it."""
@@ -196,6 +202,15 @@ class Driver:
     @property
     def accel_mps2(self) -> float:
         return self.routes.motion.accel_mps2
+
+    @property
+    def hop_ends_s(self) -> float | None:
+        """Ahead: when the hop under way ends as planned, if one is and it is known."""
+        return self._hop_ends_s if self._in_hop else None
+
+    def when_halted(self, tell: Callable[[], None]) -> None:
+        """Ahead: `tell` is called if a fault stops the AGV before the hop under way ends."""
+        self._halt_watchers.append(tell)
 
     def hold_back(self, distance_m: float) -> None:
         """Let go of a node only once the rear is `distance_m` past it (not `min_gap_m`): the
@@ -306,6 +321,10 @@ class Driver:
         self.speed_mps = 0.0
         self.halted_mid_hop = self.halted_mid_hop or self._in_hop
         self._in_hop = False
+        if self._halt_watchers:
+            watchers, self._halt_watchers = self._halt_watchers, []
+            for tell in watchers:
+                tell()
         if self.traffic.motion_backend is not None:
             self.traffic.motion_backend.halt(self.id)
 
@@ -526,8 +545,11 @@ class Driver:
         self._in_hop = True
         self.halted_mid_hop = False
         self.departed_s = start
+        self._hop_ends_s = None if backend is not None else start + time_s
         yield from host.travel(u, nxt, time_s)
         self._in_hop = False
+        if self._halt_watchers:
+            self._halt_watchers.clear()
         self._plan = None
         if self._leg is not None:
             if self._moved < 1.0:  # a travel hook that did not drive to the end

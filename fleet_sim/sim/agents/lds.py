@@ -34,7 +34,8 @@ from fleet_sim.config.scenario import Rules
 
 LOOK_AGAIN_S = 1.0
 """While an AGV waits behind one that is driving, how often it looks whether that one has
-stopped (assumed; a pause starts at most this late after the AGV ahead stopped)."""
+stopped (assumed; a pause starts at most this late after the AGV ahead stopped). Looks that
+would see it still on the hop it drives are skipped (`AgvAhead._look`)."""
 
 
 class Ahead(Protocol):
@@ -56,9 +57,20 @@ class Ahead(Protocol):
     @property
     def accel_mps2(self) -> float: ...
 
+    @property
+    def hop_ends_s(self) -> float | None:
+        """When the hop it drives ends, if it drives one and the time is known (closed-form
+        motion); None otherwise."""
+        ...
 
-Finder = Callable[[], "tuple[int, Ahead] | None"]
-"""Names the AGV ahead holding what the AGV waits for (its id and what it sees of it)."""
+    def when_halted(self, tell: Callable[[], None]) -> None:
+        """Call `tell` if a fault stops it before the end of the hop it drives."""
+        ...
+
+
+Finder = Callable[[], "tuple[int, Ahead, bool] | None"]
+"""Names the AGV holding the node the AGV waits for (its id, what it sees of it, and whether it
+is on the node or its body still over it); None: it waits for no node, or nobody holds it."""
 
 
 class PausedHost(Protocol):
@@ -90,6 +102,8 @@ class AgvAhead:
         """Traffic makes the AGV wait now."""
         self._wait_no = 0
         """Counts the waits: a watch ends when the wait it was started for does."""
+        self._first_look_s = 0.0
+        """When the wait's first look is (its looks follow every LOOK_AGAIN_S)."""
         self.paused_since: float | None = None
         self.paused_behind: Ahead | None = None
         self._pause_no = 0
@@ -101,30 +115,60 @@ class AgvAhead:
         return self.gap_m < self.rules.lds_stop_m
 
     def began_waiting(self, find: Finder) -> None:
-        """Traffic made the AGV wait; `find()` names the AGV ahead holding what it waits for
-        (id and `Ahead`), or None."""
+        """Traffic made the AGV wait for a node; `find()` names the AGV holding it."""
         if self.waiting or not self.sees_agvs:  # (the same wait, told again)
             return
         self.waiting = True
         self._wait_no += 1
-        self.env.process(self._watch(find, self._wait_no))
+        self._first_look_s = self.env.now + self.rules.obstacle_pause_s
+        self._look_in(self.rules.obstacle_pause_s, find, self._wait_no)
 
-    def _watch(self, find: Finder, wait_no: int) -> Generator[simpy.Event, Any, None]:
-        yield self.env.timeout(self.rules.obstacle_pause_s)
-        while self.waiting and self._wait_no == wait_no and self.paused_since is None:
-            found = find()
-            if found is not None and found[1].standing:
-                agv, ahead = found
-                if self.host.pause_for_agv(agv, self.gap_m):
-                    self.paused_since = self.env.now
-                    self.paused_behind = ahead
-                    self._pause_no += 1
-                    self.env.process(self._time_out(self._pause_no, agv))
-                break
-            yield self.env.timeout(LOOK_AGAIN_S)
+    def _look_in(self, delay_s: float, find: Finder, wait_no: int) -> None:
+        """Look at the AGV ahead `delay_s` from now: a timeout's callback, not a process (no
+        process to start and resume for each look)."""
+        look = self.env.timeout(delay_s)
+        look.callbacks.append(lambda _: self._look(find, wait_no))
 
-    def _time_out(self, pause_no: int, agv: int) -> Generator[simpy.Event, Any, None]:
-        yield self.env.timeout(self.rules.obstacle_timeout_s)
+    def _look(self, find: Finder, wait_no: int) -> None:
+        """Paused if the AGV holding the node stands on it; else look again `LOOK_AGAIN_S` on,
+        or, while it drives a hop (`Ahead.hop_ends_s`), at the first of those looks at or after
+        the hop's end (the looks between would see it driving)."""
+        if not self.waiting or self._wait_no != wait_no or self.paused_since is not None:
+            return  # the wait is over, or another has begun
+        found = find()
+        if found is not None and found[2] and found[1].standing:
+            agv, ahead, _ = found
+            if self.host.pause_for_agv(agv, self.gap_m):
+                self.paused_since = self.env.now
+                self.paused_behind = ahead
+                self._pause_no += 1
+                pause_no = self._pause_no
+                timeout = self.env.timeout(self.rules.obstacle_timeout_s)
+                timeout.callbacks.append(lambda _: self._time_out(pause_no, agv))
+            return
+        ends_s = found[1].hop_ends_s if found is not None else None
+        if found is None or ends_s is None:
+            self._look_in(LOOK_AGAIN_S, find, wait_no)
+            return
+        # looking every LOOK_AGAIN_S, the first look that can see it stopped: the first at or
+        # after the end of its hop, or after a fault halts it on the way
+        self._look_in(self._next_look_s(ends_s) - self.env.now, find, wait_no)
+        found[1].when_halted(lambda: self._halted(find, wait_no))
+
+    def _halted(self, find: Finder, wait_no: int) -> None:
+        """The AGV looked at was halted by a fault on its hop: look at the next look."""
+        if self.waiting and self._wait_no == wait_no and self.paused_since is None:
+            self._look_in(self._next_look_s(self.env.now) - self.env.now, find, wait_no)
+
+    def _next_look_s(self, time_s: float) -> float:
+        """The first of the wait's looks (every LOOK_AGAIN_S from the first) at or after
+        `time_s`, and after now."""
+        now = self.env.now
+        looks = math.ceil((max(time_s, now) - self._first_look_s) / LOOK_AGAIN_S - 1e-9)
+        at_s = self._first_look_s + max(looks, 0) * LOOK_AGAIN_S
+        return at_s if at_s > now + 1e-9 else at_s + LOOK_AGAIN_S
+
+    def _time_out(self, pause_no: int, agv: int) -> None:
         if self._pause_no == pause_no and self.paused_since is not None:
             self.host.fail("E_101", f"paused {self.rules.obstacle_timeout_s:.0f} s behind "
                                     f"AGV {agv}")

@@ -16,6 +16,8 @@ import simpy
 from simpy.events import PENDING, Event
 from simpy.resources.resource import Request
 
+from fleet_sim.sim.traffic.waking import Sleeper
+
 
 @dataclass(frozen=True, slots=True)
 class NodeLock:
@@ -75,7 +77,7 @@ class Claim(Request):
         self.callbacks = None  # type: ignore[assignment]  # SimPy's mark of "processed"
 
 
-def grant(lock: simpy.Resource, claim: Claim) -> None:
+def grant(lock: Lock, claim: Claim) -> None:
     """Give `claim` the lock (it is among its users): at once if it is being made, else by
     scheduling it (its client waits on it)."""
     claim.usage_since = lock._env.now
@@ -83,6 +85,8 @@ def grant(lock: simpy.Resource, claim: Claim) -> None:
         claim.grant_at_once()
     else:
         claim.succeed()
+        if lock.watchers:  # a zone's queue may be empty now and have room left
+            lock.changed()
 
 
 class Released(Event):
@@ -129,9 +133,41 @@ class FirstOf(Event):
 class Lock(simpy.Resource):
     """An exclusive lock on a node or a corridor: a SimPy resource of capacity one."""
 
+    QUIET_RELEASE = True
+    """Let go of with nobody waiting, no `Released` event is scheduled: its only work, offering
+    the lock to the first waiting claim, would find none at the time. (A claim queued later in
+    the same instant is then offered the lock at the next release, where SimPy would have
+    offered it at this one's place among the instant's events: the same grants at the same
+    instants, in an order SimPy might not have taken.) False where a waiting claim may be
+    refused for a reason other than room (a same-direction zone's direction), so a later offer
+    can grant it."""
+
     def __init__(self, env: simpy.Environment, key: LockKey) -> None:
         super().__init__(env, capacity=1)
         self.key = key
+        self.watchers: list[Sleeper] = []
+        """Blocked AGVs that may drive into what this lock guards: told when it may have
+        become free (`changed`), until their wait is over."""
+        self.holder_watchers: list[Sleeper] = []
+        """Blocked AGVs holding this lock, which may give way: told when another AGV queues
+        for it (`queued`), until their wait is over."""
+
+    def changed(self) -> None:
+        """The lock was let go of, given up by a waiting claim, or granted from its queue: it
+        may be free now. Wake its watchers."""
+        watchers = self.watchers
+        if watchers:
+            for sleeper in watchers:
+                sleeper.changed()
+            self.watchers = [s for s in watchers if s.alarm_s == s.alarm_s]  # (nan: over)
+
+    def queued(self) -> None:
+        """Another AGV queues for the lock: wake the blocked AGVs that hold it."""
+        watchers = self.holder_watchers
+        if watchers:
+            for sleeper in watchers:
+                sleeper.changed()
+            self.holder_watchers = [s for s in watchers if s.alarm_s == s.alarm_s]
 
     def claim(self, client_id: int) -> Claim:
         """A claim of `client_id` on the lock: granted at once when the lock has room and nobody
@@ -153,9 +189,14 @@ class Lock(simpy.Resource):
         self.users.append(claim)
         return claim
 
-    def release(self, request: simpy.resources.resource.Request) -> Released:  # type: ignore[override]
-        """Let go of `request` (one of the users): see `Released`."""
+    def release(  # type: ignore[override]
+            self, request: simpy.resources.resource.Request) -> Released | None:
+        """Let go of `request` (one of the users): see `Released` and `QUIET_RELEASE`."""
         self.users.remove(request)
+        if self.watchers:
+            self.changed()
+        if self.QUIET_RELEASE and not self.put_queue:
+            return None
         return Released(self)
 
     def _do_put(self, event: Claim) -> None:  # type: ignore[override]  # only Claims here

@@ -8,25 +8,32 @@ waiting), and again every `deadlock_check_s` only for the AGVs a cycle was found
 cost (queue length)^2 per period in a long queue. A blocked AGV that sees the same
 `Reservations.version` as at its last look has nothing new to find. An AGV blocked
 `give_way_after_s` with another queued behind it gives way (circulates), which keeps loops
-flowing.
+flowing; blocked `replan_after_s`, it takes another route if there is one.
+
+A blocked AGV sleeps on its claim and looks again every `deadlock_check_s` from the start of
+its wait, but is woken only for the looks that can find something new
+(fleet_sim.sim.traffic.waking): the first past each threshold of its wait, every one while it
+is a suspect, and, past a threshold, the first after a way out may have opened (a lock it
+could drive into let go of) or another AGV queued for what it holds.
 
 The choices where the issues were silent: docs/background/decisions/sim.md.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Generator
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import simpy
-from simpy.events import Timeout
 
 from fleet_sim.errors import SimulationError
 from fleet_sim.sim.traffic.allocation import DIRECTION_NAMES, Hop, Need
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim, Escape, find_cycle
 from fleet_sim.sim.traffic.escapes import Escapes
-from fleet_sim.sim.traffic.locks import Claim, FirstOf, Lock, ZoneLock
+from fleet_sim.sim.traffic.locks import Claim, Lock, ZoneLock
 from fleet_sim.sim.traffic.table import TrafficClient
+from fleet_sim.sim.traffic.waking import LOOK_AGAIN, AlarmClock, Relay, Sleeper
 
 if TYPE_CHECKING:
     from fleet_sim.sim.traffic.control import Traffic
@@ -42,6 +49,8 @@ class ReactivePolicy:
         self.table = traffic.table
         """What is held, by whom, and what is queued."""
         self.escapes = Escapes(traffic)
+        self.alarms = AlarmClock(traffic.table.env)
+        """The thresholds of blocked AGVs' waits, and suspects' next looks."""
 
     def placed(self, client_id: int, node: str) -> None:
         """Nothing to do: reactive traffic keeps no plans."""
@@ -122,13 +131,16 @@ class ReactivePolicy:
         looked_at: tuple[int, bool, bool] | None = None
         give_way_after_s = config.give_way_after_s
         replan_after_s = config.replan_after_s
-        check_s = config.deadlock_check_s
+        sleeping = table.sleeping
+        sleeper = sleeping[client_id] = Sleeper(cast(simpy.Process, env.active_process),
+                                                self.alarms, start, config.deadlock_check_s)
         try:
             while True:
                 waited = env.now - start
                 now_seen = (table.version, waited >= give_way_after_s, waited >= replan_after_s)
                 if may_escape and now_seen != looked_at:  # nothing changed, nothing to look at
                     looked_at = now_seen
+                    sleeper.looked_s = env.now
                     # (resolve_deadlock looks only for a suspect, other_way only once the AGV
                     # may give way or replan: the calls are left out otherwise)
                     if (client_id in suspects and self.resolve_deadlock(client) is not None) \
@@ -136,9 +148,19 @@ class ReactivePolicy:
                                 client, now_seen[1], now_seen[2]) is not None):
                         self.table.withdraw(client_id, claim)
                         return False
+                if may_escape:
+                    sleeper.sleep()
+                    self._watch(client, sleeper, start, now_seen[1] or now_seen[2])
+                relay = sleeper.claim = Relay(env, claim)
+                sleeper.awake = False
                 try:
-                    yield FirstOf(env, claim, Timeout(env, check_s))
+                    yield relay
                 except simpy.Interrupt as interrupt:
+                    relay.drop()
+                    if interrupt.cause is LOOK_AGAIN:
+                        if claim.triggered:  # granted in the same instant
+                            return True
+                        continue
                     if not isinstance(interrupt.cause, DeadlockVictim):
                         # a fault: let go and pass it on
                         if claim.triggered:
@@ -151,12 +173,66 @@ class ReactivePolicy:
                         return True
                     self.table.withdraw(client_id, claim)
                     return False
+                finally:
+                    sleeper.awake = True  # changes and timers until it sleeps pass it by
                 if claim.triggered:
                     return True
         finally:
+            sleeper.over()
+            del sleeping[client_id]
             self.table.stop_waiting(client_id)
             self.traffic.recorder.blocked(start, env.now, client_id)
             self.traffic.close_wait(client)
+
+    def _watch(self, client: TrafficClient, sleeper: Sleeper, start_s: float,
+               long: bool) -> None:
+        """When a blocked AGV looks again, besides being granted its claim: at its first look
+        time (`Sleeper`) past a threshold of its wait (`give_way_after_s`, `replan_after_s`);
+        a suspect of a wait-for cycle, at its next; blocked long, at the next after a lock its
+        way out depends on may have become free (the ways into the nodes after its own, the
+        zones it holds) or another AGV queued for what it holds (it may give way)."""
+        config = self.traffic.config
+        now = self.table.env.now
+        due = [sleeper.first_look_waited(t)
+               for t in (config.give_way_after_s, config.replan_after_s) if now - start_s < t]
+        if client.id in self.table.suspects:
+            due.append(sleeper.next_look())
+        alarm_s = min(due, default=math.inf)
+        if alarm_s < math.inf and (alarm_s < sleeper.alarm_s or sleeper.alarm_s <= now):
+            self.alarms.set(sleeper, alarm_s)
+        if long and not sleeper.watching:  # (what it holds and where it stands stay put)
+            sleeper.watching = True
+            for lock in self._way_out_locks(client):
+                lock.watchers.append(sleeper)
+            nodes, others = self.table.held_locks(client.id)
+            for lock in nodes + others:
+                lock.holder_watchers.append(sleeper)
+            for zone_lock in self.table.zones_of(client.id).values():  # others may leave it,
+                lock = cast(Lock, zone_lock.resource)  # and the hops the other way open up
+                lock.watchers.append(sleeper)
+
+    def _way_out_locks(self, client: TrafficClient) -> list[Lock]:
+        """The locks whose freeing may open a way out for a client blocked at its node: those
+        of entering each next node (the node, its mutex zones, the corridor or same-direction
+        zone of the segment)."""
+        table = self.table
+        layout = table.layout
+        node = client.node
+        waited = table.waiting.get(client.id)
+        locks: list[Lock] = []
+        for nxt in self.traffic.next_nodes[node]:
+            lock = table.node_locks[nxt]
+            if lock is waited:
+                continue  # the way it waits for: no way out through it
+            locks.append(lock)
+            locks.extend(table.zone_locks[z.id] for z in layout.mutex_zones_at.get(nxt, ()))
+            along = layout.direction_zone_of(node, nxt)
+            if along is not None:
+                locks.append(table.zone_locks[along[0].id])
+            corridor = layout.corridor_of(node, nxt)
+            if corridor is not None:
+                locks.append(table.corridor_locks[corridor.id])
+        return locks
 
     def _wait_zone(self, client: TrafficClient, zone_id: str, gate: Lock, claim: Claim,
                    may_escape: bool = True) -> Generator[simpy.Event, Any, bool]:

@@ -23,6 +23,7 @@ from fleet_sim.config.layout import Layout
 from fleet_sim.errors import SimulationError
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim, KnownCycles, find_cycle
 from fleet_sim.sim.traffic.locks import Claim, CorridorLock, Lock, NodeLock, ZoneLock
+from fleet_sim.sim.traffic.waking import Sleeper
 from fleet_sim.sim.traffic.zones import ANY_DIRECTION, DirectedClaim, DirectionGate, Gate
 
 CorridorHold = tuple[Claim, str | None]
@@ -106,6 +107,8 @@ class Reservations:
         """Client id -> corridor id -> its corridor claims, in the order it asked for them."""
         self.zones: dict[int, dict[str, Claim]] = {}
         """Client id -> zone id -> its zone claims (granted or waiting)."""
+        self.sleeping: dict[int, Sleeper] = {}
+        """Client id -> its wait, while it sleeps (fleet_sim.sim.traffic.reactive)."""
         self.suspects: set[int] = set()
         """Clients found in a wait-for cycle that may still stand: they look again while they
         wait; nobody else needs to (fleet_sim.sim.traffic.reactive)."""
@@ -136,6 +139,8 @@ class Reservations:
             if not turn:
                 self.zones[client_id][key.zone_id] = claim
             self.version += 1
+            if lock.holder_watchers and not claim.triggered:
+                lock.queued()
             return claim
         claim = lock.claim(client_id)
         if isinstance(key, NodeLock):
@@ -146,6 +151,8 @@ class Reservations:
         else:
             self.corridors[client_id][key.corridor_id] = (claim, entry)
         self.version += 1
+        if lock.holder_watchers and not claim.triggered:
+            lock.queued()
         return claim
 
     def held_locks(self, client_id: int) -> tuple[list[Lock], list[Lock]]:
@@ -164,6 +171,10 @@ class Reservations:
         cycle = find_cycle(client_id, self.waiting)
         if cycle is not None:
             self.suspects.update(cycle)
+            for member in cycle:  # suspects now: they look again at their next look time
+                sleeper = self.sleeping.get(member)
+                if sleeper is not None:
+                    sleeper.changed()
 
     def stop_waiting(self, client_id: int) -> None:
         del self.waiting[client_id]
@@ -210,6 +221,8 @@ class Reservations:
                                   "it is not its own waiting claim")
         claim.cancel()
         self._forget(client_id, lock, claim)
+        if lock.watchers:
+            lock.changed()
 
     def _forget(self, client_id: int, lock: Lock, claim: Claim) -> None:
         key = lock.key

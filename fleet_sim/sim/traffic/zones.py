@@ -37,6 +37,8 @@ class Gate(Lock):
     def __init__(self, env: simpy.Environment, key: ZoneLock, capacity: int) -> None:
         simpy.Resource.__init__(self, env, capacity=capacity)
         self.key = key
+        self.watchers = []
+        self.holder_watchers = []
 
     @property
     def is_free(self) -> bool:
@@ -70,6 +72,7 @@ class DirectionGate(Gate):
     no limit), granted in the order asked (turns first)."""
 
     PutQueue = _TurnsFirst
+    QUIET_RELEASE = False
 
     def __init__(self, env: simpy.Environment, key: ZoneLock, capacity: int | None) -> None:
         super().__init__(env, key, capacity if capacity is not None else sys.maxsize)

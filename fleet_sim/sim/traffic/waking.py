@@ -1,0 +1,213 @@
+"""How a blocked AGV is woken: by its claim's grant, and otherwise only when looking again for
+a way out could find something new (fleet_sim.sim.traffic.reactive).
+
+A blocked AGV's process waits on its claim alone (passed on by a `Relay`).
+A `Sleeper` stands for the wait. It looks again at the times a blocked AGV looks (every
+`deadlock_check_s` from the start of its wait), but only at those where a look may find
+something new: a threshold of its wait, a suspect's next look, or the first look after a
+change that may open a way out (a lock it could drive into let go of, another AGV queuing for
+what it holds, a new wait-for cycle through it). Its `AlarmClock` alarm wakes it then (a
+`Nudge`, an interrupt with the cause `LOOK_AGAIN`). The clock keeps one timer for all the
+alarms, not one per wait: most waits end before their first alarm, and a timer set for one
+would still be an event.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Iterator
+
+import simpy
+from simpy.events import NORMAL, PENDING, Event
+
+LOOK_AGAIN = object()
+"""The cause of a `Nudge`: look again for a way out, the claim is still not granted."""
+
+
+class Sleeper:
+    """A blocked AGV's wait for its claim. It looks again for a way out only at its look times
+    (every `period_s` from `start_s`, the times a blocked AGV has always looked at), and only
+    at those its `AlarmClock` alarm is set for: a threshold of its wait, a suspect's next look,
+    or the next look after a change that may have opened a way out (`changed`). While the AGV
+    sleeps (`awake` False) the alarm wakes it (`nudge`); once the wait is over nothing does."""
+
+    __slots__ = ("alarm_eid", "alarm_s", "awake", "claim", "clock", "eid", "looked_s",
+                 "period_s", "process", "start_s", "watching")
+
+    def __init__(self, process: simpy.Process, clock: AlarmClock, start_s: float,
+                 period_s: float) -> None:
+        self.process = process
+        self.claim: Event | None = None
+        """What the process waits on while it sleeps (the claim's `Relay`)."""
+        self.clock = clock
+        self.start_s = start_s
+        self.period_s = period_s
+        self.awake = True
+        self.alarm_s = math.inf
+        """When its alarm rings (inf: none is set; nan: the wait is over)."""
+        self.eid = 0
+        """Its place among the events of an instant: the event id SimPy would have given the
+        timer a blocked AGV set when it last went to sleep (reserved then, `sleep`)."""
+        self.alarm_eid = 0
+        """The place its alarm rings at (the `eid` when it was set)."""
+        self.looked_s = start_s
+        """When it last looked."""
+        self.watching = False
+        """It is on the watch lists of the locks its way out depends on (from its first look
+        past a threshold until the wait is over)."""
+
+    def looks(self) -> Iterator[float]:
+        """Its look times after the start, as a timer of `period_s` set again at each look
+        gives them (each the last plus the period: the same floats)."""
+        at_s = self.start_s
+        while True:
+            at_s = at_s + self.period_s
+            yield at_s
+
+    def first_look_waited(self, wait_s: float) -> float:
+        """The first of its look times at which it has waited `wait_s` (now - start >= wait_s,
+        as the look tests it)."""
+        for at_s in self.looks():
+            if at_s - self.start_s >= wait_s:
+                return at_s
+        raise AssertionError  # (unreachable: the looks go on for ever)
+
+    def next_look(self) -> float:
+        """The first of its look times it has not made: after now, or now if it has not
+        looked yet in this instant (a change in the instant of a look time comes before the
+        look, which waits for the instant's events queued before it)."""
+        now = self.clock.env.now
+        for at_s in self.looks():
+            if at_s > now or (at_s == now and self.looked_s != now):
+                return at_s
+        raise AssertionError  # (unreachable)
+
+    def changed(self) -> None:
+        """Something that may open a way out changed: look at the next look time."""
+        if self.alarm_s != self.alarm_s:  # nan: the wait is over
+            return
+        at_s = self.next_look()
+        if at_s < self.alarm_s:
+            self.clock.set(self, at_s)
+
+    def sleep(self) -> None:
+        """It goes to sleep: reserve the place among an instant's events that the timer a
+        blocked AGV set then would have had, so that its looks come where they always have
+        (before a grant of the same instant, for one)."""
+        self.eid = next(self.clock.env._eid)
+
+    def nudge(self) -> None:
+        """Wake the AGV to look again (`Nudge`), unless it is awake."""
+        if not self.awake:
+            self.awake = True
+            Nudge(self)
+
+    def over(self) -> None:
+        """The wait has ended: nothing wakes it any more."""
+        self.awake = True
+        self.alarm_s = math.nan
+
+
+class Relay(Event):
+    """A claim's grant passed on as an event of its own, scheduled when the claim is processed:
+    where SimPy's `claim | timeout` would resume the AGV, so that the events of the instant
+    come in the order they always have (the AGV resumed at once would act before them)."""
+
+    def __init__(self, env: simpy.Environment, claim: Event) -> None:
+        self.env = env
+        self.callbacks = []
+        self._value = PENDING
+        self._claim = claim
+        claim.callbacks.append(self._pass)
+
+    def _pass(self, _: Event) -> None:
+        if self._value is PENDING:
+            self._ok = True
+            self._value = None
+            self.env.schedule(self)
+
+    def drop(self) -> None:
+        """The AGV no longer waits on it: the claim need not pass its grant on."""
+        callbacks = self._claim.callbacks
+        if callbacks and self._pass in callbacks:
+            callbacks.remove(self._pass)
+
+
+class Nudge(Event):
+    """SimPy's `Interruption` with the cause `LOOK_AGAIN`, at normal priority (an interrupt
+    scheduled with it comes first), delivered only if the process still waits for the claim
+    it slept on (it may have been granted it, or a fault may have taken it elsewhere,
+    meanwhile)."""
+
+    def __init__(self, sleeper: Sleeper) -> None:
+        self.env = sleeper.process.env
+        self.callbacks = [self._deliver]
+        self._value = simpy.Interrupt(LOOK_AGAIN)
+        self._ok = False
+        self._defused = True
+        self.sleeper = sleeper
+        self.env.schedule(self)
+
+    def _deliver(self, _: Event) -> None:
+        process = self.sleeper.process
+        if process._value is not PENDING or process._target is not self.sleeper.claim:
+            return
+        process._target.callbacks.remove(process._resume)
+        process._resume(self)
+
+
+class AlarmClock:
+    """The alarms of all sleeping AGVs. Each rings at its time and at its sleeper's place
+    among that instant's events (`Sleeper.eid`), as its own timer would have; but only the
+    earliest alarm still set is in SimPy's queue at any time (most alarms are turned off
+    before their time: the wait ends first), so an alarm costs an event only if it rings or
+    is turned off after it came to the front."""
+
+    def __init__(self, env: simpy.Environment) -> None:
+        self.env = env
+        self._alarms: list[tuple[float, int, Sleeper]] = []
+        self._queued: set[tuple[float, int]] = set()
+        """The alarms put in SimPy's queue and not rung yet."""
+        self._front: tuple[float, int] | None = None
+        """The earliest of them."""
+
+    def set(self, sleeper: Sleeper, at_s: float) -> None:
+        """Ring `sleeper` at `at_s` (its previous alarm is off)."""
+        sleeper.alarm_s = at_s
+        sleeper.alarm_eid = sleeper.eid
+        key = (at_s, sleeper.eid)
+        heapq.heappush(self._alarms, (at_s, sleeper.eid, sleeper))
+        if self._front is None or key < self._front:
+            self._queue(key)
+
+    def _queue(self, key: tuple[float, int]) -> None:
+        """Put the alarm `key` in SimPy's queue at its time and place."""
+        self._front = key
+        if key in self._queued:
+            return
+        self._queued.add(key)
+        timer = Event(self.env)
+        timer._ok = True
+        timer._value = None
+        timer.callbacks.append(lambda _: self._ring(key))
+        env = self.env
+        heapq.heappush(env._queue, (max(key[0], env.now), NORMAL, key[1], timer))
+
+    def _ring(self, key: tuple[float, int]) -> None:
+        self._queued.discard(key)
+        if self._front == key:
+            self._front = None
+        alarms = self._alarms
+        while alarms and (alarms[0][0], alarms[0][1]) <= key:
+            at_s, eid, sleeper = heapq.heappop(alarms)
+            if sleeper.alarm_s == at_s and sleeper.alarm_eid == eid:
+                sleeper.alarm_s = math.inf
+                sleeper.nudge()
+        while alarms and (alarms[0][2].alarm_s != alarms[0][0]
+                          or alarms[0][2].alarm_eid != alarms[0][1]):
+            heapq.heappop(alarms)  # alarms turned off
+        if alarms:
+            nxt = (alarms[0][0], alarms[0][1])
+            if self._front is None or nxt < self._front:
+                self._queue(nxt)
