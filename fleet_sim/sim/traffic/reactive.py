@@ -138,9 +138,9 @@ class ReactivePolicy:
             while True:
                 waited = env.now - start
                 now_seen = (table.version, waited >= give_way_after_s, waited >= replan_after_s)
+                sleeper.looked_s = env.now  # (woken at a look time, or at the start)
                 if may_escape and now_seen != looked_at:  # nothing changed, nothing to look at
                     looked_at = now_seen
-                    sleeper.looked_s = env.now
                     # (resolve_deadlock looks only for a suspect, other_way only once the AGV
                     # may give way or replan: the calls are left out otherwise)
                     if (client_id in suspects and self.resolve_deadlock(client) is not None) \

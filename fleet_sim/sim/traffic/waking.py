@@ -16,10 +16,14 @@ from __future__ import annotations
 
 import heapq
 import math
-from collections.abc import Iterator
+from collections.abc import Callable
 
 import simpy
 from simpy.events import NORMAL, PENDING, Event
+
+SCAN_LOOKS = 64
+"""How many of a sleeper's look times past now are scanned for the one an alarm is set for; a
+threshold further away (a `replan_after_s` of days) is reached in steps of as many looks."""
 
 LOOK_AGAIN = object()
 """The cause of a `Nudge`: look again for a way out, the claim is still not granted."""
@@ -32,8 +36,8 @@ class Sleeper:
     or the next look after a change that may have opened a way out (`changed`). While the AGV
     sleeps (`awake` False) the alarm wakes it (`nudge`); once the wait is over nothing does."""
 
-    __slots__ = ("alarm_eid", "alarm_s", "awake", "claim", "clock", "eid", "looked_s",
-                 "period_s", "process", "start_s", "watching")
+    __slots__ = ("_reached_s", "alarm_eid", "alarm_s", "awake", "claim", "clock", "eid",
+                 "looked_s", "period_s", "process", "start_s", "watching")
 
     def __init__(self, process: simpy.Process, clock: AlarmClock, start_s: float,
                  period_s: float) -> None:
@@ -53,35 +57,48 @@ class Sleeper:
         """The place its alarm rings at (the `eid` when it was set)."""
         self.looked_s = start_s
         """When it last looked."""
+        self._reached_s = start_s
+        """A look time (or the start) before now, from which the next ones are added up."""
         self.watching = False
         """It is on the watch lists of the locks its way out depends on (from its first look
         past a threshold until the wait is over)."""
 
-    def looks(self) -> Iterator[float]:
-        """Its look times after the start, as a timer of `period_s` set again at each look
-        gives them (each the last plus the period: the same floats)."""
-        at_s = self.start_s
+    def _first_look(self, found: Callable[[float], bool]) -> float:
+        """The first of its look times after now for which `found` is true (`found` is false
+        up to some time, true after it), or, more than `SCAN_LOOKS` looks after now, that
+        look (a look time all the same: it looks then, finds nothing new and sets its alarm
+        again). Look times are as a timer of `period_s` set again at each look gives them
+        (each the last plus the period: the same floats), walked on from `_reached_s`, so a
+        long wait costs one addition per look time, not one per look time per call."""
+        now = self.clock.env.now
+        period_s = self.period_s
+        at_s = self._reached_s
         while True:
-            at_s = at_s + self.period_s
-            yield at_s
+            nxt = at_s + period_s
+            if nxt >= now:
+                break
+            at_s = nxt
+        self._reached_s = at_s  # the last look time before now: every answer is after it
+        for _ in range(SCAN_LOOKS):
+            at_s = at_s + period_s
+            if found(at_s):
+                return at_s
+        return at_s
 
     def first_look_waited(self, wait_s: float) -> float:
         """The first of its look times at which it has waited `wait_s` (now - start >= wait_s,
-        as the look tests it)."""
-        for at_s in self.looks():
-            if at_s - self.start_s >= wait_s:
-                return at_s
-        raise AssertionError  # (unreachable: the looks go on for ever)
+        as the look tests it), or an earlier one, if that is more than `SCAN_LOOKS` looks
+        away (`_first_look`). Asked only before it has waited that long."""
+        start_s = self.start_s
+        return self._first_look(lambda at_s: at_s - start_s >= wait_s)
 
     def next_look(self) -> float:
         """The first of its look times it has not made: after now, or now if it has not
         looked yet in this instant (a change in the instant of a look time comes before the
         look, which waits for the instant's events queued before it)."""
         now = self.clock.env.now
-        for at_s in self.looks():
-            if at_s > now or (at_s == now and self.looked_s != now):
-                return at_s
-        raise AssertionError  # (unreachable)
+        looked_now = self.looked_s == now
+        return self._first_look(lambda at_s: at_s > now or (at_s == now and not looked_now))
 
     def changed(self) -> None:
         """Something that may open a way out changed: look at the next look time."""
