@@ -120,3 +120,22 @@ def test_stopped_between_tags_it_creeps_on_to_the_tag_ahead_before_it_turns(
     assert locate.detail.endswith("to X") and located.node == "X"
     assert located.time_s - locate.time_s > 48.0 / 0.3
     assert out.recorder.orders[0].delivered_s is not None
+
+
+def test_under_avoiding_traffic_its_plan_goes_on_to_the_tag_ahead_first(
+        tmp_path: Path) -> None:
+    """The same reset under `traffic.policy: avoiding`: the plan declared for the creep starts
+    with the tag ahead it holds (S1), not with the route from the tag behind straight to X (a
+    run with that plan read the node after S1 off the wrong route and stopped with a KeyError
+    for a segment the layout does not have: warehouse_incidents, seeds 5, 6, 7, 10 and 19 of
+    20)."""
+    data = yaml.safe_load(tiny(tmp_path).read_text())
+    data["nodes"].append({"id": "X", "x": -4, "y": 0, "marker": "location"})
+    data["segments"].append({"from": "SW", "to": "X", "direction": "two_way"})
+    out = run(write_yaml(tmp_path / "spur.yaml", data), ONE_ORDER, duration_h=0.5,
+              traffic={"policy": "avoiding"},
+              incidents={"faults": [{"agv": 0, "at_s": FAULT_AT_S, "code": "E_999"}]})
+    locate, located = events(out, "Event_Locate")[0], events(out, "Event_Located")[0]
+    assert locate.detail.endswith("to X") and located.node == "X"
+    assert located.time_s - locate.time_s > 48.0 / 0.3
+    assert out.recorder.orders[0].delivered_s is not None

@@ -438,7 +438,8 @@ class Driver:
         new plan the check accepted; the wait ends without a claim); it never backs off."""
         traffic = cast(AvoidingPolicy, self.traffic.strategy)
         self.goal = goal
-        on_plan = traffic.declare(self, goal)
+        # stopped on the way to a node it holds (a reset): the plan goes on to it first
+        on_plan = traffic.declare(self, goal, self.ahead[0].node if self.ahead else None)
         while self.node != self.goal:
             if not self.ahead:
                 if not on_plan:

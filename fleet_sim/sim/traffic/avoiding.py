@@ -80,11 +80,15 @@ class AvoidingPolicy:
             return None
         return traffic.grant_now(client_id, needs)
 
-    def declare(self, client: TrafficClient, goal: str) -> bool:
+    def declare(self, client: TrafficClient, goal: str, via: str | None = None) -> bool:
         """Make the route from where the client stands to `goal`, and on to the nearest
         parking access, its plan if the state stays safe with it; False: refused, the plan in
-        force stays."""
-        return self._declare_path(client.id, self.traffic.route(client.node, goal, client.id))
+        force stays. `via`: the node it is on its way to and holds (stopped mid-hop by a
+        reset), which the route goes through first."""
+        route = self.traffic.route
+        path = route(client.node, goal, client.id) if via is None \
+            else [client.node, *route(via, goal, client.id)]
+        return self._declare_path(client.id, path)
 
     def _declare_path(self, client_id: int, path: list[str]) -> bool:
         """`path` (to the goal), and on to the parking access nearest its end, as the client's
