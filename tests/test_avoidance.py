@@ -15,8 +15,9 @@ import pytest
 from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.config.layout import load_layout
 from fleet_sim.sim.engine import build_simulation, simulate
-from fleet_sim.sim.traffic.avoidance import Plans, _Walk
+from fleet_sim.sim.traffic.avoidance import Plans
 from fleet_sim.sim.traffic.control import Traffic
+from fleet_sim.sim.traffic.walk import Walk
 
 from .conftest import DATA, make_scenario, scenario_for
 
@@ -151,7 +152,7 @@ def test_runs_with_the_avoiding_policy_are_byte_for_byte_repeatable() -> None:
 
 
 def test_the_walk_lets_go_of_a_node_once_the_body_has_cleared_it() -> None:
-    """The walk (`_Walk`, the proof behind every witness) keeps a node behind an AGV exactly
+    """The walk (`Walk`, the proof behind every witness) keeps a node behind an AGV exactly
     while the AGV has driven less than its clearance (length plus gap) past it, as the driver
     does: checked against distances summed from the layout, hop by hop, for AGVs taken from
     the middle of a busy run on the fulfilment centre, whose 3.6 m diagonal hops are shorter
@@ -169,7 +170,7 @@ def test_the_walk_lets_go_of_a_node_once_the_body_has_cleared_it() -> None:
         nodes, _ = traffic.held_locks(x)
         if len(path) - at < 6 or not nodes:
             continue
-        walk = _Walk(traffic.table)
+        walk = Walk(traffic.table)
         walk.add(x, plans.plan_id[x], path, plans._steps[x], plans._costs[x], at, ())
         clear_m = traffic.clearance_m(x)
         past0 = traffic.past_m(x)
@@ -207,13 +208,13 @@ def test_a_refused_grant_is_walked_again_once_an_agv_the_walk_got_stuck_on_has_m
     counts = {"walks": 0, "cycles": 0, "look-ahead walks": 0, "asked without a walk": 0}
     last: dict[tuple[int, int, str], tuple[float, dict[int, tuple[Any, ...]]]] = {}
     again: list[tuple[float, float, bool]] = []
-    walk, may_grant, stuck = Plans._walk, Plans.may_grant, _Walk.stuck
+    walk, may_grant, stuck = Plans._walk, Plans.may_grant, Walk.stuck
 
-    def counted(self: Plans, *args: Any) -> _Walk | None:
+    def counted(self: Plans, *args: Any) -> Walk | None:
         counts["walks"] += 1
         return walk(self, *args)
 
-    def checked_stuck(self: _Walk, start: int) -> list[int]:
+    def checked_stuck(self: Walk, start: int) -> list[int]:
         cycle = stuck(self, start)
         waits_for = {y: lock for lock, ys in self.waiting.items() for y in ys}
         for y, z in zip(cycle, cycle[1:] + cycle[:1], strict=True):
@@ -248,7 +249,7 @@ def test_a_refused_grant_is_walked_again_once_an_agv_the_walk_got_stuck_on_has_m
 
     monkeypatch.setattr(Plans, "_walk", counted)
     monkeypatch.setattr(Plans, "may_grant", recorded)
-    monkeypatch.setattr(_Walk, "stuck", checked_stuck)
+    monkeypatch.setattr(Walk, "stuck", checked_stuck)
     model.env.run(until=scenario.duration_s)
     assert counts["cycles"] > 20 and counts["asked without a walk"] > counts["cycles"]
     assert again and all(moved or now >= until_s - 1e-9 for now, until_s, moved in again)
@@ -274,8 +275,8 @@ def test_the_walk_keeps_out_of_a_junction_until_it_can_drive_on() -> None:
     assert plans is not None
     routes = {0: ["W", "J", "E", "X"], 1: ["E", "S", "J", "N"], 2: ["S", "J", "N"]}
 
-    def walk() -> _Walk:
-        walk = _Walk(traffic.table)
+    def walk() -> Walk:
+        walk = Walk(traffic.table)
         for x, path in routes.items():
             plans.declare(x, path)
             walk.add(x, plans.plan_id[x], path, plans._steps[x], plans._costs[x], 0, ())
