@@ -102,6 +102,9 @@ class Plans:
         """Client id -> its last grant the walk refused, while it waits for it: asked again, it
         is walked again only once an AGV the walk got stuck on has moved (`may_grant`)."""
         self.refused_grants = 0
+        self.walks = 0
+        self.walked_moves = 0
+        """Walks made (`_walk`), and the moves they made, all told (for benches)."""
         self.refused_plans = 0
 
     # ---- plans ----------------------------------------------------------------------------------
@@ -362,7 +365,10 @@ class Plans:
             elif any(held_locks(x)):
                 walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self._costs[x],
                          self.at[x], ())
-        if not walk.run():
+        ok = walk.run()
+        self.walks += 1
+        self.walked_moves += len(walk.moves)
+        if not ok:
             return walk
         if new_plan is not None:  # the client's moves are of the plan it is about to declare
             plan = self._plans_made + 1

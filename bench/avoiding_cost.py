@@ -1,0 +1,117 @@
+"""What does the deadlock-avoiding traffic policy cost against the reactive one? Each case runs
+the same scenario under both policies (every AGV admitted onto the track,
+`dispatch.max_active_agvs` = the fleet: the check alone), interleaved, --repeats times, and
+prints the median wall seconds per simulated hour, their ratio, delivered orders per hour, and
+what the avoiding policy's safety check did: walks (every AGV on the track driven to parking,
+fleet_sim.sim.traffic.avoidance) and the moves they made. `--profile`
+adds the functions the first case's avoiding run spent its time in (cProfile, by own time).
+These machines are noisy: compare figures within one run (the load average is printed).
+
+    .venv/bin/python bench/avoiding_cost.py [--cases fulfilment_centre:200 ...] [--hours 1]
+        [--orders-per-agv-hour 5] [--repeats 1] [--profile]
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import os
+import pstats
+import statistics
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from fleet_sim.config.scenario import load_layout_for, load_scenario  # noqa: E402
+from fleet_sim.sim.engine import build_simulation  # noqa: E402
+from fleet_sim.sim.traffic.avoidance import Plans  # noqa: E402
+
+SCENARIO_OF = {
+    "warehouse": "warehouse_shift.yaml",
+    "distribution_centre": "dc_shift.yaml",
+    "fulfilment_centre": "fulfilment_shift.yaml",
+}
+DEFAULT_CASES = ["warehouse:40", "distribution_centre:100", "fulfilment_centre:200",
+                 "fulfilment_centre:300"]
+
+
+def run_case(layout: str, agvs: int, hours: float, rate: float, policy: str,
+             profile: cProfile.Profile | None = None) -> dict[str, Any]:
+    """One run: wall seconds of simulating, delivered orders/h and the check's counters."""
+    path = ROOT / "experiments" / SCENARIO_OF[layout]
+    scenario = load_scenario(path, {
+        "layout": f"../layouts/{layout}.yaml", "fleet.size": agvs, "duration_h": hours,
+        "warmup_h": min(0.5, hours / 4), "demand.rate_per_hour": rate, "demand.profile": [],
+        "traffic.policy": policy, "dispatch.max_active_agvs": agvs})
+    model = build_simulation(scenario, load_layout_for(scenario, str(path)), (), False,
+                             False, None, 10_000)
+    start = time.perf_counter()
+    if profile is not None:
+        profile.enable()
+    model.env.run(until=scenario.duration_s)
+    if profile is not None:
+        profile.disable()
+    wall_s = time.perf_counter() - start
+    delivered = sum(1 for o in model.recorder.orders if o.delivered_s is not None)
+    out: dict[str, Any] = {"wall_s": wall_s, "delivered_per_h": delivered / hours,
+                           "deadlocks": model.recorder.deadlocks}
+    plans = getattr(model.traffic.strategy, "plans", None)
+    if isinstance(plans, Plans):
+        out.update(walks=plans.walks, walked_moves=plans.walked_moves,
+                   refused=plans.refused_grants + plans.refused_plans)
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--cases", nargs="+", default=DEFAULT_CASES,
+                        help="layout:AGVs pairs (layouts: " + ", ".join(SCENARIO_OF) + ")")
+    parser.add_argument("--hours", type=float, default=1.0, help="simulated hours a run")
+    parser.add_argument("--orders-per-agv-hour", type=float, default=5.0,
+                        help="demand: this many orders an hour per AGV")
+    parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--profile", action="store_true",
+                        help="profile the first case's avoiding run")
+    args = parser.parse_args()
+    cases = []
+    for case in args.cases:
+        layout, _, agvs = case.partition(":")
+        if layout not in SCENARIO_OF or not agvs.isdigit() or int(agvs) < 1:
+            parser.error(f"--cases: {case!r} is not layout:AGVs with a layout of "
+                         f"{', '.join(SCENARIO_OF)} and a whole number of AGVs")
+        cases.append((layout, int(agvs)))
+    print(f"load average at start: {os.getloadavg()[0]:.2f}; {args.hours:g} h a run, "
+          f"{args.orders_per_agv_hour:g} orders/h per AGV, medians of {args.repeats}")
+    header = ("| case | reactive s/h | avoiding s/h | ratio | delivered/h reactive | "
+              "avoiding | walks | moves a walk |")
+    print(header)
+    print("|---" * 8 + "|")
+    for n, (layout, agvs) in enumerate(cases):
+        rate = args.orders_per_agv_hour * agvs
+        reactive, avoiding = [], []
+        for _ in range(args.repeats):
+            reactive.append(run_case(layout, agvs, args.hours, rate, "reactive"))
+            avoiding.append(run_case(layout, agvs, args.hours, rate, "avoiding"))
+        r_s, a_s = (statistics.median(r["wall_s"] for r in runs) / args.hours
+                    for runs in (reactive, avoiding))
+        last = avoiding[-1]
+        print(f"| {layout} {agvs} | {r_s:.2f} | {a_s:.2f} | {a_s / r_s:.1f}x | "
+              f"{reactive[-1]['delivered_per_h']:.0f} | {last['delivered_per_h']:.0f} | "
+              f"{last['walks']} | {last['walked_moves'] / max(1, last['walks']):,.0f} |",
+              flush=True)
+        if args.profile and n == 0:
+            profile = cProfile.Profile()
+            run_case(layout, agvs, args.hours, rate, "avoiding", profile)
+            text = io.StringIO()
+            pstats.Stats(profile, stream=text).sort_stats("tottime").print_stats(14)
+            print("\n".join(text.getvalue().splitlines()[4:]))
+    print(f"load average at end: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
