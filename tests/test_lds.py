@@ -182,18 +182,25 @@ def test_a_fault_while_paused_after_the_grant_lets_go_of_the_node(tmp_path: Path
     assert all(o.delivered_s is not None for o in out.recorder.orders)
 
 
+def _behind_a_driving_agv(hop_ends_s: float) -> tuple[simpy.Environment, Any, AgvAhead, Any]:
+    """An AGV's watch on the AGV ahead, 0.5 m on, which drives a hop that ends at
+    `hop_ends_s`: (env, the AGV behind, its watch, the AGV ahead)."""
+    env = simpy.Environment()
+    behind = Behind()
+    behind.env = env
+    watch = AgvAhead(env, Rules(), 0.5, behind)
+    ahead = Ahead(0.0, 0.5)
+    ahead.standing, ahead.hop_ends_s = False, hop_ends_s
+    return env, behind, watch, ahead
+
+
 @pytest.mark.parametrize("drives_on", [False, True])
 def test_behind_a_driving_agv_the_pause_begins_at_the_first_look_after_its_hop(
         drives_on: bool) -> None:
     """The AGV ahead drives a hop that ends at 45.6 s and stops there: the AGV behind, waiting
     since 40 s and looking every second from 40.3 s, is paused at its first look after the
     hop's end, 46.3 s; had the AGV ahead driven on, it is not paused."""
-    env = simpy.Environment()
-    behind = Behind()
-    behind.env = env
-    watch = AgvAhead(env, Rules(), 0.5, behind)
-    ahead = Ahead(0.0, 0.5)
-    ahead.standing, ahead.hop_ends_s = False, 45.6
+    env, behind, watch, ahead = _behind_a_driving_agv(45.6)
 
     def hop() -> Any:
         yield env.timeout(45.6)
@@ -216,12 +223,7 @@ def test_behind_an_agv_a_fault_halts_on_its_hop_the_pause_begins_at_the_next_loo
     """The AGV ahead drives a hop planned to end at 50 s; a fault halts it at 44 s. The AGV
     behind, looking every second from 40.3 s, is paused at 44.3 s, its first look after the
     halt (not at the hop's planned end)."""
-    env = simpy.Environment()
-    behind = Behind()
-    behind.env = env
-    watch = AgvAhead(env, Rules(), 0.5, behind)
-    ahead = Ahead(0.0, 0.5)
-    ahead.standing, ahead.hop_ends_s = False, 50.0
+    env, behind, watch, ahead = _behind_a_driving_agv(50.0)
 
     def fault() -> Any:
         yield env.timeout(44.0)
