@@ -60,11 +60,17 @@ import networkx as nx
 
 from fleet_sim.errors import SimulationError
 from fleet_sim.sim.traffic.locks import Lock
+from fleet_sim.sim.traffic.schedule import Schedule
 from fleet_sim.sim.traffic.walk import Move, Step, Walk, holders_of
+from fleet_sim.sim.traffic.zones import DirectionGate
 
 if TYPE_CHECKING:
     from fleet_sim.sim.traffic.routing import Routes
     from fleet_sim.sim.traffic.table import Reservations
+
+REFITS = 3
+"""How many other AGVs' moves a fit may fit again after the client's (`Plans._fit`)."""
+
 
 class Plans:
     """Every AGV's declared plan, the resources each still needs, and the safety checks."""
@@ -98,6 +104,9 @@ class Plans:
         that takes every AGV on the track off it (found by the last walk, `Walk`)."""
         self._next = 0
         """The first move of `witness` not yet made."""
+        self._schedule: Schedule | None = None
+        """The witness's moves at positions and every lock's holds, for fitting one AGV's
+        changed moves in (`_fit`)."""
         self._refused: dict[int, _Refusal] = {}
         """Client id -> its last grant the walk refused, while it waits for it: asked again, it
         is walked again only once an AGV the walk got stuck on has moved (`may_grant`)."""
@@ -105,6 +114,10 @@ class Plans:
         self.walks = 0
         self.walked_moves = 0
         """Walks made (`_walk`), and the moves they made, all told (for benches)."""
+        self.fits = 0
+        self.refits = 0
+        """Walks spared by fitting the client's moves into the witness (`_fit`), and of those,
+        the fits that fitted another AGV's moves again too."""
         self.refused_plans = 0
 
     # ---- plans ----------------------------------------------------------------------------------
@@ -238,7 +251,10 @@ class Plans:
                 return True
         elif not any(self.table.held_locks(client_id)):
             return True  # off the track: in nobody's way, and in no move of the witness
-        if self._walk(client_id, (list(path), steps, self.costs(path)), ()) is None:
+        plan = (list(path), steps, self.costs(path))
+        if self.witness is not None and self._fit(client_id, plan, ()):
+            return True
+        if self._walk(client_id, plan, ()) is None:
             return True
         self.refused_plans += 1
         return False
@@ -257,9 +273,12 @@ class Plans:
         targets.discard(client_id)
         if not targets:
             return True
+        turns = self._turns_in(client_id, locks)
         if self.witness is None:
             if not self._reaches((client_id,), targets.__contains__):
                 return True
+        elif turns:
+            pass  # walked: the witness's order may not hold (`_turns_in`)
         elif self._is_next(client_id, node):
             self._next += 1
             return True
@@ -267,6 +286,8 @@ class Plans:
             return True
         if waits and not self._may_walk_again(client_id, node):
             return False  # walked and refused, and nothing the walk stuck on has moved
+        if self.witness is not None and not turns and self._fit(client_id, None, locks):
+            return True
         failed = self._walk(client_id, None, locks)
         if failed is None:
             return True
@@ -276,6 +297,20 @@ class Plans:
                 self.plan_id[client_id], node, self.table.env.now + self._costs[client_id][k][0],
                 self._where(failed.stuck(client_id)))
         self.refused_grants += 1
+        return False
+
+    def _turns_in(self, client_id: int, locks: Sequence[tuple[Lock, int]]) -> bool:
+        """Does another AGV hold a same-direction aisle of `locks` with a hop granted and not
+        driven yet? A replay drives granted hops first (`proof`), but one that turns round in
+        the aisle may do so only alone in it, which the client in it would prevent: granted
+        from the witness (next, moved first or fitted), the state may not be shown safe (the
+        greedy walk decides)."""
+        granted, at = self.granted, self.at
+        for lock, _ in locks:
+            if isinstance(lock, DirectionGate):
+                for y in holders_of(lock):
+                    if y != client_id and granted.get(y, -1) > at.get(y, -1):
+                        return True
         return False
 
     def _may_walk_again(self, client_id: int, node: str) -> bool:
@@ -308,19 +343,28 @@ class Plans:
         """Is driving to `node` the client's move that comes next in the witness?"""
         witness = self.witness
         assert witness is not None
-        while self._next < len(witness):
+        if self._skip_made() == len(witness):
+            return False
+        x, _, k = witness[self._next]
+        path = self.path[x]
+        if k == len(path):  # driving off at the end of its plan: no grant, wait for it
+            return False
+        return x == client_id and path[k] == node
+
+    def _skip_made(self) -> int:
+        """Move `_next` past the witness's moves made or granted already, or of a plan given
+        up (its AGV left the track or took another); the index of the first move not made."""
+        witness = self.witness
+        assert witness is not None
+        plan_id, at, granted = self.plan_id, self.at, self.granted
+        n = len(witness)
+        while self._next < n:
             x, plan, k = witness[self._next]
-            if self.plan_id.get(x) != plan or self.at[x] >= k:
-                self._next += 1  # made already (or its AGV left the track)
+            if plan_id.get(x) != plan or at[x] >= k or granted[x] >= k:
+                self._next += 1
                 continue
-            path = self.path[x]
-            if k == len(path):  # driving off at the end of its plan: no grant, wait for it
-                return False
-            if self.granted[x] >= k:
-                self._next += 1  # granted already
-                continue
-            return x == client_id and path[k] == node
-        return False
+            break
+        return self._next
 
     def _moves_first(self, client_id: int, locks: Sequence[tuple[Lock, int]],
                      node: str) -> bool:
@@ -341,11 +385,67 @@ class Plans:
                 if k == len(path) or path[k] != node:
                     return False
                 witness.insert(self._next, witness.pop(j))
+                if self._schedule is not None:
+                    self._schedule.moved_first(j, self._next)
                 self._next += 1
                 return True
             if k < len(path) and any(lock in taken for lock, _ in self._steps[x][k]):
                 return False
         return False
+
+    def _fit(self, client_id: int,
+             new_plan: tuple[list[str], list[Step], list[tuple[float, float]]] | None,
+             granted: Sequence[tuple[Lock, int]]) -> bool:
+        """Fit the client's moves, under its new plan or with the locks it is granted, into
+        the witness among the others' (`Schedule.fit`); where they stick on an AGV's hold of
+        what the client holds now, that AGV's moves are fitted again after the client's (up
+        to `REFITS` AGVs). True: the witness is the fitted one and the state is safe with the
+        change. False: none found (a walk may still find one)."""
+        schedule = self._schedule
+        if schedule is None:
+            return False
+        if new_plan is not None:
+            plan = self._plans_made + 1
+            chains = [(client_id, plan, self._alone(client_id, plan, new_plan, 0, ()))]
+        else:
+            plan = self.plan_id[client_id]
+            chains = [(client_id, plan, self._alone(
+                client_id, plan, (self.path[client_id], self._steps[client_id],
+                                  self._costs[client_id]), self.at[client_id], granted))]
+        start = self._skip_made()
+        plan_id = self.plan_id
+
+        def plan_now(y: int) -> int | None:  # the client's: the plan it is about to declare
+            return plan if y == client_id else plan_id.get(y)
+
+        for _ in range(REFITS + 1):
+            if any(not walk.moves for _, _, walk in chains):
+                return False  # stuck alone (cannot happen on a plan that is whole)
+            stuck = schedule.fit(chains, start, plan_now)
+            if stuck is None:
+                self.fits += 1
+                self.refits += len(chains) > 1
+                return True
+            if stuck < 0 or stuck not in self.path or any(y == stuck for y, _, _ in chains):
+                return False
+            y = stuck
+            chains.append((y, self.plan_id[y], self._alone(
+                y, self.plan_id[y], (self.path[y], self._steps[y], self._costs[y]),
+                self.at[y], ())))
+        return False
+
+    def _alone(self, x: int, plan: int,
+               route: tuple[list[str], list[Step], list[tuple[float, float]]], k: int,
+               granted: Sequence[tuple[Lock, int]]) -> Walk:
+        """x driven alone from index k of its plan `route` to parking, its holds recorded
+        (no moves: it got stuck, which a plan driven alone does not)."""
+        walk = Walk(self.table, alone=True)
+        path, steps, costs = route
+        walk.add(x, plan, path, steps, costs, k, granted)
+        walk.holds = {}
+        if not walk.run():
+            walk.moves = []
+        return walk
 
     def _walk(self, client_id: int,
               new_plan: tuple[list[str], list[Step], list[tuple[float, float]]] | None,
@@ -360,20 +460,19 @@ class Plans:
             if x == client_id:
                 path, steps, costs = new_plan if new_plan is not None \
                     else (self.path[x], self._steps[x], self._costs[x])
-                walk.add(x, self.plan_id[x] if new_plan is None else -1, path, steps, costs,
-                         0 if new_plan is not None else self.at[x], granted)
+                walk.add(x, self.plan_id[x] if new_plan is None else self._plans_made + 1,
+                         path, steps, costs, 0 if new_plan is not None else self.at[x], granted)
             elif any(held_locks(x)):
                 walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self._costs[x],
                          self.at[x], ())
+        walk.holds = {}
         ok = walk.run()
         self.walks += 1
         self.walked_moves += len(walk.moves)
         if not ok:
             return walk
-        if new_plan is not None:  # the client's moves are of the plan it is about to declare
-            plan = self._plans_made + 1
-            walk.moves = [(x, plan if p == -1 else p, k) for x, p, k in walk.moves]
         self.witness = walk.moves
+        self._schedule = Schedule(walk.moves, walk)
         self._next = 0
         return None
 

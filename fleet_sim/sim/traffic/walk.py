@@ -19,6 +19,13 @@ Move = tuple[int, int, int]
 """One move of a witness: (client, plan number, the index in the plan of the node reached;
 one past its end: driving off into parking)."""
 
+INF = float("inf")
+
+Hold = tuple[float, float, int, int]
+"""A member's hold of a lock in a walk (`Walk.holds`), or in a schedule
+(fleet_sim.sim.traffic.schedule): the positions of the move that took it (-inf: held before)
+and of the move that let go of it, the member, and a number naming its moves (its plan)."""
+
 Step = tuple[tuple[Lock, int], ...]
 """What reaching one node of a plan takes: (lock, direction) pairs: the node, the corridor and
 zones of the hop into it, and the corridor or aisle entered from it (taken at its mouth, as
@@ -31,8 +38,10 @@ class Walk:
     what the hop takes, and lets go of what the body has cleared and the corridors and zones
     it has left, as the driver and traffic do."""
 
-    def __init__(self, table: Reservations) -> None:
+    def __init__(self, table: Reservations, alone: bool = False) -> None:
         self.table = table
+        self.alone = alone
+        """Only the members' own holds count (`Schedule.fit` walks one AGV by itself)."""
         self.holders: dict[Lock, list[int]] = {}
         self.ways: dict[Lock, int] = {}
         self.plans: dict[int, tuple[list[str], list[Step], list[tuple[float, float]]]] = {}
@@ -65,11 +74,17 @@ class Walk:
         it (`step`: not blocking the junction)."""
         self.forced: int | None = None
         """A deferred member let into its junction all the same (nobody else could move)."""
+        self.holds: dict[Lock, list[Hold]] | None = None
+        """If a dict: from then on, each lock's holds, as (the index in `moves` of the move
+        that took it, -inf: held before; of the move that let go of it; the member; its plan
+        number) (fleet_sim.sim.traffic.schedule)."""
+        self._took: dict[tuple[int, Lock], int] = {}
 
     def held_by(self, lock: Lock) -> list[int]:
         h = self.holders.get(lock)
         if h is None:
-            h = self.holders[lock] = list(holders_of(lock))
+            h = self.holders[lock] = [y for y in holders_of(lock) if y in self.plans] \
+                if self.alone else list(holders_of(lock))
             if isinstance(lock, DirectionGate):
                 self.ways[lock] = lock.direction
         return h
@@ -81,6 +96,8 @@ class Walk:
                 self.ways[lock] = way  # alone inside, it turns round (free_for)
             return
         h.append(x)
+        if self.holds is not None:
+            self._took[(x, lock)] = len(self.moves)
         if isinstance(lock, DirectionGate) and len(h) == 1:
             self.ways[lock] = way or 1
 
@@ -89,6 +106,14 @@ class Walk:
         if h is None:
             h = self.held_by(lock)
         h.remove(x)
+        holds = self.holds
+        if holds is not None:
+            hold = (self._took.pop((x, lock), -INF), len(self.moves) - 1, x, self.plan_of[x])
+            of_lock = holds.get(lock)
+            if of_lock is None:
+                holds[lock] = [hold]
+            else:
+                of_lock.append(hold)
         if self.waiting:
             woken = self.waiting.pop(lock, None)
             if woken:
@@ -208,6 +233,8 @@ class Walk:
                             self.deferred[x] = after
                             return False
                     h.append(x)
+                    if self.holds is not None:
+                        self._took[(x, here)] = len(self.moves)
                 elif x not in h:
                     self.waiting.setdefault(here, []).append(x)
                     return False
