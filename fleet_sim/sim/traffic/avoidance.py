@@ -68,7 +68,7 @@ if TYPE_CHECKING:
     from fleet_sim.sim.traffic.routing import Routes
     from fleet_sim.sim.traffic.table import Reservations
 
-REFITS = 3
+REFITS = 1
 """How many other AGVs' moves a fit may fit again after the client's (`Plans._fit`)."""
 
 
@@ -286,7 +286,8 @@ class Plans:
             return True
         if waits and not self._may_walk_again(client_id, node):
             return False  # walked and refused, and nothing the walk stuck on has moved
-        if self.witness is not None and not turns and self._fit(client_id, None, locks):
+        if self.witness is not None and not turns and not self._was_refused(client_id, node) \
+                and self._fit(client_id, None, locks):
             return True
         failed = self._walk(client_id, None, locks)
         if failed is None:
@@ -312,6 +313,13 @@ class Plans:
                     if y != client_id and granted.get(y, -1) > at.get(y, -1):
                         return True
         return False
+
+    def _was_refused(self, client_id: int, node: str) -> bool:
+        """Did a walk refuse the client this grant under this plan? Then a fit mostly fails
+        too (1,340 of 1,356 times on the distribution centre with 100 AGVs): not tried."""
+        refused = self._refused.get(client_id)
+        return refused is not None and refused.plan == self.plan_id[client_id] \
+            and refused.node == node
 
     def _may_walk_again(self, client_id: int, node: str) -> bool:
         """False while the client's last refused grant, for `node` under the same plan, would
