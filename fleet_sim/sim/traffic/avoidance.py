@@ -31,6 +31,13 @@ order (Habermann's sequence). Traffic keeps it acyclic:
   of waits the walk got stuck on has moved (`Walk.stuck`; without one, once the AGV could
   have driven the hop, `retry_at`). Until then a walk mostly sticks there again (not always:
   other AGVs' moves change the walk too; the rule only delays a grant, it never makes one).
+* **A fit** (fleet_sim.sim.traffic.schedule) spares a walk: a new plan, or a grant that is
+  neither next nor first, is fitted in among the other AGVs' moves of the witness (each lock's
+  holds kept from the walk), the client's moves each as early as they may go; the fitted
+  witness shows the state safe by construction. Fits are tried only while the check holds no
+  AGV back (`_refusing`): they show states safe that the greedy walk may not, and where the
+  walk refuses, the fleet then moves only in the witness's order (the distribution centre's
+  refusals doubled).
 * The walk keeps a member out of a junction (a node more than one segment leads into) while
   the node after it is held, unless nobody else can move: standing in it, the member would
   block who crosses there, and the greedy walk would close a cycle of waits in a state that
@@ -389,30 +396,26 @@ class Plans:
 
     def _moves_first(self, client_id: int, locks: Sequence[tuple[Lock, int]],
                      node: str) -> bool:
-        """May the client's move to `node`, further on in the witness, be made now? Yes if no
-        move before it in the witness takes any of `locks`: made first, it holds nothing those
-        moves need (what it lets go of sooner only helps them), and the rest of the witness
-        holds unchanged. The move is put first and counted as made."""
-        witness = self.witness
-        assert witness is not None
-        taken = {lock for lock, _ in locks}
-        at, granted, plan_id, paths = self.at, self.granted, self.plan_id, self.path
-        for j in range(self._next, len(witness)):
-            x, plan, k = witness[j]
-            if plan_id.get(x) != plan or at[x] >= k or granted[x] >= k:
-                continue  # made already, granted already, or its AGV left the track
-            path = paths[x]
-            if x == client_id:
-                if k == len(path) or path[k] != node:
-                    return False
-                witness.insert(self._next, witness.pop(j))
-                if self._schedule is not None:
-                    self._schedule.moved_first(j, self._next)
-                self._next += 1
-                return True
-            if k < len(path) and any(lock in taken for lock, _ in self._steps[x][k]):
-                return False
-        return False
+        """May the client's move to `node`, further on in the witness, be made now? Yes if it
+        is the client's first move not made and no move before it in the witness, not made,
+        takes any of `locks`: made first, it holds nothing those moves need (what it lets go
+        of sooner only helps them), and the rest of the witness holds unchanged. The move is
+        put first and counted as made (`Schedule.first_move` finds it)."""
+        witness, schedule = self.witness, self._schedule
+        assert witness is not None and schedule is not None
+        at, granted, plan_id = self.at, self.granted, self.plan_id
+        k = max(at[client_id], granted[client_id]) + 1
+        path = self.path[client_id]
+        if k >= len(path) or path[k] != node:
+            return False
+        j = schedule.first_move(client_id, k, self.table.node_locks[node], locks, self._next,
+                                lambda y: max(at[y], granted[y]), plan_id.get)
+        if j is None:
+            return False
+        witness.insert(self._next, witness.pop(j))
+        schedule.moved_first(j, self._next)
+        self._next += 1
+        return True
 
     def _fit(self, client_id: int,
              new_plan: tuple[list[str], list[Step], list[tuple[float, float]]] | None,

@@ -34,7 +34,7 @@ import itertools
 from collections.abc import Callable, Sequence
 
 from fleet_sim.sim.traffic.locks import Lock
-from fleet_sim.sim.traffic.walk import INF, Hold, Move, Walk, holders_of
+from fleet_sim.sim.traffic.walk import INF, Hold, Move, Step, Walk, holders_of
 from fleet_sim.sim.traffic.zones import DirectionGate
 
 MAX_BUMPS = 400
@@ -57,6 +57,77 @@ class Schedule:
         """Client -> the number its holds in the schedule carry, and its plan's number: holds
         with another, or of a client whose plan is another now, are dropped."""
         self._fitted = 0
+        self._placed: dict[int, list[float]] = {}
+        """Client -> the positions its moves were fitted at (`_put`), until the fit is kept."""
+        self.takers: dict[Lock, list[tuple[float, int, int, int]]] = {}
+        """Lock -> the moves whose step lists it (position, client, the number its moves
+        carry, index in its plan), stale ones dropped as met (`first_move`)."""
+        self.positions: dict[int, list[float]] = {}
+        """Client -> the positions of its moves in the witness."""
+        takers, positions, steps_of = self.takers, self.positions, walk.steps_of
+        for i, (x, p, k) in enumerate(moves):
+            at = float(i)
+            mine = positions.get(x)
+            if mine is None:
+                positions[x] = [at]
+            else:
+                mine.append(at)
+            steps = steps_of[x]
+            if k < len(steps):
+                for lock, _ in steps[k]:
+                    of_lock = takers.get(lock)
+                    if of_lock is None:
+                        takers[lock] = [(at, x, p, k)]
+                    else:
+                        of_lock.append((at, x, p, k))
+
+    def _taking(self, at: float, x: int, number: int, k: int, steps: list[Step]) -> None:
+        if k < len(steps):
+            takers = self.takers
+            for lock, _ in steps[k]:
+                of_lock = takers.get(lock)
+                if of_lock is None:
+                    takers[lock] = [(at, x, number, k)]
+                else:
+                    of_lock.append((at, x, number, k))
+
+    def first_move(self, x: int, k: int, node: Lock, locks: Sequence[tuple[Lock, int]],
+                   start: int, now_at: Callable[[int], int],
+                   plan_now: Callable[[int], int | None]) -> int | None:
+        """The index in the witness of x's move to index k of its plan (onto `node`), its
+        first move not made, if no move before it from index `start` on that is not made
+        (`now_at(y)`: the index in y's plan of the furthest node y stood on or was granted)
+        lists any of `locks`: the rule of `Plans._moves_first`, read off each lock's takers
+        instead of every move before it. None: not so."""
+        current = self.current
+        mine = current.get(x)
+        if mine is None:
+            return None
+        at_x: float | None = None
+        for at, y, g, kk in self.takers.get(node, ()):
+            if y == x and g == mine[0] and kk == k:
+                at_x = at
+                break
+        if at_x is None or plan_now(x) != mine[1]:
+            return None
+        pos = self.pos
+        start_at = pos[start] if start < len(pos) else INF
+        for lock, _ in locks:
+            takers = self.takers.get(lock, ())
+            live = []
+            for entry in takers:
+                at, y, g, kk = entry
+                now = current[y]
+                if now[0] != g:
+                    continue  # moves given up: dropped
+                live.append(entry)
+                if start_at <= at < at_x and y != x and plan_now(y) == now[1] \
+                        and now_at(y) < kk:
+                    return None
+            if len(live) < len(takers):
+                self.takers[lock] = live
+        j = bisect.bisect_left(pos, at_x, start)
+        return j if j < len(pos) and pos[j] == at_x else None
 
     def moved_first(self, j: int, to: int) -> None:
         """The move at index `j` of the witness was put at index `to` (`Plans._moves_first`):
@@ -74,14 +145,15 @@ class Schedule:
         else nothing changed and the AGV (-1: none) on whose hold a chain stuck with what it
         holds now (to be fitted again too, `Plans._fit`)."""
         witness, pos = list(self.moves), list(self.pos)
-        current = dict(self.current)
+        current, positions = dict(self.current), dict(self.positions)
         added: list[tuple[Lock, int]] = []
         for i, (x, plan, walk) in enumerate(chains):
             pending = {y for y, _, _ in chains[i + 1:]}
             stuck = self._fit_one(x, plan, walk, start, plan_now, pending, added, current)
             if stuck is not None:  # undone
                 self.moves[:], self.pos[:] = witness, pos
-                self.current = current
+                self.current, self.positions = current, positions
+                self._placed.clear()
                 tags = {tag for _, tag in added}
                 for lock in {lock for lock, _ in added}:
                     self.holds[lock] = [h for h in self.holds[lock] if h[3] not in tags]
@@ -89,6 +161,10 @@ class Schedule:
         holds, current = self.holds, self.current
         for lock in {lock for lock, _ in added}:  # the fitted AGVs' old holds out
             holds[lock] = [h for h in holds[lock] if current[h[2]][0] == h[3]]
+        for x, _, walk in chains:  # the fitted moves' takers
+            number, steps = current[x][0], walk.steps_of[x]
+            for (_, _, k), at in zip(walk.moves, self._placed.pop(x), strict=True):
+                self._taking(at, x, number, k, steps)
         return None
 
     def _fit_one(self, x: int, plan: int, walk: Walk, start: int,
@@ -130,7 +206,7 @@ class Schedule:
                 return y if a < 0 else -1
             floor[a] = bisect.bisect_right(pos, r, start, end)
             i0 = a
-        return None if self._put(x, plan, walk.moves, place, mine, start, added) else -1
+        return None if self._put(x, plan, walk, place, mine, start, added) else -1
 
     def _others(self, lock: Lock, x: int, start: int, start_at: float,
                 plan_now: Callable[[int], int | None], pending: set[int],
@@ -215,12 +291,13 @@ class Schedule:
             return a, meets[0][1], meets[0][2]
         return None
 
-    def _put(self, x: int, plan: int, moves: list[Move], place: list[int],
+    def _put(self, x: int, plan: int, walk: Walk, place: list[int],
              mine: list[tuple[Lock, int, int]], start: int,
              added: list[tuple[Lock, int]]) -> bool:
         """Make the fitted schedule the witness: x's moves at their places among the others'
         from `start` on (its old moves out), and x's holds those of its fitted moves."""
         pos, witness = self.pos, self.moves
+        moves = walk.moves
         end = len(pos)
         at: list[float] = []
         i = 0
@@ -237,13 +314,19 @@ class Schedule:
                 return False  # too close to tell apart: walked (and numbered afresh)
             at += [before + gap * (m + 1) for m in range(j - i)]
             i = j
-        old = [j for j in range(start, end) if witness[j][0] == x]
-        for j in reversed(old):
+        old = []
+        for p in self.positions.get(x, ()):
+            j = bisect.bisect_left(pos, p, start)
+            if j < end and pos[j] == p and witness[j][0] == x:
+                old.append(j)
+        for j in sorted(old, reverse=True):
             del witness[j], pos[j]
         for move, p in zip(moves, at, strict=True):
             j = bisect.bisect_left(pos, p, start)
             witness.insert(j, (x, plan, move[2]))
             pos.insert(j, p)
+        self._placed[x] = at
+        self.positions[x] = at
         self._fitted -= 1
         tag = self._fitted  # fitted moves' number: below every plan's (from 1 up)
         self.current[x] = (tag, plan)
