@@ -15,10 +15,13 @@ it overlaps another AGV's hold of an exclusive lock (nor more than a zone's capa
 them): each move as early as it may go; where a hold of it meets another AGV's, the move that
 took the lock goes after the other lets go of it (the only way round, as the moves after it
 cannot go earlier), and the moves after it follow. A hold it has already (what it holds now)
-cannot move: a clash there fails. A fitted schedule is a witness by construction: the others'
-moves in their order, each taking what is free when it comes, and the AGV's among them. When
-no place is found, the caller walks every AGV as before; a fit only spares a walk, it never
-refuses anything.
+cannot move: a clash there fails, naming the AGV it clashed with, which the caller may fit
+again after it (`Plans._fit`; several chains of moves are fitted in turn, and undone together
+if one fails). A fitted schedule is a witness by construction: the others' moves in their
+order, each taking what is free when it comes, and the AGV's among them. When no place is
+found, the caller walks every AGV as before; a fit only spares a walk, it never refuses
+anything. A same-direction aisle is fitted as an exclusive lock (its turning rules need no
+more), a zone of several AGVs not at all (walked).
 
 Positions are floats: the walk numbers its moves 0, 1, 2, ...; a fitted move goes between two
 neighbours. What happened since the walk is read off the state as it is: an AGV that holds a
@@ -31,6 +34,7 @@ from __future__ import annotations
 
 import bisect
 import itertools
+from collections import defaultdict
 from collections.abc import Callable, Sequence
 
 from fleet_sim.sim.traffic.locks import Lock
@@ -59,7 +63,7 @@ class Schedule:
         self._fitted = 0
         self._placed: dict[int, list[float]] = {}
         """Client -> the positions its moves were fitted at (`_put`), until the fit is kept."""
-        self.takers: dict[Lock, list[tuple[float, int, int, int]]] = {}
+        self.takers: defaultdict[Lock, list[tuple[float, int, int, int]]] = defaultdict(list)
         """Lock -> the moves whose step lists it (position, client, the number its moves
         carry, index in its plan), stale ones dropped as met (`first_move`)."""
         self.positions: dict[int, list[float]] = {}
@@ -75,21 +79,13 @@ class Schedule:
             steps = steps_of[x]
             if k < len(steps):
                 for lock, _ in steps[k]:
-                    of_lock = takers.get(lock)
-                    if of_lock is None:
-                        takers[lock] = [(at, x, p, k)]
-                    else:
-                        of_lock.append((at, x, p, k))
+                    takers[lock].append((at, x, p, k))
 
     def _taking(self, at: float, x: int, number: int, k: int, steps: list[Step]) -> None:
+        """x's move at position `at` onto index k of its plan takes what steps[k] lists."""
         if k < len(steps):
-            takers = self.takers
             for lock, _ in steps[k]:
-                of_lock = takers.get(lock)
-                if of_lock is None:
-                    takers[lock] = [(at, x, number, k)]
-                else:
-                    of_lock.append((at, x, number, k))
+                self.takers[lock].append((at, x, number, k))
 
     def first_move(self, x: int, k: int, node: Lock, locks: Sequence[tuple[Lock, int]],
                    start: int, now_at: Callable[[int], int],
