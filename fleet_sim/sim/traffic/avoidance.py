@@ -34,9 +34,9 @@ order (Habermann's sequence). Traffic keeps it acyclic:
 * **A fit** (fleet_sim.sim.traffic.schedule) spares a walk: a new plan, or a grant that is
   neither next nor first, is fitted in among the other AGVs' moves of the witness (each lock's
   holds kept from the walk), the client's moves each as early as they may go; the fitted
-  witness shows the state safe by construction. Fits are tried only while the check holds no
-  AGV back (`_refusing`): they show states safe that the greedy walk may not, and where the
-  walk refuses, the fleet then moves only in the witness's order (the distribution centre's
+  witness shows the state safe by construction. Fits are tried only until the first walk
+  that fails (`_fits`): they show states safe that the greedy walk may not, and where the walk
+  refuses, the fleet then moves only in the witness's order (the distribution centre's
   refusals doubled).
 * The walk keeps a member out of a junction (a node more than one segment leads into) while
   the node after it is held, unless nobody else can move: standing in it, the member would
@@ -111,9 +111,9 @@ class Plans:
         that takes every AGV on the track off it (found by the last walk, `Walk`)."""
         self._next = 0
         """The first move of `witness` not yet made."""
-        self._refusing: set[int] = set()
-        """The clients the check holds back: the last plan or waited-for grant it was asked
-        for, refused. While there are any, no fit (`_fit`): every change is walked."""
+        self._fits = True
+        """Fits spare walks (`_fit`) until the first walk that fails: from then on every
+        change is walked, as before fits (engine.md, "Fitted witnesses")."""
         self._schedule: Schedule | None = None
         """The witness's moves at positions and every lock's holds, for fitting one AGV's
         changed moves in (`_fit`)."""
@@ -206,7 +206,6 @@ class Plans:
         del self.path[client_id], self.at[client_id], self._steps[client_id]
         del self._costs[client_id]
         self._refused.pop(client_id, None)
-        self._refusing.discard(client_id)
         del self.plan_id[client_id], self.granted[client_id]
         for lock in needs:
             self.users_of[lock].discard(client_id)
@@ -252,13 +251,6 @@ class Plans:
     # ---- the checks ------------------------------------------------------------------------------
     def may_declare(self, client_id: int, path: Sequence[str]) -> bool:
         """Would the state stay safe with `path` as the client's plan?"""
-        if self._may_declare(client_id, path):
-            self._refusing.discard(client_id)
-            return True
-        self._refusing.add(client_id)
-        return False
-
-    def _may_declare(self, client_id: int, path: Sequence[str]) -> bool:
         steps = self.steps(path)
         if self.witness is None:
             needs = self._remaining(steps, 0)
@@ -270,7 +262,7 @@ class Plans:
         elif not any(self.table.held_locks(client_id)):
             return True  # off the track: in nobody's way, and in no move of the witness
         plan = (list(path), steps, self.costs(path))
-        if self.witness is not None and not self._refusing and self._fit(client_id, plan, ()):
+        if self.witness is not None and self._fits and self._fit(client_id, plan, ()):
             return True
         if self._walk(client_id, plan, ()) is None:
             return True
@@ -282,15 +274,6 @@ class Plans:
         """Would the state stay safe if the client took `locks` ((lock, direction), free, on
         its plan) to drive to `node`? `waits`: the client waits for the grant (not a
         look-ahead): once the walk refused it, it is walked again only from `retry_at` on."""
-        if self._may_grant(client_id, locks, node, waits):
-            self._refusing.discard(client_id)
-            return True
-        if waits:
-            self._refusing.add(client_id)
-        return False
-
-    def _may_grant(self, client_id: int, locks: Sequence[tuple[Lock, int]], node: str,
-                   waits: bool) -> bool:
         users_of = self.users_of
         targets: set[int] = set()
         for lock, _ in locks:
@@ -313,7 +296,7 @@ class Plans:
             return True
         if waits and not self._may_walk_again(client_id, node):
             return False  # walked and refused, and nothing the walk stuck on has moved
-        if self.witness is not None and not turns and not self._refusing \
+        if self.witness is not None and not turns and self._fits \
                 and self._fit(client_id, None, locks):
             return True
         failed = self._walk(client_id, None, locks)
@@ -402,20 +385,40 @@ class Plans:
         of sooner only helps them), and the rest of the witness holds unchanged. The move is
         put first and counted as made (`Schedule.first_move` finds it)."""
         witness, schedule = self.witness, self._schedule
-        assert witness is not None and schedule is not None
+        assert witness is not None
         at, granted, plan_id = self.at, self.granted, self.plan_id
         k = max(at[client_id], granted[client_id]) + 1
         path = self.path[client_id]
         if k >= len(path) or path[k] != node:
             return False
-        j = schedule.first_move(client_id, k, self.table.node_locks[node], locks, self._next,
-                                lambda y: max(at[y], granted[y]), plan_id.get)
+        if schedule is not None:
+            j = schedule.first_move(client_id, k, self.table.node_locks[node], locks,
+                                    self._next, lambda y: max(at[y], granted[y]), plan_id.get)
+        else:
+            j = self._first_move(client_id, k, {lock for lock, _ in locks})
         if j is None:
             return False
         witness.insert(self._next, witness.pop(j))
-        schedule.moved_first(j, self._next)
+        if schedule is not None:
+            schedule.moved_first(j, self._next)
         self._next += 1
         return True
+
+    def _first_move(self, client_id: int, k: int, taken: set[Lock]) -> int | None:
+        """`Schedule.first_move` without a schedule (fits off): the witness's moves scanned
+        from `_next` to the client's move to index k of its plan."""
+        witness = self.witness
+        assert witness is not None
+        at, granted, plan_id, paths = self.at, self.granted, self.plan_id, self.path
+        for j in range(self._next, len(witness)):
+            x, plan, kk = witness[j]
+            if plan_id.get(x) != plan or at[x] >= kk or granted[x] >= kk:
+                continue  # made already, granted already, or its AGV left the track
+            if x == client_id:
+                return j if kk == k else None
+            if kk < len(paths[x]) and any(lock in taken for lock, _ in self._steps[x][kk]):
+                return None
+        return None
 
     def _fit(self, client_id: int,
              new_plan: tuple[list[str], list[Step], list[tuple[float, float]]] | None,
@@ -489,14 +492,16 @@ class Plans:
             elif any(held_locks(x)):
                 walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self._costs[x],
                          self.at[x], ())
-        walk.holds = {}
+        if self._fits:
+            walk.holds = {}
         ok = walk.run()
         self.walks += 1
         self.walked_moves += len(walk.moves)
         if not ok:
+            self._fits = False
             return walk
         self.witness = walk.moves
-        self._schedule = Schedule(walk.moves, walk)
+        self._schedule = Schedule(walk.moves, walk) if self._fits else None
         self._next = 0
         return None
 

@@ -49,13 +49,13 @@ class Schedule:
     """The witness's moves, each at a position, and every lock's holds (`fit`)."""
 
     def __init__(self, moves: list[Move], walk: Walk) -> None:
-        """`walk`: the walk that found the witness `moves`, its holds recorded."""
+        """`walk`: the walk that found the witness `moves`; without its holds recorded
+        (`Walk.holds` None), only the moves-first rule is read off the schedule, no fit."""
         self.moves = moves
         """The witness (the same list as `Plans.witness`)."""
         self.pos: list[float] = [float(i) for i in range(len(moves))]
         """The position of each move of `moves`; ascending from the first move not made."""
-        assert walk.holds is not None
-        self.holds: dict[Lock, list[Hold]] = walk.holds
+        self.holds: dict[Lock, list[Hold]] = walk.holds if walk.holds is not None else {}
         """Lock -> its holds (`Hold`: the last field names the holder's moves, `current`)."""
         self.current: dict[int, tuple[int, int]] = {x: (p, p) for x, p in walk.plan_of.items()}
         """Client -> the number its holds in the schedule carry, and its plan's number: holds
@@ -69,13 +69,15 @@ class Schedule:
         self.positions: dict[int, list[float]] = {}
         """Client -> the positions of its moves in the witness."""
         takers, positions, steps_of = self.takers, self.positions, walk.steps_of
+        fitting = walk.holds is not None
         for i, (x, p, k) in enumerate(moves):
             at = float(i)
-            mine = positions.get(x)
-            if mine is None:
-                positions[x] = [at]
-            else:
-                mine.append(at)
+            if fitting:
+                mine = positions.get(x)
+                if mine is None:
+                    positions[x] = [at]
+                else:
+                    mine.append(at)
             steps = steps_of[x]
             if k < len(steps):
                 for lock, _ in steps[k]:
