@@ -30,12 +30,14 @@ def test_every_fitted_witness_is_shown_safe_and_a_failed_fit_changes_nothing(
     and on the distribution centre's single-track corridors: after every grant and every plan
     the state is shown safe from scratch, hundreds of times by a fitted witness, some of them
     with another AGV's moves fitted again; every fit that fails leaves the witness, the
-    positions, the holds and the current numbers as they were."""
+    positions, the holds and the current numbers as they were. Fits are kept on after walks
+    that fail (the policy stops fitting at the first), so that they are checked in the dense
+    states that follow too."""
     scenario, layout = scenario_for(layout_name, fleet, 0.6, 200, "avoiding", base=base,
                                     **{"dispatch.max_active_agvs": fleet})
     model = build_simulation(scenario, layout, (), False, False, None, 10_000)
     counts = {"checked": 0, "failed fits": 0}
-    grant_now, declare, fit = Traffic.grant_now, Plans.declare, Schedule.fit
+    grant_now, declare, fit, walk = Traffic.grant_now, Plans.declare, Schedule.fit, Plans._walk
 
     def shown_safe(plans: Plans, what: str) -> None:
         assert plans.proof() is not None, what
@@ -68,6 +70,12 @@ def test_every_fitted_witness_is_shown_safe_and_a_failed_fit_changes_nothing(
             assert state(self, start) == before
         return stuck
 
+    def walk_fitting_on(self: Plans, *args: Any) -> Any:
+        stuck = walk(self, *args)
+        self._fits = True
+        return stuck
+
+    monkeypatch.setattr(Plans, "_walk", walk_fitting_on)
     monkeypatch.setattr(Traffic, "grant_now", grant_checked)
     monkeypatch.setattr(Plans, "declare", declare_checked)
     monkeypatch.setattr(Schedule, "fit", fit_undone)
@@ -111,3 +119,29 @@ def test_a_changed_plan_is_fitted_after_the_hold_it_meets_without_a_walk() -> No
              if schedule.current[x][0] == number}
     (t0, r0), (t1, r1) = spans[0], spans[1]
     assert r0 <= t1 or r1 < t0  # never both in J
+
+
+def test_no_fit_after_the_first_walk_that_fails(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where the greedy walk refuses, a fitted witness can show safe a state the walk cannot,
+    and the fleet then moves only in the witness's order: from the first walk that fails, the
+    policy walks every change as before fits (and records no holds)."""
+    scenario, layout = scenario_for("warehouse_same_direction", 30, 0.5, 200, "avoiding",
+                                    base="warehouse_same_direction.yaml",
+                                    **{"dispatch.max_active_agvs": 30})
+    model = build_simulation(scenario, layout, (), False, False, None, 10_000)
+    plans = model.traffic.strategy.plans
+    assert plans is not None
+    at_first: dict[str, int] = {}
+    walk = Plans._walk
+
+    def watched(self: Plans, *args: Any) -> Any:
+        stuck = walk(self, *args)
+        if stuck is not None and not at_first:
+            at_first.update(fits=self.fits, walks=self.walks)
+        return stuck
+
+    monkeypatch.setattr(Plans, "_walk", watched)
+    model.env.run(until=scenario.duration_s)
+    assert at_first and at_first["fits"] > 0  # it fitted before
+    assert plans.fits == at_first["fits"] and plans.walks > at_first["walks"] + 50
+    assert plans._schedule is None  # the witness found since has no holds
