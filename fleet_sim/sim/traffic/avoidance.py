@@ -436,9 +436,8 @@ class Plans:
             chains = [(client_id, plan, self._alone(client_id, plan, new_plan, 0, ()))]
         else:
             plan = self.plan_id[client_id]
-            chains = [(client_id, plan, self._alone(
-                client_id, plan, (self.path[client_id], self._steps[client_id],
-                                  self._costs[client_id]), self.at[client_id], granted))]
+            chains = [(client_id, plan, self._alone(client_id, plan, self._route(client_id),
+                                                    self.at[client_id], granted))]
         start = self._skip_made()
         plan_id = self.plan_id
 
@@ -456,10 +455,13 @@ class Plans:
             if stuck < 0 or stuck not in self.path or any(y == stuck for y, _, _ in chains):
                 return False
             y = stuck
-            chains.append((y, self.plan_id[y], self._alone(
-                y, self.plan_id[y], (self.path[y], self._steps[y], self._costs[y]),
-                self.at[y], ())))
+            chains.append((y, self.plan_id[y], self._alone(y, self.plan_id[y], self._route(y),
+                                                           self.at[y], ())))
         return False
+
+    def _route(self, x: int) -> tuple[list[str], list[Step], list[tuple[float, float]]]:
+        """x's plan: its nodes, what reaching each takes, the hop into each (s, m)."""
+        return self.path[x], self._steps[x], self._costs[x]
 
     def _alone(self, x: int, plan: int,
                route: tuple[list[str], list[Step], list[tuple[float, float]]], k: int,
@@ -486,12 +488,11 @@ class Plans:
         for x in sorted(self.path):
             if x == client_id:
                 path, steps, costs = new_plan if new_plan is not None \
-                    else (self.path[x], self._steps[x], self._costs[x])
+                    else self._route(x)
                 walk.add(x, self.plan_id[x] if new_plan is None else self._plans_made + 1,
                          path, steps, costs, 0 if new_plan is not None else self.at[x], granted)
             elif any(held_locks(x)):
-                walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self._costs[x],
-                         self.at[x], ())
+                walk.add(x, self.plan_id[x], *self._route(x), self.at[x], ())
         if self._fits:
             walk.holds = {}
         ok = walk.run()
@@ -519,8 +520,7 @@ class Plans:
         junctions, walk.junctions = walk.junctions, frozenset()  # replayed moves are made as
         for x in sorted(self.path):  # they come, into a junction too
             if any(table.held_locks(x)):
-                walk.add(x, self.plan_id[x], self.path[x], self._steps[x], self._costs[x],
-                         self.at[x], ())
+                walk.add(x, self.plan_id[x], *self._route(x), self.at[x], ())
         for x in sorted(walk.plans):  # the nodes granted and not driven yet: held, so driving
             while x in walk.plans and walk.at[x] < self.granted[x] and walk.step(x):
                 pass  # to them takes nothing new and only lets go of what is left behind
