@@ -383,42 +383,30 @@ class Plans:
         is the client's first move not made and no move before it in the witness, not made,
         takes any of `locks`: made first, it holds nothing those moves need (what it lets go
         of sooner only helps them), and the rest of the witness holds unchanged. The move is
-        put first and counted as made (`Schedule.first_move` finds it)."""
-        witness, schedule = self.witness, self._schedule
-        assert witness is not None
-        at, granted, plan_id = self.at, self.granted, self.plan_id
-        k = max(at[client_id], granted[client_id]) + 1
-        path = self.path[client_id]
-        if k >= len(path) or path[k] != node:
-            return False
-        if schedule is not None:
-            j = schedule.first_move(client_id, k, self.table.node_locks[node], locks,
-                                    self._next, lambda y: max(at[y], granted[y]), plan_id.get)
-        else:
-            j = self._first_move(client_id, k, {lock for lock, _ in locks})
-        if j is None:
-            return False
-        witness.insert(self._next, witness.pop(j))
-        if schedule is not None:
-            schedule.moved_first(j, self._next)
-        self._next += 1
-        return True
-
-    def _first_move(self, client_id: int, k: int, taken: set[Lock]) -> int | None:
-        """`Schedule.first_move` without a schedule (fits off): the witness's moves scanned
-        from `_next` to the client's move to index k of its plan."""
+        put first and counted as made."""
         witness = self.witness
         assert witness is not None
         at, granted, plan_id, paths = self.at, self.granted, self.plan_id, self.path
+        k = max(at[client_id], granted[client_id]) + 1
+        path = paths[client_id]
+        if k >= len(path) or path[k] != node:
+            return False
+        taken = {lock for lock, _ in locks}
         for j in range(self._next, len(witness)):
             x, plan, kk = witness[j]
             if plan_id.get(x) != plan or at[x] >= kk or granted[x] >= kk:
                 continue  # made already, granted already, or its AGV left the track
             if x == client_id:
-                return j if kk == k else None
+                if kk != k:
+                    return False
+                witness.insert(self._next, witness.pop(j))
+                if self._schedule is not None:
+                    self._schedule.moved_first(j, self._next)
+                self._next += 1
+                return True
             if kk < len(paths[x]) and any(lock in taken for lock, _ in self._steps[x][kk]):
-                return None
-        return None
+                return False
+        return False
 
     def _fit(self, client_id: int,
              new_plan: tuple[list[str], list[Step], list[tuple[float, float]]] | None,

@@ -34,11 +34,10 @@ from __future__ import annotations
 
 import bisect
 import itertools
-from collections import defaultdict
 from collections.abc import Callable, Sequence
 
 from fleet_sim.sim.traffic.locks import Lock
-from fleet_sim.sim.traffic.walk import INF, Hold, Move, Step, Walk, holders_of
+from fleet_sim.sim.traffic.walk import INF, Hold, Move, Walk, holders_of
 from fleet_sim.sim.traffic.zones import DirectionGate
 
 MAX_BUMPS = 400
@@ -49,8 +48,8 @@ class Schedule:
     """The witness's moves, each at a position, and every lock's holds (`fit`)."""
 
     def __init__(self, moves: list[Move], walk: Walk) -> None:
-        """`walk`: the walk that found the witness `moves`; without its holds recorded
-        (`Walk.holds` None), only the moves-first rule is read off the schedule, no fit."""
+        """`walk`: the walk that found the witness `moves`, its holds recorded (`Walk.holds`;
+        without them nothing can be fitted)."""
         self.moves = moves
         """The witness (the same list as `Plans.witness`)."""
         self.pos: list[float] = [float(i) for i in range(len(moves))]
@@ -61,71 +60,16 @@ class Schedule:
         """Client -> the number its holds in the schedule carry, and its plan's number: holds
         with another, or of a client whose plan is another now, are dropped."""
         self._fitted = 0
-        self._placed: dict[int, list[float]] = {}
-        """Client -> the positions its moves were fitted at (`_put`), until the fit is kept."""
-        self.takers: defaultdict[Lock, list[tuple[float, int, int, int]]] = defaultdict(list)
-        """Lock -> the moves whose step lists it (position, client, the number its moves
-        carry, index in its plan), stale ones dropped as met (`first_move`)."""
         self.positions: dict[int, list[float]] = {}
         """Client -> the positions of its moves in the witness."""
-        takers, positions, steps_of = self.takers, self.positions, walk.steps_of
-        fitting = walk.holds is not None
-        for i, (x, p, k) in enumerate(moves):
-            at = float(i)
-            if fitting:
+        if walk.holds is not None:
+            positions = self.positions
+            for i, (x, _, _) in enumerate(moves):
                 mine = positions.get(x)
                 if mine is None:
-                    positions[x] = [at]
+                    positions[x] = [float(i)]
                 else:
-                    mine.append(at)
-            steps = steps_of[x]
-            if k < len(steps):
-                for lock, _ in steps[k]:
-                    takers[lock].append((at, x, p, k))
-
-    def _taking(self, at: float, x: int, number: int, k: int, steps: list[Step]) -> None:
-        """x's move at position `at` onto index k of its plan takes what steps[k] lists."""
-        if k < len(steps):
-            for lock, _ in steps[k]:
-                self.takers[lock].append((at, x, number, k))
-
-    def first_move(self, x: int, k: int, node: Lock, locks: Sequence[tuple[Lock, int]],
-                   start: int, now_at: Callable[[int], int],
-                   plan_now: Callable[[int], int | None]) -> int | None:
-        """The index in the witness of x's move to index k of its plan (onto `node`), its
-        first move not made, if no move before it from index `start` on that is not made
-        (`now_at(y)`: the index in y's plan of the furthest node y stood on or was granted)
-        lists any of `locks`: the rule of `Plans._moves_first`, read off each lock's takers
-        instead of every move before it. None: not so."""
-        current = self.current
-        mine = current.get(x)
-        if mine is None:
-            return None
-        at_x: float | None = None
-        for at, y, g, kk in self.takers.get(node, ()):
-            if y == x and g == mine[0] and kk == k:
-                at_x = at
-                break
-        if at_x is None or plan_now(x) != mine[1]:
-            return None
-        pos = self.pos
-        start_at = pos[start] if start < len(pos) else INF
-        for lock, _ in locks:
-            takers = self.takers.get(lock, ())
-            live = []
-            for entry in takers:
-                at, y, g, kk = entry
-                now = current[y]
-                if now[0] != g:
-                    continue  # moves given up: dropped
-                live.append(entry)
-                if start_at <= at < at_x and y != x and plan_now(y) == now[1] \
-                        and now_at(y) < kk:
-                    return None
-            if len(live) < len(takers):
-                self.takers[lock] = live
-        j = bisect.bisect_left(pos, at_x, start)
-        return j if j < len(pos) and pos[j] == at_x else None
+                    mine.append(float(i))
 
     def moved_first(self, j: int, to: int) -> None:
         """The move at index `j` of the witness was put at index `to` (`Plans._moves_first`):
@@ -151,7 +95,6 @@ class Schedule:
             if stuck is not None:  # undone
                 self.moves[:], self.pos[:] = witness, pos
                 self.current, self.positions = current, positions
-                self._placed.clear()
                 tags = {tag for _, tag in added}
                 for lock in {lock for lock, _ in added}:
                     self.holds[lock] = [h for h in self.holds[lock] if h[3] not in tags]
@@ -159,10 +102,6 @@ class Schedule:
         holds, current = self.holds, self.current
         for lock in {lock for lock, _ in added}:  # the fitted AGVs' old holds out
             holds[lock] = [h for h in holds[lock] if current[h[2]][0] == h[3]]
-        for x, _, walk in chains:  # the fitted moves' takers
-            number, steps = current[x][0], walk.steps_of[x]
-            for (_, _, k), at in zip(walk.moves, self._placed.pop(x), strict=True):
-                self._taking(at, x, number, k, steps)
         return None
 
     def _fit_one(self, x: int, plan: int, walk: Walk, start: int,
@@ -323,7 +262,6 @@ class Schedule:
             j = bisect.bisect_left(pos, p, start)
             witness.insert(j, (x, plan, move[2]))
             pos.insert(j, p)
-        self._placed[x] = at
         self.positions[x] = at
         self._fitted -= 1
         tag = self._fitted  # fitted moves' number: below every plan's (from 1 up)

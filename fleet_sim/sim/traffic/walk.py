@@ -66,8 +66,6 @@ class Walk:
         """Member -> free-flow seconds its moves in the walk have taken: the walk moves the
         AGVs in about the order they will drive, so that the witness foresees the requests."""
         self.plan_of: dict[int, int] = {}
-        self.steps_of: dict[int, list[Step]] = {}
-        """Member -> what reaching each node of its plan takes (kept once it drove off)."""
         self.moves: list[Move] = []
         """The moves made, in order."""
         self.junctions = table.junction_locks
@@ -138,7 +136,6 @@ class Walk:
         table = self.table
         node_locks = table.node_locks
         self.plans[x] = (path, steps, costs)
-        self.steps_of[x] = steps
         self.plan_of[x] = plan
         self.at[x] = k
         self.time_s[x] = 0.0
