@@ -15,7 +15,7 @@ from fleet_sim.sim.engine import build_simulation
 from fleet_sim.sim.traffic.avoidance import Plans
 from fleet_sim.sim.traffic.control import Traffic
 from fleet_sim.sim.traffic.schedule import Schedule
-from fleet_sim.sim.traffic.walk import holders_of
+from fleet_sim.sim.traffic.walk import INF, holders_of
 
 from .conftest import DATA, make_scenario, scenario_for
 
@@ -119,6 +119,41 @@ def test_a_changed_plan_is_fitted_after_the_hold_it_meets_without_a_walk() -> No
              if schedule.current[x][0] == number}
     (t0, r0), (t1, r1) = spans[0], spans[1]
     assert r0 <= t1 or r1 < t0  # never both in J
+
+
+def test_an_agv_fitted_again_holds_what_it_holds_only_until_its_schedule_lets_go() -> None:
+    """While the client is fitted, an AGV to be fitted again after it (`Plans._fit`) holds
+    what it holds now until its moves in the schedule let go of it, not for ever: the client
+    may take it after that (its own fit then shows it lets go in time, or fails); what it
+    would take later is left to its own fit."""
+    layout = load_layout(DATA / "junction_ring.yaml")
+    scenario = make_scenario(str(DATA / "junction_ring.yaml"), duration_h=0.1, warmup_h=0,
+                             demand={"rate_per_hour": 0},
+                             fleet={"size": 2, "start_nodes": ["W", "S"]},
+                             dispatch={"park_idle": False}, traffic={"policy": "avoiding"})
+    model = build_simulation(scenario, layout)
+    plans = model.traffic.strategy.plans
+    assert plans is not None
+    plans.declare(0, ["W", "J", "N", "K"])
+    plans.declare(1, ["S", "J", "N", "K"])
+    assert plans._walk(1, None, ()) is None
+    schedule = plans._schedule
+    assert schedule is not None
+    locks = model.traffic.table.node_locks
+    w_lock, j_lock = locks["W"], locks["J"]
+    assert 0 in holders_of(w_lock)
+    (_, let_go, _, _), = [h for h in schedule.holds[w_lock] if h[2] == 0]
+    assert let_go < len(schedule.moves)
+    current = dict(schedule.current)
+
+    def others(lock: Any, pending: set[int]) -> list[tuple[float, float, int]]:
+        return schedule._others(lock, 1, 0, schedule.pos[0], plans.plan_id.get, pending,
+                                current)
+
+    assert others(w_lock, {0}) == [(-INF, let_go, 0)]  # held now, until its move lets go
+    assert others(w_lock, set()) == [(-INF, let_go, 0)]  # as for an AGV not fitted again
+    assert [h for h in others(j_lock, set()) if h[2] == 0]  # it takes J later on
+    assert not [h for h in others(j_lock, {0}) if h[2] == 0]  # left to its own fit
 
 
 def test_no_fit_after_the_first_walk_that_fails(monkeypatch: pytest.MonkeyPatch) -> None:

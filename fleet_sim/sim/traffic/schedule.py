@@ -81,8 +81,10 @@ class Schedule:
             plan_now: Callable[[int], int | None]) -> int | None:
         """Fit each chain's moves in turn, (x, its plan's number, a walk of x alone, its
         holds recorded, run to parking), in place of x's moves in the witness, among the
-        moves from index `start` on (the first not made); while a chain is fitted, the AGVs
-        of the chains after it hold what they hold now for ever. `plan_now(y)`: y's plan
+        moves from index `start` on (the first not made); while a chain is fitted, each AGV
+        of the chains after it holds what it holds now until its moves in the schedule let
+        go of it, and takes nothing (its own fit, later, shows that its new moves let go of
+        it before the chain's moves take it, or fails). `plan_now(y)`: y's plan
         number now (None: none). None: fitted, the witness and the holds are the fitted ones;
         else nothing changed and the AGV (-1: none) on whose hold a chain stuck with what it
         holds now (to be fitted again too, `Plans._fit`)."""
@@ -158,6 +160,7 @@ class Schedule:
         out: list[tuple[float, float, int]] = []
         first: dict[int, int] = {}
         known: set[int] = set()
+        waiting: dict[int, tuple[float, float, int]] = {}
         holders = set(holders_of(lock))
         holds = self.holds.get(lock, [])
         live: list[Hold] = []
@@ -173,21 +176,27 @@ class Schedule:
             if r < start_at and y not in holders:
                 continue  # over: dropped
             live.append(hold)
-            if y == x or y in pending or plan_now(y) != now[1]:
-                continue  # its own, of an AGV fitted after it (held now: for ever), or of
-                # a plan given up
+            if y == x or plan_now(y) != now[1] or (y in pending and y not in holders):
+                continue  # its own, of a plan given up, or to be fitted again after x
             known.add(y)
             if r < start_at:
                 continue  # let go of by a move made or granted
             q = bisect.bisect_left(pos, r, start, end)
             if q == end or pos[q] != r:
                 continue  # let go of by a move made out of order (`moved_first`)
+            if y in pending:  # fitted after x: only what it holds now, as the schedule has it
+                if y not in waiting or t < waiting[y][0]:
+                    waiting[y] = (t, r, y)
+                continue
             j = first.get(y)
             if j is None or t < out[j][0]:
                 first[y] = len(out)
             out.append((t, r, y))
         if len(live) < len(holds):
             self.holds[lock] = live
+        for y, held in waiting.items():
+            first[y] = len(out)
+            out.append(held)
         for y in holders:
             if y == x:
                 continue
