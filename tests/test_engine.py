@@ -162,6 +162,27 @@ def test_runs_under_avoiding_traffic_keep_their_results_byte_for_byte(
     assert events_digest(*case, "avoiding") == digest
 
 
+COSTED_ROUTES = {"traffic.congestion_cost_s": 10.0, "traffic.weak_wifi_cost_s": 30.0}
+COSTED = [  # runs with congestion-aware routes, whose searches issue 35 made quicker: the
+    # digests of 1c3dcfa, before it (tests/test_routing_costs.py holds the search itself)
+    (("warehouse_shift.yaml", "warehouse_wifi", 40, 300.0, "reactive"), COSTED_ROUTES,
+     "3550cdf026c2aa4cfd71c0e56f243706d9901c4bb9437381ceed942d2f370147"),
+    (("warehouse_shift.yaml", "warehouse_wifi", 40, 300.0, "avoiding"), COSTED_ROUTES,
+     "e694dd7999985bd881f28ff379cead698aefc808892063e057b64e7882babc97"),
+    (("fulfilment_shift.yaml", "fulfilment_centre", 100, 500.0, "reactive"), {},  # its 10 s
+     "2b1627986f8426e7dec5b7551dd1cb0a6efbfefb5ca1d424c61a6c2d9b9495fb"),
+]
+
+
+@pytest.mark.parametrize(("case", "extra", "digest"), COSTED,
+                         ids=[f"{c[1]}-{c[4]}" for c, _, _ in COSTED])
+def test_runs_with_route_costs_keep_their_results_byte_for_byte(
+        case: tuple[str, str, int, float, str], extra: dict[str, float], digest: str) -> None:
+    """Congestion and weak Wi-Fi priced into the routes (the fulfilment centre's experiment
+    prices congestion at 10 s an AGV): every route the same, so every event."""
+    assert events_digest(*case, **extra) == digest
+
+
 @pytest.mark.parametrize("policy", ["reactive", "avoiding"])
 def test_the_same_results_in_another_process_whatever_its_hash_seed(policy: str) -> None:
     """Python salts the hashes of strings per process (PYTHONHASHSEED): a result that

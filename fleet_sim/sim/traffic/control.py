@@ -72,7 +72,7 @@ from fleet_sim.sim.traffic.deadlock import (
 )
 from fleet_sim.sim.traffic.locks import Claim
 from fleet_sim.sim.traffic.policy import TrafficPolicy
-from fleet_sim.sim.traffic.routing import Routes
+from fleet_sim.sim.traffic.routing import Routes, SegmentCosts
 from fleet_sim.sim.traffic.table import Reservations, TrafficClient
 from fleet_sim.sim.traffic.zones import DirectedClaim
 
@@ -134,6 +134,8 @@ class Traffic:
             (u, v): self.costs.weak_wifi_s for u, v, d in self.graph.edges(data=True)
             if self.costs.weak_wifi_s > 0 and d["rssi_dbm"] < self.costs.weak_rssi_dbm}
         """Weak-Wi-Fi segments and their extra route cost."""
+        self.segment_costs = SegmentCosts(self._weak, self.costs.congestion_s, self.node_locks)
+        """What costed routes add per segment, read from the node locks when searched."""
         self.zone_since: dict[int, dict[str, float]] = {}
         """Client id -> zone id -> when the client was given the zone it holds."""
         self.zone_entry: dict[int, dict[str, str]] = {}
@@ -266,17 +268,17 @@ class Traffic:
             tries = [against | set(self.known_blocks), against] if self.known_blocks \
                 else [against]
             for avoid in tries:
-                forward = routes.route_costed(src, dest, self._extra_cost, frozenset(avoid)) \
+                forward = routes.route_costed(src, dest, self.segment_costs, frozenset(avoid)) \
                     if self.costs.active else routes.route_avoiding(src, dest, set(), avoid)
                 if forward is not None:
                     return forward
         if self.costs.active:
             if self.known_blocks:
-                around = routes.route_costed(src, dest, self._extra_cost,
+                around = routes.route_costed(src, dest, self.segment_costs,
                                              frozenset(self.known_blocks))
                 if around is not None:
                     return around
-            path = routes.route_costed(src, dest, self._extra_cost)
+            path = routes.route_costed(src, dest, self.segment_costs)
             assert path is not None  # the layout is strongly connected
             return path
         if self.known_blocks:
@@ -284,13 +286,6 @@ class Traffic:
             if around is not None:
                 return around
         return routes.route(src, dest)
-
-    def _extra_cost(self, u: str, v: str) -> float:
-        cost = self._weak.get((u, v), 0.0)
-        if self.costs.congestion_s > 0:
-            lock = self.node_locks[v]
-            cost += self.costs.congestion_s * (len(lock.users) + len(lock.put_queue))
-        return cost
 
     def entry_corridor(self, node: str, nxt: str | None) -> Corridor | None:
         """The corridor an AGV enters when it leaves `node` for `nxt`, if `node` is outside it."""

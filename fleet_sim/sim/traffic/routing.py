@@ -4,10 +4,14 @@ Routes follow the shortest free-flow travel time (length / min(limit, VEL_MAX)),
 type's own (its top speed, its segment speed limits); route costs (`route_costed`) add seconds
 per segment. Detours and costed routes are an A* search on plain adjacency lists, guided by the
 free-flow table; detours and hop times are cached. Both matter because traffic asks for them on
-the engine's hot path, each time an AGV is blocked or drives a hop.
+the engine's hot path, each time an AGV is blocked or drives a hop. A costed route is searched
+by its own copy of the A* (`_a_star_costed`), which does the same steps with the same sums and
+returns the same route as the plain search given the same costs, in about half the time
+(docs/background/engine.md, "Congestion-aware routes"; tests/test_routing_costs.py).
 
 `Routes` holds no locks and no clock; it only needs the layout and the vehicle's motion limits
-(the fleet sizing estimate uses it too).
+(the fleet sizing estimate uses it too). A costed search is handed the node locks' occupancy
+to read (`SegmentCosts`).
 
 The choices where the issues were silent: docs/background/decisions/sim.md.
 """
@@ -18,8 +22,9 @@ import heapq
 import itertools
 import math
 from collections import OrderedDict
-from collections.abc import Callable
-from typing import Any, cast
+from collections.abc import Callable, Mapping, Sized
+from dataclasses import dataclass
+from typing import Any, Protocol, cast
 
 import networkx as nx
 
@@ -36,6 +41,38 @@ _UNKNOWN = object()
 DETOUR_CACHE_SIZE = 2048
 """Detours remembered per vehicle type: the most recently asked (a few KB each; a 27-day run
 asked 818 distinct ones, a year would ask more)."""
+
+
+class Occupancy(Protocol):
+    """A node's lock as a costed route sees it: the claims holding it and those queued."""
+
+    @property
+    def users(self) -> Sized: ...
+
+    @property
+    def put_queue(self) -> Sized: ...
+
+
+@dataclass(frozen=True)
+class SegmentCosts:
+    """What a costed route adds to a segment's free-flow time, in seconds (never negative):
+    the segment's own cost, if it has one, plus `per_agv_s` for each AGV on or queued for the
+    node it leads to, read from that node's lock when the route is searched."""
+
+    fixed_s: Mapping[tuple[str, str], float]
+    """Segment u -> v -> its own cost (weak Wi-Fi); segments not listed add nothing."""
+    per_agv_s: float
+    """Seconds per AGV on or queued for the node (0: congestion costs nothing)."""
+    locks: Mapping[str, Occupancy]
+    """Node -> its lock."""
+
+    def extra_s(self, u: str, v: str) -> float:
+        """The seconds added to segment u -> v now (the plain search's `extra`)."""
+        cost = self.fixed_s.get((u, v), 0.0)
+        if self.per_agv_s > 0:
+            lock = self.locks[v]
+            cost += self.per_agv_s * (len(lock.users) + len(lock.put_queue))
+        return cost
 
 
 class Routes:
@@ -148,10 +185,10 @@ class Routes:
             detours.popitem(last=False)  # the least recently asked
         return path
 
-    def route_costed(self, src: str, dest: str, extra: ExtraCost,
+    def route_costed(self, src: str, dest: str, costs: SegmentCosts,
                      avoid_edges: frozenset[tuple[str, str]] = NO_EDGES) -> list[str] | None:
-        """Cheapest route by free-flow time plus `extra` per segment, off `avoid_edges`."""
-        return self._a_star(src, dest, frozenset(), avoid_edges, extra)
+        """Cheapest route by free-flow time plus `costs` per segment, off `avoid_edges`."""
+        return self._a_star_costed(src, dest, costs, avoid_edges)
 
     def _a_star(self, src: str, dest: str, avoid: frozenset[str],
                 avoid_edges: frozenset[tuple[str, str]],
@@ -159,7 +196,8 @@ class Routes:
         """Shortest route from src to dest off `avoid` and `avoid_edges` (None if there is
         none), by free-flow time plus `extra`. The heuristic, the free-flow time to dest on the
         whole layout, is consistent, so the first time dest leaves the queue its route is the
-        cheapest."""
+        cheapest. Detours use it; with `extra` it is the reference the costed search
+        (`_a_star_costed`) is held to (tests/test_routing_costs.py, bench/route_costs.py)."""
         to_dest = self._table(dest)[0]
         if src not in to_dest:
             return None
@@ -191,6 +229,67 @@ class Routes:
                     best[v] = cost
                     parent[v] = u
                     heapq.heappush(queue, (cost + h, next(tie), cost, v))
+        return None
+
+    def _a_star_costed(self, src: str, dest: str, costs: SegmentCosts,
+                       avoid_edges: frozenset[tuple[str, str]]) -> list[str] | None:
+        """`_a_star(src, dest, frozenset(), avoid_edges, costs.extra_s)`, step for step: the
+        same nodes pushed in the same order with the same sums, so the same route, ties
+        included. It is quicker by reading each segment's extra cost in the loop rather than
+        through a call, and by not reading it at all where it cannot matter: the extra cost is
+        never negative, and a float sum with a non-negative term is never below the sum
+        without it, so when g + t alone is not below the best cost known for v, g + t + extra
+        is not either (the plain search would not push it)."""
+        to_dest = self._table(dest)[0]
+        if src not in to_dest:
+            return None
+        succ = self._succ
+        fixed = costs.fixed_s
+        per_agv_s = costs.per_agv_s
+        locks = costs.locks
+        crowded = per_agv_s > 0
+        best = {src: 0.0}
+        parent: dict[str, str] = {}
+        done: set[str] = set()
+        tie = itertools.count()
+        push, pop, inf = heapq.heappush, heapq.heappop, math.inf
+        queue = [(to_dest[src], next(tie), 0.0, src)]
+        while queue:
+            _, _, g, u = pop(queue)
+            if u in done:
+                continue
+            if u == dest:
+                path = [u]
+                while u != src:
+                    u = parent[u]
+                    path.append(u)
+                return path[::-1]
+            done.add(u)
+            for v, t in succ[u]:
+                if v in done or (avoid_edges and (u, v) in avoid_edges):
+                    continue
+                h = to_dest.get(v)
+                if h is None:
+                    continue  # dest cannot be reached from v at all
+                cost = g + t
+                known = best.get(v, inf)
+                if cost >= known:
+                    continue  # adding extra >= 0 cannot bring it below
+                if fixed:
+                    extra = fixed.get((u, v), 0.0)
+                    if crowded:
+                        lock = locks[v]
+                        extra += per_agv_s * (len(lock.users) + len(lock.put_queue))
+                    cost = cost + extra
+                elif crowded:
+                    lock = locks[v]
+                    agvs = len(lock.users) + len(lock.put_queue)
+                    if agvs:  # else extra is 0.0, and x + 0.0 is x (here 0.0 + y is y)
+                        cost = cost + per_agv_s * agvs
+                if cost < known:
+                    best[v] = cost
+                    parent[v] = u
+                    push(queue, (cost + h, next(tie), cost, v))
         return None
 
     # ---- kinematics per hop ---------------------------------------------------------------

@@ -1,0 +1,142 @@
+"""Costed routes (fleet_sim.sim.traffic.routing.Routes.route_costed): the quick search gives
+the very route the plain A* gives with the same costs, ties included, on random congestion
+states of the bundled layouts, and reads the congestion as it is when asked."""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+from fleet_sim.config.layout import Layout, load_layout
+from fleet_sim.model.kinematics import Motion
+from fleet_sim.sim.traffic.routing import NO_EDGES, Routes, SegmentCosts
+
+from .conftest import DATA, LAYOUTS, write_yaml
+
+MOTION = Motion(1.0, 0.5, 0.5, 0.3)
+
+
+@dataclass
+class Crowd:
+    """A stand-in node lock: the AGVs on it and those queued for it."""
+
+    users: list[int] = field(default_factory=list)
+    put_queue: list[int] = field(default_factory=list)
+
+
+def random_costs(layout: Layout, rng: random.Random, per_agv_s: float,
+                 weak_share: float) -> SegmentCosts:
+    """Some nodes held, some with queues; a share of the segments with a cost of their own."""
+    locks = {}
+    for node in layout.graph.nodes:
+        held = rng.random() < 0.3
+        locks[node] = Crowd([0] * held, [0] * (rng.randrange(3) if held else 0))
+    fixed = {(u, v): rng.choice((5.0, 30.0, 0.7, 12.5)) for u, v in layout.graph.edges
+             if rng.random() < weak_share}
+    return SegmentCosts(fixed, per_agv_s, locks)
+
+
+def plain(routes: Routes, src: str, dest: str, costs: SegmentCosts,
+          avoid_edges: frozenset[tuple[str, str]] = NO_EDGES) -> list[str] | None:
+    """The reference: the plain A* with the costs as a call per segment."""
+    return routes._a_star(src, dest, frozenset(), avoid_edges, costs.extra_s)
+
+
+def tied(routes: Routes, src: str, dest: str, costs: SegmentCosts) -> bool:
+    """Is there another cheapest route? The plain search with every node's successors in the
+    other order picks another one of the same cost."""
+    succ = routes._succ
+    routes._succ = {u: tuple(reversed(s)) for u, s in succ.items()}
+    try:
+        other = plain(routes, src, dest, costs)
+    finally:
+        routes._succ = succ
+    return other != plain(routes, src, dest, costs)
+
+
+@pytest.mark.parametrize("name", ["fulfilment_centre", "warehouse_wifi",
+                                  "warehouse_same_direction", "distribution_centre"])
+def test_the_quick_search_gives_the_plain_searchs_route_ties_included(name: str) -> None:
+    """Random congestion states (10 s or 0.3 s an AGV, or none; weak-Wi-Fi segments or none)
+    and random questions, some around blocked segments: the same route every time. The grid
+    of the fulfilment centre has many equally cheap routes, and the check sees them."""
+    layout = load_layout(LAYOUTS / f"{name}.yaml")
+    routes = Routes(layout, MOTION)
+    rng = random.Random(35)
+    nodes = sorted(layout.graph.nodes)
+    edges = sorted(layout.graph.edges)
+    dests = rng.sample(nodes, 6)
+    ties = 0
+    for k in range(60):
+        costs = random_costs(layout, rng, (10.0, 0.3, 0.0)[k % 3], (0.0, 0.05)[k % 2])
+        src, dest = rng.choice(nodes), dests[k % len(dests)]
+        avoid = frozenset(rng.sample(edges, 8)) if k % 4 == 0 else NO_EDGES
+        assert routes.route_costed(src, dest, costs, avoid) == plain(routes, src, dest, costs,
+                                                                      avoid), (k, src, dest)
+        ties += tied(routes, src, dest, costs)
+    if name == "fulfilment_centre":
+        assert ties >= 5
+
+
+def test_a_route_is_costed_as_the_locks_stand_when_it_is_asked() -> None:
+    """The costs read the locks when the route is searched, not when they were built: an AGV
+    arriving on N1 sends the next route round by B0, and its leaving brings it back."""
+    ring = load_layout(DATA / "deadlock_ring.yaml")
+    crowd = {node: Crowd() for node in ring.graph.nodes}
+    costs = SegmentCosts({}, 20.0, crowd)
+    routes = Routes(ring, MOTION)
+    assert routes.route_costed("N0", "N2", costs) == ["N0", "N1", "N2"]
+    crowd["N1"].users.append(1)
+    assert routes.route_costed("N0", "N2", costs) == ["N0", "B0", "N2"]
+    crowd["N1"].users.clear()
+    crowd["N1"].put_queue.append(2)  # queued for it counts the same
+    assert routes.route_costed("N0", "N2", costs) == ["N0", "B0", "N2"]
+    crowd["N1"].put_queue.clear()
+    assert routes.route_costed("N0", "N2", costs) == ["N0", "N1", "N2"]
+
+
+def square(tmp_path: Path, first: str) -> Layout:
+    """A -> B -> D and A -> C -> D, both 20 m; the segment out of A to `first` listed first."""
+    other = "C" if first == "B" else "B"
+    data = {
+        "name": "square",
+        "nodes": [{"id": "A", "x": 0, "y": 0, "kind": "station"}, {"id": "B", "x": 10, "y": 0},
+                  {"id": "C", "x": 0, "y": 10},
+                  {"id": "D", "x": 10, "y": 10, "kind": "station"},
+                  {"id": "P", "x": 20, "y": 10, "kind": "parking"}],
+        "segments": [{"from": "A", "to": first}, {"from": "A", "to": other},
+                     {"from": "B", "to": "D"}, {"from": "C", "to": "D"},
+                     {"from": "D", "to": "P"}, {"from": "P", "to": "A", "length_m": 30}],
+        "stations": [
+            {"id": "PICK", "kind": "pickup", "nodes": ["A"],
+             "handling": {"dist": "fixed", "mean_s": 10}},
+            {"id": "DROP", "kind": "dropoff", "nodes": ["D"],
+             "handling": {"dist": "fixed", "mean_s": 10}}],
+        "parking": [{"id": "PARK", "node": "P", "capacity": 1}],
+    }
+    return load_layout(write_yaml(tmp_path / f"square_{first}.yaml", data))
+
+
+@pytest.mark.parametrize("first", ["B", "C"])
+def test_a_tie_goes_the_plain_searchs_way(tmp_path: Path, first: str) -> None:
+    """Two equally cheap ways round a square: the one whose segment the layout lists first,
+    as the plain search has it, unless congestion makes the other cheaper; equally crowded,
+    they tie again."""
+    routes = Routes(square(tmp_path, first), MOTION)
+    crowd = {node: Crowd() for node in "ABCDP"}
+    costs = SegmentCosts({}, 10.0, crowd)
+    other = "C" if first == "B" else "B"
+
+    def both() -> list[str] | None:
+        quick = routes.route_costed("A", "D", costs)
+        assert quick == plain(routes, "A", "D", costs)
+        return quick
+
+    assert both() == ["A", first, "D"]
+    crowd[first].users.append(1)
+    assert both() == ["A", other, "D"]
+    crowd[other].put_queue.append(2)
+    assert both() == ["A", first, "D"]
