@@ -234,12 +234,9 @@ class Routes:
     def _a_star_costed(self, src: str, dest: str, costs: SegmentCosts,
                        avoid_edges: frozenset[tuple[str, str]]) -> list[str] | None:
         """`_a_star(src, dest, frozenset(), avoid_edges, costs.extra_s)`, step for step: the
-        same nodes pushed in the same order with the same sums, so the same route, ties
-        included. It is quicker by reading each segment's extra cost in the loop rather than
-        through a call, and by not reading it at all where it cannot matter: the extra cost is
-        never negative, and a float sum with a non-negative term is never below the sum
-        without it, so when g + t alone is not below the best cost known for v, g + t + extra
-        is not either (the plain search would not push it)."""
+        same nodes pushed in the same order with the same sums, (g + t) + extra, so the same
+        route, ties included. It is quicker by working the extra cost out in the loop, not
+        through a call per segment, and by not adding it where it is 0.0 (x + 0.0 is x)."""
         to_dest = self._table(dest)[0]
         if src not in to_dest:
             return None
@@ -272,9 +269,6 @@ class Routes:
                 if h is None:
                     continue  # dest cannot be reached from v at all
                 cost = g + t
-                known = best.get(v, inf)
-                if cost >= known:
-                    continue  # adding extra >= 0 cannot bring it below
                 if fixed:
                     extra = fixed.get((u, v), 0.0)
                     if crowded:
@@ -286,7 +280,7 @@ class Routes:
                     agvs = len(lock.users) + len(lock.put_queue)
                     if agvs:  # else extra is 0.0, and x + 0.0 is x (here 0.0 + y is y)
                         cost = cost + per_agv_s * agvs
-                if cost < known:
+                if cost < best.get(v, inf):
                     best[v] = cost
                     parent[v] = u
                     push(queue, (cost + h, next(tie), cost, v))
