@@ -5,9 +5,8 @@ type's own (its top speed, its segment speed limits); route costs (`route_costed
 per segment. Detours and costed routes are an A* search on plain adjacency lists, guided by the
 free-flow table; detours and hop times are cached. Both matter because traffic asks for them on
 the engine's hot path, each time an AGV is blocked or drives a hop. A costed route is searched
-by its own copy of the A* (`_a_star_costed`), which does the same steps with the same sums and
-returns the same route as the plain search given the same costs, in about half the time
-(docs/background/engine.md, "Congestion-aware routes"; tests/test_routing_costs.py).
+by the same A*, reading the node locks' occupancy in its loop (docs/background/engine.md,
+"Congestion-aware routes"; tests/test_routing_costs.py).
 
 `Routes` holds no locks and no clock; it only needs the layout and the vehicle's motion limits
 (the fleet sizing estimate uses it too). A costed search is handed the node locks' occupancy
@@ -33,8 +32,6 @@ from fleet_sim.model.kinematics import Motion, Piece, stop_entry_speed, traverse
 
 Detour = tuple[str, str, frozenset[str], frozenset[tuple[str, str]]]
 Weight = str | Callable[[str, str, dict[str, Any]], float | None]
-ExtraCost = Callable[[str, str], float]
-"""Seconds added to the route cost of segment u -> v (>= 0)."""
 NO_EDGES: frozenset[tuple[str, str]] = frozenset()
 _UNKNOWN = object()
 """A detour not asked for yet (a cached detour may be None: there is none)."""
@@ -188,63 +185,24 @@ class Routes:
     def route_costed(self, src: str, dest: str, costs: SegmentCosts,
                      avoid_edges: frozenset[tuple[str, str]] = NO_EDGES) -> list[str] | None:
         """Cheapest route by free-flow time plus `costs` per segment, off `avoid_edges`."""
-        return self._a_star_costed(src, dest, costs, avoid_edges)
+        return self._a_star(src, dest, frozenset(), avoid_edges, costs)
 
     def _a_star(self, src: str, dest: str, avoid: frozenset[str],
                 avoid_edges: frozenset[tuple[str, str]],
-                extra: ExtraCost | None = None) -> list[str] | None:
+                costs: SegmentCosts | None = None) -> list[str] | None:
         """Shortest route from src to dest off `avoid` and `avoid_edges` (None if there is
-        none), by free-flow time plus `extra`. The heuristic, the free-flow time to dest on the
+        none), by free-flow time plus `costs`. The heuristic, the free-flow time to dest on the
         whole layout, is consistent, so the first time dest leaves the queue its route is the
-        cheapest. Detours use it; with `extra` it is the reference the costed search
-        (`_a_star_costed`) is held to (tests/test_routing_costs.py, bench/route_costs.py)."""
+        cheapest. A segment's extra cost (`SegmentCosts.extra_s`) is worked out in the loop,
+        not by a call per segment, and added as (g + t) + extra, where it is not 0.0 (x + 0.0
+        is x): the same sums, so the same routes, ties included, as with the call."""
         to_dest = self._table(dest)[0]
         if src not in to_dest:
             return None
         succ = self._succ
-        best = {src: 0.0}
-        parent: dict[str, str] = {}
-        done: set[str] = set()
-        tie = itertools.count()
-        queue = [(to_dest[src], next(tie), 0.0, src)]
-        while queue:
-            _, _, g, u = heapq.heappop(queue)
-            if u in done:
-                continue
-            if u == dest:
-                path = [u]
-                while u != src:
-                    u = parent[u]
-                    path.append(u)
-                return path[::-1]
-            done.add(u)
-            for v, t in succ[u]:
-                if v in avoid or v in done or (u, v) in avoid_edges:
-                    continue
-                h = to_dest.get(v)
-                if h is None:
-                    continue  # dest cannot be reached from v at all
-                cost = g + t if extra is None else g + t + extra(u, v)
-                if cost < best.get(v, float("inf")):
-                    best[v] = cost
-                    parent[v] = u
-                    heapq.heappush(queue, (cost + h, next(tie), cost, v))
-        return None
-
-    def _a_star_costed(self, src: str, dest: str, costs: SegmentCosts,
-                       avoid_edges: frozenset[tuple[str, str]]) -> list[str] | None:
-        """`_a_star(src, dest, frozenset(), avoid_edges, costs.extra_s)`, step for step: the
-        same nodes pushed in the same order with the same sums, (g + t) + extra, so the same
-        route, ties included. It is quicker by working the extra cost out in the loop, not
-        through a call per segment, and by not adding it where it is 0.0 (x + 0.0 is x)."""
-        to_dest = self._table(dest)[0]
-        if src not in to_dest:
-            return None
-        succ = self._succ
-        fixed = costs.fixed_s
-        per_agv_s = costs.per_agv_s
-        locks = costs.locks
-        crowded = per_agv_s > 0
+        fixed: Mapping[tuple[str, str], float] = costs.fixed_s if costs is not None else {}
+        per_agv_s = costs.per_agv_s if costs is not None else 0.0
+        locks = costs.locks if costs is not None else {}
         best = {src: 0.0}
         parent: dict[str, str] = {}
         done: set[str] = set()
@@ -263,7 +221,7 @@ class Routes:
                 return path[::-1]
             done.add(u)
             for v, t in succ[u]:
-                if v in done or (avoid_edges and (u, v) in avoid_edges):
+                if v in done or (avoid and v in avoid) or (avoid_edges and (u, v) in avoid_edges):
                     continue
                 h = to_dest.get(v)
                 if h is None:
@@ -271,14 +229,14 @@ class Routes:
                 cost = g + t
                 if fixed:
                     extra = fixed.get((u, v), 0.0)
-                    if crowded:
+                    if per_agv_s > 0:
                         lock = locks[v]
                         extra += per_agv_s * (len(lock.users) + len(lock.put_queue))
                     cost = cost + extra
-                elif crowded:
+                elif per_agv_s > 0:
                     lock = locks[v]
                     agvs = len(lock.users) + len(lock.put_queue)
-                    if agvs:  # else extra is 0.0, and x + 0.0 is x (here 0.0 + y is y)
+                    if agvs:
                         cost = cost + per_agv_s * agvs
                 if cost < best.get(v, inf):
                     best[v] = cost
