@@ -144,3 +144,18 @@ def test_a_tie_goes_the_way_the_layout_lists_first(tmp_path: Path, first: str) -
     assert route() == ["A", other, "D"]
     crowd[other].put_queue.append(2)
     assert route() == ["A", first, "D"]
+
+
+@pytest.mark.parametrize("name", ["fulfilment_centre", "warehouse"])
+def test_the_free_flow_table_goes_the_way_networkx_paths_go(name: str) -> None:
+    """Each destination's table (free-flow seconds to it, and the next hop there), built from
+    networkx's predecessors, is what networkx's shortest paths give, equal routes included,
+    for the default vehicle and for a vehicle type of its own."""
+    layout = load_layout(LAYOUTS / f"{name}.yaml")
+    for routes in (Routes(layout, MOTION), Routes(layout, MOTION, "tugger")):
+        reverse = routes.graph.reverse(copy=False)
+        for dest in sorted(layout.graph.nodes)[::150]:
+            dist, paths = nx.single_source_dijkstra(reverse, dest, weight=routes._reverse_weight)
+            table = routes._table(dest)
+            assert table[0] == dist
+            assert table[1] == {n: p[-2] for n, p in paths.items() if len(p) > 1}
