@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from fleet_sim.config.scenario import load_layout_for, load_scenario  # noqa: E402
-from fleet_sim.sim.engine import build_simulation  # noqa: E402
+from fleet_sim.sim.engine import build_simulation, collecting_seldom  # noqa: E402
 from fleet_sim.sim.traffic.avoidance import Plans  # noqa: E402
 
 SCENARIO_OF = {
@@ -53,7 +53,8 @@ def run_case(layout: str, agvs: int, hours: float, rate: float, policy: str,
     start = time.perf_counter()
     if profile is not None:
         profile.enable()
-    model.env.run(until=scenario.duration_s)
+    with collecting_seldom():  # as `simulate` runs
+        model.env.run(until=scenario.duration_s)
     if profile is not None:
         profile.disable()
     wall_s = time.perf_counter() - start

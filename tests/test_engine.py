@@ -4,6 +4,7 @@ and the results runs under reactive traffic keep (issue 21)."""
 
 from __future__ import annotations
 
+import gc
 import hashlib
 import os
 import subprocess
@@ -16,7 +17,7 @@ import pytest
 from fleet_sim.analysis.kpi_sums import run_kpis
 from fleet_sim.analysis.tables import orders_table, write_run
 from fleet_sim.config.layout import Layout
-from fleet_sim.sim.engine import build_simulation, simulate
+from fleet_sim.sim.engine import RUN_GC_THRESHOLDS, build_simulation, simulate
 
 from .conftest import HALF_LOOP_S, ROOT, make_scenario, scenario_for
 
@@ -50,6 +51,27 @@ def test_progress_is_reported_twenty_times_up_to_the_end(tiny_layout: Layout) ->
     calls: list[tuple[float, float]] = []
     simulate(scenario, tiny_layout, progress=lambda now, end: calls.append((now, end)))
     assert calls == [(90.0 * k, 1800.0) for k in range(1, 21)]
+
+
+def test_a_run_collects_garbage_seldom_and_puts_the_collector_back(tiny_layout: Layout) -> None:
+    """During a run the collector works at `RUN_GC_THRESHOLDS` with what existed before the
+    run frozen; after it, and after a run that raises, the collector is as it was."""
+    scenario = make_scenario(duration_h=0.2, warmup_h=0, fleet={"size": 1},
+                             demand={"rate_per_hour": 30})
+    before = gc.get_threshold()
+    seen: list[tuple[tuple[int, int, int], int]] = []
+    simulate(scenario, tiny_layout,
+             progress=lambda now, end: seen.append((gc.get_threshold(), gc.get_freeze_count())))
+    assert {threshold for threshold, _ in seen} == {RUN_GC_THRESHOLDS}
+    assert min(frozen for _, frozen in seen) > 1_000  # the model, out of the collections
+    assert gc.get_threshold() == before and gc.get_freeze_count() == 0
+
+    def fails(now: float, end: float) -> None:
+        raise RuntimeError("stopped")
+
+    with pytest.raises(RuntimeError):
+        simulate(scenario, tiny_layout, progress=fails)
+    assert gc.get_threshold() == before and gc.get_freeze_count() == 0
 
 
 def test_throughput_equals_completed_orders_over_time(warehouse_layout: Layout) -> None:
