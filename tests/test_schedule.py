@@ -87,12 +87,8 @@ def test_every_fitted_witness_is_shown_safe_and_a_failed_fit_changes_nothing(
     assert model.recorder.deadlocks == 0
 
 
-def test_a_changed_plan_is_fitted_after_the_hold_it_meets_without_a_walk() -> None:
-    """On the junction ring, an AGV at S is bound round through J to N, and one at W bound
-    across J to N too; the walk found a witness. The AGV at W then takes another plan, across
-    J to E and X. It is fitted in without a walk, each of its moves in the order of its plan,
-    and never in J while the other holds J: the fitted witness, replayed from the state, takes
-    both off the track."""
+def two_bound_through_j() -> tuple[Any, Plans]:
+    """The junction ring with an AGV at W and one at S, both bound through J to N and K."""
     layout = load_layout(DATA / "junction_ring.yaml")
     scenario = make_scenario(str(DATA / "junction_ring.yaml"), duration_h=0.1, warmup_h=0,
                              demand={"rate_per_hour": 0},
@@ -100,9 +96,19 @@ def test_a_changed_plan_is_fitted_after_the_hold_it_meets_without_a_walk() -> No
                              dispatch={"park_idle": False}, traffic={"policy": "avoiding"})
     model = build_simulation(scenario, layout)
     plans = model.traffic.strategy.plans
-    assert plans is not None
+    assert isinstance(plans, Plans)
     plans.declare(0, ["W", "J", "N", "K"])
     plans.declare(1, ["S", "J", "N", "K"])
+    return model, plans
+
+
+def test_a_changed_plan_is_fitted_after_the_hold_it_meets_without_a_walk() -> None:
+    """On the junction ring, an AGV at S is bound round through J to N, and one at W bound
+    across J to N too; the walk found a witness. The AGV at W then takes another plan, across
+    J to E and X. It is fitted in without a walk, each of its moves in the order of its plan,
+    and never in J while the other holds J: the fitted witness, replayed from the state, takes
+    both off the track."""
+    model, plans = two_bound_through_j()
     assert plans._walk(1, None, ()) is None and plans.witness is not None
     walks = plans.walks
     assert plans.may_declare(0, ["W", "J", "E", "X", "K"])
@@ -126,16 +132,7 @@ def test_an_agv_fitted_again_holds_what_it_holds_only_until_its_schedule_lets_go
     what it holds now until its moves in the schedule let go of it, not for ever: the client
     may take it after that (its own fit then shows it lets go in time, or fails); what it
     would take later is left to its own fit."""
-    layout = load_layout(DATA / "junction_ring.yaml")
-    scenario = make_scenario(str(DATA / "junction_ring.yaml"), duration_h=0.1, warmup_h=0,
-                             demand={"rate_per_hour": 0},
-                             fleet={"size": 2, "start_nodes": ["W", "S"]},
-                             dispatch={"park_idle": False}, traffic={"policy": "avoiding"})
-    model = build_simulation(scenario, layout)
-    plans = model.traffic.strategy.plans
-    assert plans is not None
-    plans.declare(0, ["W", "J", "N", "K"])
-    plans.declare(1, ["S", "J", "N", "K"])
+    model, plans = two_bound_through_j()
     assert plans._walk(1, None, ()) is None
     schedule = plans._schedule
     assert schedule is not None
