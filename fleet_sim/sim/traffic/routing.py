@@ -64,7 +64,8 @@ class SegmentCosts:
     """Node -> its lock."""
 
     def extra_s(self, u: str, v: str) -> float:
-        """The seconds added to segment u -> v now (the plain search's `extra`)."""
+        """The seconds added to segment u -> v now: the definition, which `Routes._a_star`
+        works out in its loop without the call."""
         cost = self.fixed_s.get((u, v), 0.0)
         if self.per_agv_s > 0:
             lock = self.locks[v]
