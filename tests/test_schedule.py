@@ -153,6 +153,41 @@ def test_an_agv_fitted_again_holds_what_it_holds_only_until_its_schedule_lets_go
     assert not [h for h in others(j_lock, {0}) if h[2] == 0]  # left to its own fit
 
 
+def test_a_move_further_on_is_made_first_only_if_no_move_before_it_takes_what_it_takes(
+        ) -> None:
+    """On the junction ring an AGV at S is bound through J and N to K and one at E through X
+    to K; the witness has one of them go first. The other's move onto a node nobody else's
+    earlier move takes (X, or N) is made first, and put first in the witness; its move on to
+    K, which the first one's moves take before it, is not."""
+    layout = load_layout(DATA / "junction_ring.yaml")
+    scenario = make_scenario(str(DATA / "junction_ring.yaml"), duration_h=0.1, warmup_h=0,
+                             demand={"rate_per_hour": 0},
+                             fleet={"size": 2, "start_nodes": ["E", "S"]},
+                             dispatch={"park_idle": False}, traffic={"policy": "avoiding"})
+    model = build_simulation(scenario, layout)
+    plans = model.traffic.strategy.plans
+    assert isinstance(plans, Plans)
+    paths = {0: ["E", "X", "K"], 1: ["S", "J", "N", "K"]}
+    for x, path in paths.items():
+        plans.declare(x, path)
+    assert plans._walk(0, None, ()) is None and plans.witness is not None
+    first = plans.witness[0][0]
+    other = 1 - first
+    locks = model.traffic.table.node_locks
+    onto = paths[other][1]
+    assert plans._moves_first(other, [(locks[onto], 0)], onto)
+    assert plans.witness[0][0] == other and plans._next == 1  # put first, counted as made
+    plans.took(other, onto)
+    plans.advance(other, onto)
+    then = paths[other][2]
+    if then != "K":  # the AGV at S: J, then N, which nobody else takes
+        assert plans._moves_first(other, [(locks[then], 0)], then)
+        plans.took(other, then)
+        plans.advance(other, then)
+    assert not plans._moves_first(other, [(locks["K"], 0)], "K")  # the first one's moves
+    # onto K come before it
+
+
 def test_no_fit_after_the_first_walk_that_fails(monkeypatch: pytest.MonkeyPatch) -> None:
     """Where the greedy walk refuses, a fitted witness can show safe a state the walk cannot,
     and the fleet then moves only in the witness's order: from the first walk that fails, the
@@ -176,4 +211,5 @@ def test_no_fit_after_the_first_walk_that_fails(monkeypatch: pytest.MonkeyPatch)
     model.env.run(until=scenario.duration_s)
     assert at_first and at_first["fits"] > 0  # it fitted before
     assert plans.fits == at_first["fits"] and plans.walks > at_first["walks"] + 50
-    assert plans._schedule is None  # the witness found since has no holds
+    assert plans._schedule is not None and not plans._schedule.holds  # the witness found
+    # since has no holds

@@ -57,6 +57,7 @@ still, what the check costs): docs/background/decisions/sim.md.
 
 from __future__ import annotations
 
+import bisect
 import itertools
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
@@ -93,6 +94,8 @@ class Plans:
         """Client id -> the index in its plan of the node it stands on."""
         self._steps: dict[int, list[Step]] = {}
         """Client id -> per plan index k, what reaching path[k] takes."""
+        self._takes: dict[int, dict[Lock, list[int]]] = {}
+        """Client id -> lock -> the indices k of its plan (ascending) whose steps take it."""
         self._costs: dict[int, list[tuple[float, float]]] = {}
         """Client id -> per plan index k, the hop into path[k]: (free-flow s, m) (`costs`)."""
         self.needs: dict[int, Counter[Lock]] = {}
@@ -193,6 +196,11 @@ class Plans:
         self.plan_id[client_id] = self._plans_made
         self.granted[client_id] = 0
         self._steps[client_id] = steps
+        takes: dict[Lock, list[int]] = {}
+        for k in range(1, len(steps)):
+            for lock, _ in steps[k]:
+                takes.setdefault(lock, []).append(k)
+        self._takes[client_id] = takes
         self._costs[client_id] = self.costs(path)
         self.needs[client_id] = needs
         for lock in needs:
@@ -204,7 +212,7 @@ class Plans:
         if needs is None:
             return
         del self.path[client_id], self.at[client_id], self._steps[client_id]
-        del self._costs[client_id]
+        del self._costs[client_id], self._takes[client_id]
         self._refused.pop(client_id, None)
         del self.plan_id[client_id], self.granted[client_id]
         for lock in needs:
@@ -383,30 +391,39 @@ class Plans:
         is the client's first move not made and no move before it in the witness, not made,
         takes any of `locks`: made first, it holds nothing those moves need (what it lets go
         of sooner only helps them), and the rest of the witness holds unchanged. The move is
-        put first and counted as made."""
-        witness = self.witness
-        assert witness is not None
-        at, granted, plan_id, paths = self.at, self.granted, self.plan_id, self.path
+        put first and counted as made. Only the AGVs whose plans still take one of `locks`
+        are looked at (`users_of`), each at its first move not made that takes it: its
+        position in the witness against the client's (`Schedule.position`)."""
+        witness, schedule = self.witness, self._schedule
+        assert witness is not None and schedule is not None
+        at, granted, plan_id = self.at, self.granted, self.plan_id
         k = max(at[client_id], granted[client_id]) + 1
-        path = paths[client_id]
+        path = self.path[client_id]
         if k >= len(path) or path[k] != node:
             return False
-        taken = {lock for lock, _ in locks}
-        for j in range(self._next, len(witness)):
-            x, plan, kk = witness[j]
-            if plan_id.get(x) != plan or at[x] >= kk or granted[x] >= kk:
-                continue  # made already, granted already, or its AGV left the track
-            if x == client_id:
-                if kk != k:
-                    return False
-                witness.insert(self._next, witness.pop(j))
-                if self._schedule is not None:
-                    self._schedule.moved_first(j, self._next)
-                self._next += 1
-                return True
-            if kk < len(paths[x]) and any(lock in taken for lock, _ in self._steps[x][kk]):
-                return False
-        return False
+        mine = schedule.position(client_id, k, plan_id[client_id])
+        start, pos = self._next, schedule.pos
+        j = bisect.bisect_left(pos, mine, start) if mine is not None else len(pos)
+        if j == len(pos) or pos[j] != mine:
+            return False  # not in the witness from its first move not made on
+        for lock, _ in locks:
+            for y in self.users_of.get(lock, ()):
+                if y == client_id:
+                    continue
+                takes = self._takes[y][lock]
+                for kk in takes[bisect.bisect_right(takes, max(at[y], granted[y])):]:
+                    theirs = schedule.position(y, kk, plan_id[y])
+                    if theirs is None:
+                        continue
+                    if theirs >= mine:
+                        break  # its later moves come later still
+                    q = bisect.bisect_left(pos, theirs, start)
+                    if q < len(pos) and pos[q] == theirs:
+                        return False  # a move not made before it takes what it takes
+        witness.insert(start, witness.pop(j))
+        schedule.moved_first(j, start)
+        self._next += 1
+        return True
 
     def _fit(self, client_id: int,
              new_plan: tuple[list[str], list[Step], list[tuple[float, float]]] | None,
@@ -490,7 +507,7 @@ class Plans:
             self._fits = False
             return walk
         self.witness = walk.moves
-        self._schedule = Schedule(walk.moves, walk) if self._fits else None
+        self._schedule = Schedule(walk.moves, walk)
         self._next = 0
         return None
 

@@ -49,10 +49,10 @@ class Schedule:
 
     def __init__(self, moves: list[Move], walk: Walk) -> None:
         """`walk`: the walk that found the witness `moves`, its holds recorded (`Walk.holds`;
-        without them nothing can be fitted)."""
+        without them nothing can be fitted, and the schedule only places the moves)."""
         self.moves = moves
         """The witness (the same list as `Plans.witness`)."""
-        self.pos: list[float] = [float(i) for i in range(len(moves))]
+        self.pos: list[float] = list(map(float, range(len(moves))))
         """The position of each move of `moves`; ascending from the first move not made."""
         self.holds: dict[Lock, list[Hold]] = walk.holds if walk.holds is not None else {}
         """Lock -> its holds (`Hold`: the last field names the holder's moves, `current`)."""
@@ -60,16 +60,26 @@ class Schedule:
         """Client -> the number its holds in the schedule carry, and its plan's number: holds
         with another, or of a client whose plan is another now, are dropped."""
         self._fitted = 0
-        self.positions: dict[int, list[float]] = {}
-        """Client -> the positions of its moves in the witness."""
-        if walk.holds is not None:
-            positions = self.positions
-            for i, (x, _, _) in enumerate(moves):
-                mine = positions.get(x)
-                if mine is None:
-                    positions[x] = [float(i)]
-                else:
-                    mine.append(float(i))
+        self.positions: dict[int, tuple[int, list[float]]] = {}
+        """Client -> the index in its plan of its first move in the witness, and the positions
+        of its moves there, one for each index of its plan from that on."""
+        positions = self.positions
+        for i, (x, _, k) in enumerate(moves):
+            mine = positions.get(x)
+            if mine is None:
+                positions[x] = (k, [float(i)])
+            else:
+                mine[1].append(float(i))
+
+    def position(self, x: int, k: int, plan: int) -> float | None:
+        """The position of x's move onto index k of its plan, if the witness has that move of
+        plan number `plan` (None: not so)."""
+        now = self.current.get(x)
+        mine = self.positions.get(x)
+        if now is None or now[1] != plan or mine is None:
+            return None
+        i = k - mine[0]
+        return mine[1][i] if 0 <= i < len(mine[1]) else None
 
     def moved_first(self, j: int, to: int) -> None:
         """The move at index `j` of the witness was put at index `to` (`Plans._moves_first`):
@@ -261,7 +271,7 @@ class Schedule:
             at += [before + gap * (m + 1) for m in range(j - i)]
             i = j
         old = []
-        for p in self.positions.get(x, ()):
+        for p in self.positions.get(x, (0, []))[1]:
             j = bisect.bisect_left(pos, p, start)
             if j < end and pos[j] == p and witness[j][0] == x:
                 old.append(j)
@@ -271,7 +281,7 @@ class Schedule:
             j = bisect.bisect_left(pos, p, start)
             witness.insert(j, (x, plan, move[2]))
             pos.insert(j, p)
-        self.positions[x] = at
+        self.positions[x] = (moves[0][2], at)
         self._fitted -= 1
         tag = self._fitted  # fitted moves' number: below every plan's (from 1 up)
         self.current[x] = (tag, plan)
