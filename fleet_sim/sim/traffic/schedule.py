@@ -27,7 +27,9 @@ Positions are floats: the walk numbers its moves 0, 1, 2, ...; a fitted move goe
 neighbours. What happened since the walk is read off the state as it is: an AGV that holds a
 lock now holds it from the start (its first hold of it that is not over), one that holds it
 and has no hold of it in the schedule holds it for ever; holds of AGVs with another plan
-since are dropped.
+since are dropped. The positions of each AGV's moves (`position`) also serve the moves-first
+rule (`Plans._moves_first`), which compares moves by position instead of scanning the
+witness: the schedule is kept after every walk, its holds only while fits are on.
 """
 
 from __future__ import annotations
