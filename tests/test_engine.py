@@ -9,6 +9,7 @@ import hashlib
 import os
 import subprocess
 import sys
+import weakref
 from pathlib import Path
 from typing import Any
 
@@ -55,16 +56,27 @@ def test_progress_is_reported_twenty_times_up_to_the_end(tiny_layout: Layout) ->
 
 def test_a_run_collects_garbage_seldom_and_puts_the_collector_back(tiny_layout: Layout) -> None:
     """During a run the collector works at `RUN_GC_THRESHOLDS` with what existed before the
-    run frozen; after it, and after a run that raises, the collector is as it was."""
+    run frozen, garbage left before it collected first; after it, and after a run that raises,
+    the collector is as it was."""
     scenario = make_scenario(duration_h=0.2, warmup_h=0, fleet={"size": 1},
                              demand={"rate_per_hour": 30})
     before = gc.get_threshold()
+
+    class Left:  # garbage an earlier run left: a reference cycle nobody refers to
+        me: object = None
+
+    left = Left()
+    left.me = left
+    gone = weakref.ref(left)
+    del left
     seen: list[tuple[tuple[int, int, int], int]] = []
     simulate(scenario, tiny_layout,
              progress=lambda now, end: seen.append((gc.get_threshold(), gc.get_freeze_count())))
     assert {threshold for threshold, _ in seen} == {RUN_GC_THRESHOLDS}
     assert min(frozen for _, frozen in seen) > 1_000  # the model, out of the collections
     assert gc.get_threshold() == before and gc.get_freeze_count() == 0
+    assert gone() is None  # collected, not frozen with the model (a sweep's workers grew to
+    # 12 GB that way)
 
     def fails(now: float, end: float) -> None:
         raise RuntimeError("stopped")

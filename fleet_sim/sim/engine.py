@@ -197,15 +197,17 @@ def _place(vehicles: list[Vehicle], scenario: Scenario, layout: Layout,
 
 @contextmanager
 def collecting_seldom() -> Iterator[None]:
-    """Run with Python's cyclic garbage collector seldom at work: what exists when the run
-    starts (the layout, routes, the model just built) is frozen out of its collections, and
-    it collects after `RUN_GC_THRESHOLDS` new objects. A run makes short-lived objects by the
-    million (the avoiding policy's walks most of all), few of them in reference cycles, so
-    collections mostly scan live objects for nothing: 10 to 18 % of a run of 200 AGVs on the
-    fulfilment centre under the avoiding policy (docs/background/engine.md). Results do not
-    depend on it. The collector's thresholds are restored, and the frozen objects thawed, at
-    the end."""
+    """Run with Python's cyclic garbage collector seldom at work. The garbage earlier runs
+    left is collected first (frozen with the rest, a sweep's worker kept every run's garbage
+    and grew to 12 GB); then what exists when the run starts (the layout, routes, the model
+    just built) is frozen out of the collections, and the collector works only after
+    `RUN_GC_THRESHOLDS` new objects. A run makes short-lived objects by the million (the
+    avoiding policy's walks most of all), few of them in reference cycles, so collections
+    mostly scan live objects for nothing: 10 to 18 % of a run of 200 AGVs on the fulfilment
+    centre under the avoiding policy (docs/background/engine.md). Results do not depend on
+    it. The collector's thresholds are restored, and the frozen objects thawed, at the end."""
     thresholds = gc.get_threshold()
+    gc.collect()  # what earlier runs left is garbage, not to be frozen (and kept) with the rest
     gc.freeze()
     gc.set_threshold(*RUN_GC_THRESHOLDS)
     try:
