@@ -87,19 +87,24 @@ def test_every_fitted_witness_is_shown_safe_and_a_failed_fit_changes_nothing(
     assert model.recorder.deadlocks == 0
 
 
-def two_bound_through_j() -> tuple[Any, Plans]:
-    """The junction ring with an AGV at W and one at S, both bound through J to N and K."""
+def on_the_junction_ring(*paths: list[str]) -> tuple[Any, Plans]:
+    """The junction ring with an AGV at the start of each of `paths`, that path its plan."""
     layout = load_layout(DATA / "junction_ring.yaml")
     scenario = make_scenario(str(DATA / "junction_ring.yaml"), duration_h=0.1, warmup_h=0,
                              demand={"rate_per_hour": 0},
-                             fleet={"size": 2, "start_nodes": ["W", "S"]},
+                             fleet={"size": len(paths), "start_nodes": [p[0] for p in paths]},
                              dispatch={"park_idle": False}, traffic={"policy": "avoiding"})
     model = build_simulation(scenario, layout)
     plans = model.traffic.strategy.plans
     assert isinstance(plans, Plans)
-    plans.declare(0, ["W", "J", "N", "K"])
-    plans.declare(1, ["S", "J", "N", "K"])
+    for x, path in enumerate(paths):
+        plans.declare(x, path)
     return model, plans
+
+
+def two_bound_through_j() -> tuple[Any, Plans]:
+    """An AGV at W and one at S, both bound through J to N and K."""
+    return on_the_junction_ring(["W", "J", "N", "K"], ["S", "J", "N", "K"])
 
 
 def test_a_changed_plan_is_fitted_after_the_hold_it_meets_without_a_walk() -> None:
@@ -159,17 +164,8 @@ def test_a_move_further_on_is_made_first_only_if_no_move_before_it_takes_what_it
     to K; the witness has one of them go first. The other's move onto a node nobody else's
     earlier move takes (X, or N) is made first, and put first in the witness; its move on to
     K, which the first one's moves take before it, is not."""
-    layout = load_layout(DATA / "junction_ring.yaml")
-    scenario = make_scenario(str(DATA / "junction_ring.yaml"), duration_h=0.1, warmup_h=0,
-                             demand={"rate_per_hour": 0},
-                             fleet={"size": 2, "start_nodes": ["E", "S"]},
-                             dispatch={"park_idle": False}, traffic={"policy": "avoiding"})
-    model = build_simulation(scenario, layout)
-    plans = model.traffic.strategy.plans
-    assert isinstance(plans, Plans)
     paths = {0: ["E", "X", "K"], 1: ["S", "J", "N", "K"]}
-    for x, path in paths.items():
-        plans.declare(x, path)
+    model, plans = on_the_junction_ring(paths[0], paths[1])
     assert plans._walk(0, None, ()) is None and plans.witness is not None
     first = plans.witness[0][0]
     other = 1 - first
