@@ -402,9 +402,9 @@ class Plans:
         if k >= len(path) or path[k] != node:
             return False
         mine = schedule.position(client_id, k, plan_id[client_id])
-        start, pos = self._next, schedule.pos
-        j = bisect.bisect_left(pos, mine, start) if mine is not None else len(pos)
-        if j == len(pos) or pos[j] != mine:
+        start = self._next
+        j = schedule.index_of(mine, start) if mine is not None else None
+        if mine is None or j is None:
             return False  # not in the witness from its first move not made on
         for lock, _ in locks:
             for y in self.users_of.get(lock, ()):
@@ -417,8 +417,7 @@ class Plans:
                         continue
                     if theirs >= mine:
                         break  # its later moves come later still
-                    q = bisect.bisect_left(pos, theirs, start)
-                    if q < len(pos) and pos[q] == theirs:
+                    if schedule.index_of(theirs, start) is not None:
                         return False  # a move not made before it takes what it takes
         witness.insert(start, witness.pop(j))
         schedule.moved_first(j, start)

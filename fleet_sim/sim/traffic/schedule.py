@@ -83,6 +83,13 @@ class Schedule:
         i = k - mine[0]
         return mine[1][i] if 0 <= i < len(mine[1]) else None
 
+    def index_of(self, at: float, start: int) -> int | None:
+        """The index in the witness of the move at position `at`, if it is among the moves
+        from index `start` on (None: it is not, made out of order (`moved_first`) or gone)."""
+        pos = self.pos
+        j = bisect.bisect_left(pos, at, start)
+        return j if j < len(pos) and pos[j] == at else None
+
     def moved_first(self, j: int, to: int) -> None:
         """The move at index `j` of the witness was put at index `to` (`Plans._moves_first`):
         its position goes with it (its holds stay: what it took, its AGV holds now; what it
@@ -166,8 +173,6 @@ class Schedule:
         positions; what an AGV holds now from the start. Holds of moves given up (under
         `committed` and now) and holds over of AGVs that hold the lock no more are dropped
         for good."""
-        pos = self.pos
-        end = len(pos)
         current = self.current
         out: list[tuple[float, float, int]] = []
         first: dict[int, int] = {}
@@ -193,8 +198,7 @@ class Schedule:
             known.add(y)
             if r < start_at:
                 continue  # let go of by a move made or granted
-            q = bisect.bisect_left(pos, r, start, end)
-            if q == end or pos[q] != r:
+            if self.index_of(r, start) is None:
                 continue  # let go of by a move made out of order (`moved_first`)
             if y in pending:  # fitted after x: only what it holds now, as the schedule has it
                 if y not in waiting or t < waiting[y][0]:
@@ -274,9 +278,9 @@ class Schedule:
             i = j
         old = []
         for p in self.positions.get(x, (0, []))[1]:
-            j = bisect.bisect_left(pos, p, start)
-            if j < end and pos[j] == p and witness[j][0] == x:
-                old.append(j)
+            found = self.index_of(p, start)
+            if found is not None and witness[found][0] == x:
+                old.append(found)
         for j in sorted(old, reverse=True):
             del witness[j], pos[j]
         for move, p in zip(moves, at, strict=True):
