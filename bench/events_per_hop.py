@@ -8,7 +8,10 @@ engine's lean SimPy parts in fleet_sim/sim/traffic/locks.py:
 `free` the Released event of a lock given back, `grant` a claim granted to an AGV that waited
 for it, `_handle` the load and unload sub-states...). Events per hop and wall microseconds per
 hop are printed beside the bare ring's (3 events per hop: request, timeout, release), with the
-load average: compare figures within one run only.
+load average: compare figures within one run only. Events the engine pushes onto SimPy's queue
+itself, not through `schedule` (the alarm clock's timers, fleet_sim.sim.traffic.waking, and an
+LDS look at a time to the last bit, fleet_sim.sim.agents.lds), are counted where SimPy processes
+them (`step`), in the total and in a row of their own.
 
     .venv/bin/python bench/events_per_hop.py [--hours 2]
 """
@@ -51,6 +54,8 @@ def _simpy_part(code: Any) -> bool:
 
 COUNTS: collections.Counter[tuple[str, str]] = collections.Counter()
 HOPS = [0]
+STEPS = [0]
+"""Events processed (`Environment.step`), those pushed onto the queue directly among them."""
 
 
 def _counting_schedule(original: Any) -> Any:
@@ -62,6 +67,13 @@ def _counting_schedule(original: Any) -> Any:
         COUNTS[(type(event).__name__, frame.f_code.co_name if frame else "?")] += 1
         original(self, event, priority, delay)
     return schedule
+
+
+def _counting_step(original: Any) -> Any:
+    def step(self: Environment) -> None:
+        STEPS[0] += 1
+        original(self)
+    return step
 
 
 def _counting_drove(original: Any) -> Any:
@@ -81,14 +93,18 @@ def main() -> None:
     ring_hops = 50 * args.hours * 3600 / 4.0
     print(f"bare ring: 3.00 events/hop, {wall / ring_hops * 1e6:.1f} us/hop")
     Environment.schedule = _counting_schedule(Environment.schedule)  # type: ignore[method-assign]
+    Environment.step = _counting_step(Environment.step)  # type: ignore[method-assign]
     records.Recorder.drove = _counting_drove(records.Recorder.drove)  # type: ignore[method-assign]
     for title, (scenario_file, overrides) in SHIFTS.items():
         COUNTS.clear()
-        HOPS[0] = 0
+        HOPS[0] = STEPS[0] = 0
         start = time.perf_counter()
-        model_run(scenario_file, {**overrides, "duration_h": args.hours})
+        _, run = model_run(scenario_file, {**overrides, "duration_h": args.hours})
         wall = time.perf_counter() - start
         hops = HOPS[0]
+        scheduled = sum(COUNTS.values())
+        left = len(run.vehicles[0].env._queue)  # scheduled or pushed, never processed
+        COUNTS[("(pushed directly)", "alarm clock, LDS")] = STEPS[0] + left - scheduled
         total = sum(COUNTS.values())
         print()
         print(f"## {title}: {hops:,} hops, {total / hops:.2f} events/hop, "

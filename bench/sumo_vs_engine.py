@@ -7,7 +7,8 @@ trips between stations (no fleet model, no stops), stepped through the shift at 
 Demand defaults to 150 orders/h (about what the layout can carry, as in bench/engine_scaling.py).
 These machines are noisy: compare figures within one run of this script only. `--events` also
 prints what the closed form's SimPy events are spent on, per hop (one more run, counted, after
-the timed ones: counting slows it).
+the timed ones: counting slows it), every event SimPy processes counted, those the engine pushes
+onto the queue itself (the alarm clock's timers, LDS looks at exact times) in a row of their own.
 
     .venv/bin/python bench/sumo_vs_engine.py [--agvs 50] [--hours 8] [--rate 150] [--events]
 """
@@ -88,6 +89,12 @@ EVENT_KINDS = {  # (SimPy event class, the function that scheduled it) -> what i
     ("FirstOf", "_check"): "a blocked AGV resumes (its claim, or its look)",
     ("Timeout", "wait"): "a blocked AGV's look (every deadlock_check_s)",
     ("Claim", "grant"): "a queued claim granted",
+    ("Timeout", "_look_in"): "an LDS look at the AGV ahead (a queue's pause, 300 ms)",
+    ("Timeout", "_look"): "an LDS look once the AGV ahead's hop ends",
+    ("Nudge", "__init__"): "a blocked AGV woken to look again (the alarm clock)",
+    ("Relay", "_pass"): "a blocked AGV resumed by its grant",
+    ("(pushed directly)", "the alarm clock or an LDS look"):
+        "pushed onto the queue directly: the alarm clock's timers, LDS looks woken",
 }
 
 
@@ -100,8 +107,8 @@ def events_per_hop(scenario: Path, overrides: dict[str, Any]) -> None:
     from fleet_sim.sim.traffic.control import Traffic
 
     counts: Counter[tuple[str, str]] = Counter()
-    hops = 0
-    schedule, hopped = simpy.Environment.schedule, Traffic.hopped
+    hops = steps = 0
+    schedule, hopped, step = simpy.Environment.schedule, Traffic.hopped, simpy.Environment.step
 
     def counted_schedule(env: simpy.Environment, event: Any, *args: Any, **kwargs: Any) -> None:
         caller = sys._getframe(1)
@@ -115,15 +122,25 @@ def events_per_hop(scenario: Path, overrides: dict[str, Any]) -> None:
         hops += 1
         hopped(traffic, *args)
 
+    def counted_step(env: simpy.Environment) -> None:
+        nonlocal steps
+        steps += 1
+        step(env)
+
     run_scenario = load_scenario(scenario, {**overrides, "motion": "closed_form"})
     layout = load_layout_for(run_scenario, scenario)
     simpy.Environment.schedule = counted_schedule  # type: ignore[method-assign]
     Traffic.hopped = counted_hop  # type: ignore[method-assign]
+    simpy.Environment.step = counted_step  # type: ignore[method-assign]
     try:
-        simulate(run_scenario, layout)
+        run = simulate(run_scenario, layout)
     finally:
         simpy.Environment.schedule = schedule  # type: ignore[method-assign]
         Traffic.hopped = hopped  # type: ignore[method-assign]
+        simpy.Environment.step = step  # type: ignore[method-assign]
+    left = len(run.vehicles[0].env._queue)  # scheduled or pushed, never processed
+    counts["(pushed directly)", "the alarm clock or an LDS look"] = \
+        steps + left - sum(counts.values())
     total = sum(counts.values())
     per_hop = 1.0 / max(hops, 1)
     print(f"  closed form's SimPy events: {total:,} for {hops:,} hops, "
