@@ -19,6 +19,7 @@ from fleet_sim.config.trace import TraceOrder
 from fleet_sim.sim.agents.driving import Driver
 from fleet_sim.sim.agents.lds import AgvAhead
 from fleet_sim.sim.engine import RunOutput, simulate
+from fleet_sim.sim.traffic.waking import AlarmClock
 
 from .conftest import LAYOUTS, make_scenario, write_yaml
 
@@ -142,12 +143,12 @@ def test_it_moves_on_once_the_way_is_clear_beyond_1_2_m_for_2000_ms(granted_s: f
     env = simpy.Environment()
     behind = Behind()
     behind.env = env
-    watch = AgvAhead(env, Rules(), 0.5, behind)
+    watch = AgvAhead(env, Rules(), 0.5, behind, AlarmClock(env))
     ahead = Ahead(0.0, 0.5)
 
     def drive() -> Any:
         yield env.timeout(40.0)
-        watch.began_waiting(lambda: (0, ahead, True))
+        watch.began_waiting(lambda: (0, ahead, True), True)
         yield env.timeout(10.0)  # it set off at 50 s
         ahead.standing, ahead.departed_s = False, env.now
         yield env.timeout(granted_s)  # traffic grants the node
@@ -188,7 +189,7 @@ def _behind_a_driving_agv(hop_ends_s: float) -> tuple[simpy.Environment, Any, Ag
     env = simpy.Environment()
     behind = Behind()
     behind.env = env
-    watch = AgvAhead(env, Rules(), 0.5, behind)
+    watch = AgvAhead(env, Rules(), 0.5, behind, AlarmClock(env))
     ahead = Ahead(0.0, 0.5)
     ahead.standing, ahead.hop_ends_s = False, hop_ends_s
     return env, behind, watch, ahead
@@ -209,7 +210,7 @@ def test_behind_a_driving_agv_the_pause_begins_at_the_first_look_after_its_hop(
 
     def wait() -> Any:
         yield env.timeout(40.0)
-        watch.began_waiting(lambda: (0, ahead, True))
+        watch.began_waiting(lambda: (0, ahead, True), True)
         yield env.timeout(9.0)
         watch.waiting = False
 
@@ -233,9 +234,43 @@ def test_behind_an_agv_a_fault_halts_on_its_hop_the_pause_begins_at_the_next_loo
 
     def wait() -> Any:
         yield env.timeout(40.0)
-        watch.began_waiting(lambda: (0, ahead, True))
+        watch.began_waiting(lambda: (0, ahead, True), True)
 
     env.process(fault())
     env.process(wait())
     env.run(until=60.0)
     assert behind.log == [("paused", pytest.approx(44.3))]
+
+
+def test_waiting_for_a_corridor_it_does_not_look_and_looks_on_its_grid_once_it_waits_for_a_node(
+        ) -> None:
+    """The AGV waits from 40 s for a corridor (a look would see nobody: it makes none), then,
+    the corridor granted at 43.5 s, for the node the AGV ahead stands on: it is paused at
+    44.3 s, the look a watch looking every second from 40.3 s would have made first after
+    43.5 s, to the last bit of those looks' times (each the last plus a second)."""
+    env = simpy.Environment()
+    behind = Behind()
+    behind.env = env
+    watch = AgvAhead(env, Rules(), 0.5, behind, AlarmClock(env))
+    ahead = Ahead(0.0, 0.5)
+    looks: list[float] = []
+    node_wait = [False]
+
+    def find() -> Any:
+        looks.append(env.now)
+        return (0, ahead, True) if node_wait[0] else None
+
+    def wait() -> Any:
+        yield env.timeout(40.0)
+        watch.began_waiting(find, False)
+        yield env.timeout(3.5)
+        node_wait[0] = True
+        watch.began_waiting(find, True)
+
+    env.process(wait())
+    env.run(until=60.0)
+    grid_s = 40.0 + 0.3
+    for _ in range(4):
+        grid_s += 1.0
+    assert looks == [grid_s]
+    assert behind.log == [("paused", grid_s)]

@@ -45,7 +45,7 @@ from fleet_sim.sim.traffic.allocation import Hop
 from fleet_sim.sim.traffic.avoiding import AvoidingPolicy
 from fleet_sim.sim.traffic.control import Traffic
 from fleet_sim.sim.traffic.deadlock import DeadlockVictim
-from fleet_sim.sim.traffic.locks import Claim, Lock
+from fleet_sim.sim.traffic.locks import Claim, Lock, NodeLock
 
 Proc = Generator[simpy.Event, Any, Any]
 
@@ -177,7 +177,7 @@ class Driver:
         """Traffic makes the AGV wait for `lock`: on a drive, its LDS may see the AGV ahead
         (once the hop's wait is for its node: a corridor or a zone is asked for first)."""
         if self.lds is not None and self.next_node is not None:
-            self.lds.began_waiting(self._agv_ahead)
+            self.lds.began_waiting(self._agv_ahead, isinstance(lock.key, NodeLock))
 
     def _agv_ahead(self) -> tuple[int, Ahead, bool] | None:
         """The AGV holding the node this one waits for, and whether it stands on that node or

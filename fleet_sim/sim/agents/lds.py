@@ -24,18 +24,22 @@ docs/background/decisions/sim.md.
 
 from __future__ import annotations
 
+import heapq
 import math
 from collections.abc import Callable, Generator
 from typing import Any, Protocol
 
 import simpy
+from simpy.events import NORMAL, Event
 
 from fleet_sim.config.scenario import Rules
+from fleet_sim.sim.traffic.waking import AlarmClock
 
 LOOK_AGAIN_S = 1.0
 """While an AGV waits behind one that is driving, how often it looks whether that one has
 stopped (assumed; a pause starts at most this late after the AGV ahead stopped). Looks that
-would see it still on the hop it drives are skipped (`AgvAhead._look`)."""
+would see it still on the hop it drives are skipped, and so are those while it waits for a
+corridor or zone, which would see nobody (`AgvAhead._look`)."""
 
 
 class Ahead(Protocol):
@@ -88,12 +92,32 @@ class PausedHost(Protocol):
     def fail(self, code: str, detail: str = "") -> bool: ...
 
 
+class _Timeout:
+    """A pause's E_101 timeout, an alarm of the run's `AlarmClock` (most pauses end long
+    before it, and a timer that is turned off costs no event)."""
+
+    __slots__ = ("alarm_eid", "alarm_s", "tell")
+
+    def __init__(self, tell: Callable[[], None]) -> None:
+        self.tell = tell
+        self.alarm_s = math.inf
+        self.alarm_eid = 0
+
+    def ring(self, at_once: bool) -> None:
+        self.tell()
+
+    def off(self) -> None:
+        self.alarm_s = math.inf
+
+
 class AgvAhead:
     """One AGV's watch over the AGV ahead while traffic makes it wait (``lds`` reading)."""
 
     def __init__(self, env: simpy.Environment, rules: Rules, min_gap_m: float,
-                 host: PausedHost) -> None:
+                 host: PausedHost, clock: AlarmClock) -> None:
         self.env = env
+        self.clock = clock
+        """The run's alarm clock: the pause's E_101 timeout is one of its alarms."""
         self.rules = rules
         self.gap_m = min_gap_m
         """How close it closes up (P_006)."""
@@ -104,9 +128,19 @@ class AgvAhead:
         """Counts the waits: a watch ends when the wait it was started for does."""
         self._first_look_s = 0.0
         """When the wait's first look is (its looks follow every LOOK_AGAIN_S)."""
+        self._node_wait = False
+        """The lock traffic makes it wait for now is a node's (not a corridor's or a zone's)."""
+        self._unmade_look_s: float | None = None
+        """While the watch does not look (the AGV waits for a corridor or zone: a look would see
+        nobody), when its next look would have been; once the wait turns to a node it looks at
+        the first of its looks from then that is not past (`began_waiting`)."""
+        self._unmade_eid = 0
+        """The event id the timer of that next look would have taken (reserved when the watch
+        stopped looking): the look it makes comes at that place among its instant's events."""
         self.paused_since: float | None = None
         self.paused_behind: Ahead | None = None
         self._pause_no = 0
+        self._timeout: _Timeout | None = None
 
     @property
     def sees_agvs(self) -> bool:
@@ -114,14 +148,58 @@ class AgvAhead:
         within the stop distance."""
         return self.gap_m < self.rules.lds_stop_m
 
-    def began_waiting(self, find: Finder) -> None:
-        """Traffic made the AGV wait for a node; `find()` names the AGV holding it."""
-        if self.waiting or not self.sees_agvs:  # (the same wait, told again)
+    def began_waiting(self, find: Finder, for_node: bool) -> None:
+        """Traffic made the AGV wait for a lock (`for_node`: a node's); `find()` names the AGV
+        holding the node it waits for. Told again in the same wait (the hop's corridor or zone
+        was granted, its node is waited for now), a watch that stopped looking looks again at
+        the first of its looks after now."""
+        if not self.sees_agvs:
+            return
+        self._node_wait = for_node
+        if self.waiting:
+            unmade_s = self._unmade_look_s
+            if unmade_s is not None and for_node:
+                self._unmade_look_s = None
+                self._look_at(self._look_from(unmade_s), self._unmade_eid, find, self._wait_no)
             return
         self.waiting = True
         self._wait_no += 1
         self._first_look_s = self.env.now + self.rules.obstacle_pause_s
-        self._look_in(self.rules.obstacle_pause_s, find, self._wait_no)
+        if for_node:
+            self._unmade_look_s = None
+            self._look_in(self.rules.obstacle_pause_s, find, self._wait_no)
+        else:
+            self._stop_looking(self._first_look_s)
+
+    def _stop_looking(self, next_look_s: float) -> None:
+        """Make no look from `next_look_s` on while the AGV waits for a corridor or zone.
+        Reserving the event id its timer would have taken puts the look it makes once the wait
+        turns to a node where that look would have come among its instant's events if it comes
+        at `next_look_s`, and before the looks of other watches on the same times of look
+        (AGVs that began waiting together) if later: exact unless the watch had been behind
+        one of them (none in the runs of tests/test_engine.py, 1 and 8 hours)."""
+        self._unmade_look_s = next_look_s
+        self._unmade_eid = next(self.env._eid)
+
+    def _look_from(self, unmade_s: float) -> float:
+        """The first look, not past, of those a watch looking every LOOK_AGAIN_S from
+        `unmade_s` on would make: the same floats as its timers (each the last plus the
+        period)."""
+        now = self.env.now
+        at_s = unmade_s
+        while at_s < now:
+            at_s += LOOK_AGAIN_S
+        return at_s
+
+    def _look_at(self, at_s: float, eid: int, find: Finder, wait_no: int) -> None:
+        """Look at `at_s` exactly (a timeout of `at_s - now` may round to another float), at
+        the place of event id `eid` among that instant's events."""
+        env = self.env
+        look = Event(env)
+        look._ok = True
+        look._value = None
+        look.callbacks.append(lambda _: self._look(find, wait_no))
+        heapq.heappush(env._queue, (at_s, NORMAL, eid, look))
 
     def _look_in(self, delay_s: float, find: Finder, wait_no: int) -> None:
         """Look at the AGV ahead `delay_s` from now: a timeout's callback, not a process (no
@@ -132,10 +210,14 @@ class AgvAhead:
     def _look(self, find: Finder, wait_no: int) -> None:
         """Paused if the AGV holding the node stands on it; else look again `LOOK_AGAIN_S` on,
         or, while it drives a hop (`Ahead.hop_ends_s`), at the first of those looks at or after
-        the hop's end (the looks between would see it driving)."""
+        the hop's end (the looks between would see it driving), or, while the AGV waits for a
+        corridor or zone, once it waits for a node (the looks between would see nobody)."""
         if not self.waiting or self._wait_no != wait_no or self.paused_since is not None:
             return  # the wait is over, or another has begun
         found = find()
+        if found is None and not self._node_wait:
+            self._stop_looking(self.env.now + LOOK_AGAIN_S)
+            return
         if found is not None and found[2] and found[1].standing:
             agv, ahead, _ = found
             if self.host.pause_for_agv(agv, self.gap_m):
@@ -143,8 +225,10 @@ class AgvAhead:
                 self.paused_behind = ahead
                 self._pause_no += 1
                 pause_no = self._pause_no
-                timeout = self.env.timeout(self.rules.obstacle_timeout_s)
-                timeout.callbacks.append(lambda _: self._time_out(pause_no, agv))
+                # at the time and place of a timeout set now (the event id it would take)
+                timeout = self._timeout = _Timeout(lambda: self._time_out(pause_no, agv))
+                env = self.env
+                self.clock.set(timeout, env.now + self.rules.obstacle_timeout_s, next(env._eid))
             return
         ends_s = found[1].hop_ends_s if found is not None else None
         if found is None or ends_s is None:
@@ -196,3 +280,6 @@ class AgvAhead:
         self.paused_since = None
         self.paused_behind = None
         self.waiting = False
+        if self._timeout is not None:
+            self._timeout.off()
+            self._timeout = None

@@ -67,7 +67,8 @@ class Vehicle(VehicleCharging, VehicleLink, VehicleTravel, VehicleFaults):
         self.driver = Driver(agv_id, env, traffic, recorder, profile, scenario.traffic, rng,
                              host=self, permission=fleet.commands.permission(agv_id))
         if self.rules.agv_ahead == "lds":
-            self.driver.lds = AgvAhead(env, self.rules, profile.min_gap_m, self)
+            self.driver.lds = AgvAhead(env, self.rules, profile.min_gap_m, self,
+                                       traffic.clock)
         else:
             self.driver.hold_back(self.rules.lds_slow_m)
         self.routes = self.driver.routes

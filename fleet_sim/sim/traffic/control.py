@@ -74,6 +74,7 @@ from fleet_sim.sim.traffic.locks import Claim
 from fleet_sim.sim.traffic.policy import TrafficPolicy
 from fleet_sim.sim.traffic.routing import Routes, SegmentCosts
 from fleet_sim.sim.traffic.table import Reservations, TrafficClient
+from fleet_sim.sim.traffic.waking import AlarmClock
 from fleet_sim.sim.traffic.zones import DirectedClaim
 
 
@@ -111,6 +112,9 @@ class Traffic:
                                             else GentlestEscapeFirst())
         table = self.table = Reservations(env, layout)
         """What is held, by whom, and what is queued (the view the modules and policies get)."""
+        self.clock = AlarmClock(env)
+        """The run's alarms that mostly never ring: blocked AGVs' next looks, paused AGVs'
+        E_101 timeouts (fleet_sim.sim.traffic.waking)."""
         self._share(table)
         self.next_nodes = {n: tuple(sorted(self.graph.successors(n))) for n in self.graph.nodes}
         """Node -> the nodes a segment leads to from it, sorted (escapes look in that order)."""

@@ -16,7 +16,7 @@ import simpy
 from simpy.events import PENDING, Event
 from simpy.resources.resource import Request
 
-from fleet_sim.sim.traffic.waking import Sleeper
+from fleet_sim.sim.traffic.waking import Sleeper, at_once, process_now
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,12 +79,19 @@ class Claim(Request):
 
 def grant(lock: Lock, claim: Claim) -> None:
     """Give `claim` the lock (it is among its users): at once if it is being made, else by
-    scheduling it (its client waits on it)."""
+    scheduling it (its client waits on it), or, offered the lock by a `Released`, as that
+    event has it scheduled or processed."""
     claim.usage_since = lock._env.now
     if claim.asking:
         claim.grant_at_once()
     else:
-        claim.succeed()
+        offering = lock.offering
+        if offering is None:
+            claim.succeed()
+        else:
+            claim._ok = True
+            claim._value = None
+            offering.append(claim)
         if lock.watchers:  # a zone's queue may be empty now and have room left
             lock.changed()
 
@@ -93,14 +100,32 @@ class Released(Event):
     """SimPy's `Release` event, without what it does not need here: a lock is let go of at once
     (the claim leaves its users when it is given back, as SimPy's `_do_get` does), and the event,
     scheduled where SimPy schedules its `Release`, offers the lock to the claim waiting first
-    when it is processed (the same callback, `_trigger_put`). Nobody waits on it."""
+    when it is processed (SimPy's `_trigger_put`). Nobody waits on it. The claim it grants is
+    scheduled when the offer is over, with the event id it would have had (nothing between
+    takes one: `Lock.changed` sets alarms at ids reserved before), or, when it would be the
+    next event processed (`at_once`) and is the only one granted, processed there and then."""
 
     def __init__(self, lock: Lock) -> None:
         self.env = lock._env
-        self.callbacks = [lock._trigger_put]
+        self.callbacks = [self._offer]
         self._ok = True
         self._value = None
+        self.lock = lock
         self.env.schedule(self)
+
+    def _offer(self, _: Event) -> None:
+        lock = self.lock
+        granted: list[Claim] = []
+        lock.offering = granted
+        try:
+            lock._trigger_put(self)
+        finally:
+            lock.offering = None
+        if len(granted) == 1 and at_once(self.env):
+            process_now(granted[0])
+        else:
+            for claim in granted:
+                self.env.schedule(claim)
 
 
 class FirstOf(Event):
@@ -141,6 +166,9 @@ class Lock(simpy.Resource):
     instants, in an order SimPy might not have taken.) False where a waiting claim may be
     refused for a reason other than room (a same-direction zone's direction), so a later offer
     can grant it."""
+
+    offering: list[Claim] | None = None
+    """While a `Released` offers the lock: the claims it granted (not scheduled yet)."""
 
     def __init__(self, env: simpy.Environment, key: LockKey) -> None:
         super().__init__(env, capacity=1)

@@ -33,7 +33,7 @@ from fleet_sim.sim.traffic.deadlock import DeadlockVictim, Escape, find_cycle
 from fleet_sim.sim.traffic.escapes import Escapes
 from fleet_sim.sim.traffic.locks import Claim, Lock, ZoneLock
 from fleet_sim.sim.traffic.table import TrafficClient
-from fleet_sim.sim.traffic.waking import LOOK_AGAIN, AlarmClock, Relay, Sleeper
+from fleet_sim.sim.traffic.waking import LOOK_AGAIN, Relay, Sleeper
 
 if TYPE_CHECKING:
     from fleet_sim.sim.traffic.control import Traffic
@@ -49,7 +49,7 @@ class ReactivePolicy:
         self.table = traffic.table
         """What is held, by whom, and what is queued."""
         self.escapes = Escapes(traffic)
-        self.alarms = AlarmClock(traffic.table.env)
+        self.alarms = traffic.clock
         """The thresholds of blocked AGVs' waits, and suspects' next looks."""
 
     def placed(self, client_id: int, node: str) -> None:
@@ -199,7 +199,7 @@ class ReactivePolicy:
             due.append(sleeper.next_look())
         alarm_s = min(due, default=math.inf)
         if alarm_s < math.inf and (alarm_s < sleeper.alarm_s or sleeper.alarm_s <= now):
-            self.alarms.set(sleeper, alarm_s)
+            self.alarms.set(sleeper, alarm_s, sleeper.eid)
         if long and not sleeper.watching:  # (what it holds and where it stands stay put)
             sleeper.watching = True
             for lock in self._way_out_locks(client):

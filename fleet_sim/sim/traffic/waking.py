@@ -17,6 +17,7 @@ from __future__ import annotations
 import heapq
 import math
 from collections.abc import Callable
+from typing import Protocol
 
 import simpy
 from simpy.events import NORMAL, PENDING, Event
@@ -29,12 +30,26 @@ LOOK_AGAIN = object()
 """The cause of a `Nudge`: look again for a way out, the claim is still not granted."""
 
 
+def at_once(env: simpy.Environment) -> bool:
+    """An event scheduled now would be the next processed: nothing else is queued for this
+    instant (then processing it now, not scheduling it, keeps the order of every event)."""
+    queue = env._queue
+    return not queue or queue[0][0] > env._now
+
+
+def process_now(event: Event) -> None:
+    """Process a triggered event now, as `Environment.step` would (`at_once`)."""
+    callbacks, event.callbacks = event.callbacks, None  # type: ignore[assignment]
+    for callback in callbacks:
+        callback(event)
+
+
 class Sleeper:
     """A blocked AGV's wait for its claim. It looks again for a way out only at its look times
     (every `period_s` from `start_s`, the times a blocked AGV has always looked at), and only
     at those its `AlarmClock` alarm is set for: a threshold of its wait, a suspect's next look,
     or the next look after a change that may have opened a way out (`changed`). While the AGV
-    sleeps (`awake` False) the alarm wakes it (`nudge`); once the wait is over nothing does."""
+    sleeps (`awake` False) the alarm wakes it (a `Nudge`); once the wait is over nothing does."""
 
     __slots__ = ("_reached_s", "alarm_eid", "alarm_s", "awake", "claim", "clock", "eid",
                  "looked_s", "period_s", "process", "start_s", "watching")
@@ -106,7 +121,7 @@ class Sleeper:
             return
         at_s = self.next_look()
         if at_s < self.alarm_s:
-            self.clock.set(self, at_s)
+            self.clock.set(self, at_s, self.eid)
 
     def sleep(self) -> None:
         """It goes to sleep: reserve the place among an instant's events that the timer a
@@ -114,11 +129,14 @@ class Sleeper:
         (before a grant of the same instant, for one)."""
         self.eid = next(self.clock.env._eid)
 
-    def nudge(self) -> None:
-        """Wake the AGV to look again (`Nudge`), unless it is awake."""
+    def ring(self, at_once: bool) -> None:
+        """Its alarm: wake the AGV to look again (a `Nudge`), unless it is awake. Nudges
+        scheduled now would come after every event already queued for this instant and before
+        any the woken AGVs schedule, one after another: with none queued (`at_once`), they are
+        delivered now, in the same order, with nothing in between."""
         if not self.awake:
             self.awake = True
-            Nudge(self)
+            Nudge(self, at_once)
 
     def over(self) -> None:
         """The wait has ended: nothing wakes it any more."""
@@ -139,10 +157,15 @@ class Relay(Event):
         claim.callbacks.append(self._pass)
 
     def _pass(self, _: Event) -> None:
+        """The claim is processed (its only callback: its process waits on the relay): the
+        relay is scheduled, or, when it would be the next event processed, processed now."""
         if self._value is PENDING:
             self._ok = True
             self._value = None
-            self.env.schedule(self)
+            if at_once(self.env):
+                process_now(self)
+            else:
+                self.env.schedule(self)
 
     def drop(self) -> None:
         """The AGV no longer waits on it: the claim need not pass its grant on."""
@@ -155,16 +178,21 @@ class Nudge(Event):
     """SimPy's `Interruption` with the cause `LOOK_AGAIN`, at normal priority (an interrupt
     scheduled with it comes first), delivered only if the process still waits for the claim
     it slept on (it may have been granted it, or a fault may have taken it elsewhere,
-    meanwhile)."""
+    meanwhile). `at_once`: delivered now, not scheduled, where it would be processed next all
+    the same (`AlarmClock._ring`)."""
 
-    def __init__(self, sleeper: Sleeper) -> None:
+    def __init__(self, sleeper: Sleeper, at_once: bool) -> None:
         self.env = sleeper.process.env
         self.callbacks = [self._deliver]
         self._value = simpy.Interrupt(LOOK_AGAIN)
         self._ok = False
         self._defused = True
         self.sleeper = sleeper
-        self.env.schedule(self)
+        if at_once:
+            self.callbacks = None  # type: ignore[assignment]  # SimPy's mark of "processed"
+            self._deliver(self)
+        else:
+            self.env.schedule(self)
 
     def _deliver(self, _: Event) -> None:
         process = self.sleeper.process
@@ -174,27 +202,41 @@ class Nudge(Event):
         process._resume(self)
 
 
+class Alarm(Protocol):
+    """What an `AlarmClock` rings: it set for `alarm_s` at the event id `alarm_eid` (both
+    set by the clock; an alarm whose two no longer match what it was set for is off)."""
+
+    alarm_s: float
+    alarm_eid: int
+
+    def ring(self, at_once: bool) -> None:
+        """Its time and place have come. `at_once`: an event scheduled now would be the next
+        processed (`at_once()`, as it stood when the clock rang)."""
+        ...
+
+
 class AlarmClock:
-    """The alarms of all sleeping AGVs. Each rings at its time and at its sleeper's place
-    among that instant's events (`Sleeper.eid`), as its own timer would have; but only the
-    earliest alarm still set is in SimPy's queue at any time (most alarms are turned off
-    before their time: the wait ends first), so an alarm costs an event only if it rings or
-    is turned off after it came to the front."""
+    """The run's alarms that mostly never ring: blocked AGVs' looks (`Sleeper`) and a paused
+    AGV's E_101 timeout (fleet_sim.sim.agents.lds). Each rings at its time and at the place
+    among that instant's events of the event id given when it was set, as its own timer would
+    have; but only the earliest alarm still set is in SimPy's queue at any time (most alarms
+    are turned off before their time: the wait or pause ends first), so an alarm costs an
+    event only if it rings or is turned off after it came to the front."""
 
     def __init__(self, env: simpy.Environment) -> None:
         self.env = env
-        self._alarms: list[tuple[float, int, Sleeper]] = []
+        self._alarms: list[tuple[float, int, Alarm]] = []
         self._queued: set[tuple[float, int]] = set()
         """The alarms put in SimPy's queue and not rung yet."""
         self._front: tuple[float, int] | None = None
         """The earliest of them."""
 
-    def set(self, sleeper: Sleeper, at_s: float) -> None:
-        """Ring `sleeper` at `at_s` (its previous alarm is off)."""
-        sleeper.alarm_s = at_s
-        sleeper.alarm_eid = sleeper.eid
-        key = (at_s, sleeper.eid)
-        heapq.heappush(self._alarms, (at_s, sleeper.eid, sleeper))
+    def set(self, alarm: Alarm, at_s: float, eid: int) -> None:
+        """Ring `alarm` at `at_s`, at the place of event id `eid` (its previous time is off)."""
+        alarm.alarm_s = at_s
+        alarm.alarm_eid = eid
+        key = (at_s, eid)
+        heapq.heappush(self._alarms, (at_s, eid, alarm))
         if self._front is None or key < self._front:
             self._queue(key)
 
@@ -216,11 +258,12 @@ class AlarmClock:
         if self._front == key:
             self._front = None
         alarms = self._alarms
+        rung: list[Alarm] = []
         while alarms and (alarms[0][0], alarms[0][1]) <= key:
-            at_s, eid, sleeper = heapq.heappop(alarms)
-            if sleeper.alarm_s == at_s and sleeper.alarm_eid == eid:
-                sleeper.alarm_s = math.inf
-                sleeper.nudge()
+            at_s, eid, alarm = heapq.heappop(alarms)
+            if alarm.alarm_s == at_s and alarm.alarm_eid == eid:
+                alarm.alarm_s = math.inf
+                rung.append(alarm)
         while alarms and (alarms[0][2].alarm_s != alarms[0][0]
                           or alarms[0][2].alarm_eid != alarms[0][1]):
             heapq.heappop(alarms)  # alarms turned off
@@ -228,3 +271,7 @@ class AlarmClock:
             nxt = (alarms[0][0], alarms[0][1])
             if self._front is None or nxt < self._front:
                 self._queue(nxt)
+        if rung:
+            now = at_once(self.env)
+            for alarm in rung:
+                alarm.ring(now)
