@@ -16,6 +16,7 @@ import simpy
 from fleet_sim.config.layout import BACKWARD, FORWARD
 from fleet_sim.sim.traffic.deadlock import find_cycle
 from fleet_sim.sim.traffic.locks import Claim, FirstOf, Lock, NodeLock, ZoneLock
+from fleet_sim.sim.traffic.waking import Relay
 from fleet_sim.sim.traffic.zones import DirectedClaim, DirectionGate, Gate
 
 
@@ -120,6 +121,54 @@ def test_a_release_with_nobody_waiting_schedules_no_event() -> None:
     zone = DirectionGate(env, ZoneLock("d"), None)
     claim = DirectedClaim(zone, 1, FORWARD)
     assert claim.triggered and zone.release(claim) is not None
+
+
+@pytest.mark.parametrize("holder_goes_on", [False, True])
+def test_a_claim_granted_from_the_queue_is_processed_at_once_only_when_it_would_be_next(
+        holder_goes_on: bool) -> None:
+    """Client 1 lets go of the lock at 1 s, client 2 waits for it (through a `Relay`, as a
+    blocked AGV does). With nothing else queued for 1 s, the `Released` event's grant and the
+    relay are processed there and then: one event where SimPy's parts process three. If client
+    1 goes on in the same instant after its release (a timeout of 0, queued before the grant),
+    the grant is scheduled, and client 1 goes on before client 2 resumes, as SimPy has it."""
+    env = simpy.Environment()
+    lock = Lock(env, NodeLock("n"))
+    log: list[str] = []
+    processed = [0]
+    step = env.step
+
+    def counted_step() -> None:
+        processed[0] += bool(env._queue)  # (the last call finds the queue empty)
+        step()
+
+    env.step = counted_step  # type: ignore[method-assign]
+
+    def holder() -> Any:
+        claim = lock.claim(1)
+        yield env.timeout(1.0)
+        lock.release(claim)
+        if holder_goes_on:
+            yield env.timeout(0.0)
+            log.append(f"1 goes on at {env.now:g}")
+        yield env.timeout(10.0)  # (its end, queued for 1 s, would come before the grant)
+
+    def waiter() -> Any:
+        yield env.timeout(0.5)
+        claim = lock.claim(2)
+        assert not claim.triggered
+        yield Relay(env, claim)
+        log.append(f"2 holds at {env.now:g}")
+
+    env.process(holder())
+    env.process(waiter())
+    env.run()
+    assert lock.holder == 2
+    if holder_goes_on:
+        assert log == ["1 goes on at 1", "2 holds at 1"]
+    else:
+        assert log == ["2 holds at 1"]
+        # two Initialize, three timeouts, Released, two process ends: no Claim, no Relay
+        assert processed[0] == 8
 
 
 def _find_cycle_by_search(start: int, waiting: Mapping[int, Lock]) -> list[int] | None:
