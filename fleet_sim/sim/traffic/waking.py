@@ -9,7 +9,12 @@ change that may open a way out (a lock it could drive into let go of, another AG
 what it holds, a new wait-for cycle through it). Its `AlarmClock` alarm wakes it then (a
 `Nudge`, an interrupt with the cause `LOOK_AGAIN`). The clock keeps one timer for all the
 alarms, not one per wait: most waits end before their first alarm, and a timer set for one
-would still be an event.
+would still be an event. The run has one clock (`Traffic.clock`); a paused AGV's E_101 timeout
+(fleet_sim.sim.agents.lds) is one of its alarms too.
+
+An event that would be the next processed all the same (nothing else queued for its instant:
+`at_once`) is processed there and then, not scheduled: a nudge, a claim granted from the
+queue (fleet_sim.sim.traffic.locks.Released) and its relay.
 """
 
 from __future__ import annotations
