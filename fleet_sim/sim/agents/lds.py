@@ -24,16 +24,14 @@ docs/background/decisions/sim.md.
 
 from __future__ import annotations
 
-import heapq
 import math
 from collections.abc import Callable, Generator
 from typing import Any, Protocol
 
 import simpy
-from simpy.events import NORMAL, Event
 
 from fleet_sim.config.scenario import Rules
-from fleet_sim.sim.traffic.waking import AlarmClock
+from fleet_sim.sim.traffic.waking import AlarmClock, call_at
 
 LOOK_AGAIN_S = 1.0
 """While an AGV waits behind one that is driving, how often it looks whether that one has
@@ -192,14 +190,9 @@ class AgvAhead:
         return at_s
 
     def _look_at(self, at_s: float, eid: int, find: Finder, wait_no: int) -> None:
-        """Look at `at_s` exactly (a timeout of `at_s - now` may round to another float), at
-        the place of event id `eid` among that instant's events."""
-        env = self.env
-        look = Event(env)
-        look._ok = True
-        look._value = None
-        look.callbacks.append(lambda _: self._look(find, wait_no))
-        heapq.heappush(env._queue, (at_s, NORMAL, eid, look))
+        """Look at `at_s` exactly, at the place of event id `eid` among that instant's
+        events (`call_at`)."""
+        call_at(self.env, at_s, eid, lambda _: self._look(find, wait_no))
 
     def _look_in(self, delay_s: float, find: Finder, wait_no: int) -> None:
         """Look at the AGV ahead `delay_s` from now: a timeout's callback, not a process (no

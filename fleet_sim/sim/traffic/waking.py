@@ -49,6 +49,18 @@ def process_now(event: Event) -> None:
         callback(event)
 
 
+def call_at(env: simpy.Environment, at_s: float, eid: int,
+            callback: Callable[[Event], None]) -> None:
+    """Have SimPy call `callback` at `at_s` exactly, at the place of event id `eid` among
+    that instant's events (an id reserved earlier: where a timer set then would have come). A
+    timeout of `at_s - now` may round to another float and takes a new id."""
+    event = Event(env)
+    event._ok = True
+    event._value = None
+    event.callbacks.append(callback)
+    heapq.heappush(env._queue, (at_s, NORMAL, eid, event))
+
+
 class Sleeper:
     """A blocked AGV's wait for its claim. It looks again for a way out only at its look times
     (every `period_s` from `start_s`, the times a blocked AGV has always looked at), and only
@@ -194,8 +206,7 @@ class Nudge(Event):
         self._defused = True
         self.sleeper = sleeper
         if at_once:
-            self.callbacks = None  # type: ignore[assignment]  # SimPy's mark of "processed"
-            self._deliver(self)
+            process_now(self)
         else:
             self.env.schedule(self)
 
@@ -251,12 +262,7 @@ class AlarmClock:
         if key in self._queued:
             return
         self._queued.add(key)
-        timer = Event(self.env)
-        timer._ok = True
-        timer._value = None
-        timer.callbacks.append(lambda _: self._ring(key))
-        env = self.env
-        heapq.heappush(env._queue, (max(key[0], env.now), NORMAL, key[1], timer))
+        call_at(self.env, max(key[0], self.env.now), key[1], lambda _: self._ring(key))
 
     def _ring(self, key: tuple[float, int]) -> None:
         self._queued.discard(key)
