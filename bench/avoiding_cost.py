@@ -4,11 +4,15 @@ the same scenario under both policies (every AGV admitted onto the track,
 prints the median wall seconds per simulated hour, their ratio, delivered orders per hour, and
 what the avoiding policy's safety check did: walks (every AGV on the track driven to parking,
 fleet_sim.sim.traffic.avoidance) and the moves they made. `--profile`
-adds the functions the first case's avoiding run spent its time in (cProfile, by own time).
+adds the functions the first case's avoiding run spent its time in (cProfile, by own time and
+by cumulative time).
+`--components` adds, over each case's walks (one more avoiding run, counted before each walk),
+how many AGVs were on the track and how many of them in the claim graph's largest strongly
+connected component and in any cycle: the share a walk of the cycles alone could skip.
 These machines are noisy: compare figures within one run (the load average is printed).
 
     .venv/bin/python bench/avoiding_cost.py [--cases fulfilment_centre:200 ...] [--hours 1]
-        [--orders-per-agv-hour 5] [--repeats 1] [--profile]
+        [--orders-per-agv-hour 5] [--repeats 1] [--profile] [--components]
 """
 
 from __future__ import annotations
@@ -24,12 +28,15 @@ import time
 from pathlib import Path
 from typing import Any
 
+import networkx as nx
+
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from fleet_sim.config.scenario import load_layout_for, load_scenario  # noqa: E402
 from fleet_sim.sim.engine import build_simulation, collecting_seldom  # noqa: E402
 from fleet_sim.sim.traffic.avoidance import Plans  # noqa: E402
+from fleet_sim.sim.traffic.walk import holders_of  # noqa: E402
 
 SCENARIO_OF = {
     "warehouse": "warehouse_shift.yaml",
@@ -68,6 +75,33 @@ def run_case(layout: str, agvs: int, hours: float, rate: float, policy: str,
     return out
 
 
+def components(layout: str, agvs: int, hours: float, rate: float) -> str:
+    """One avoiding run, the claim graph's components counted before each walk: medians of
+    the AGVs on the track, of the largest component and of those in any cycle."""
+    counts: list[tuple[int, int, int]] = []
+    walk = Plans._walk
+
+    def counted(plans: Plans, *args: Any) -> Any:
+        graph: nx.DiGraph = nx.DiGraph()
+        graph.add_nodes_from(x for x in plans.path if any(plans.table.held_locks(x)))
+        for x, needs in plans.needs.items():
+            graph.add_edges_from((x, y) for lock in needs for y in holders_of(lock) if y != x)
+        cycles = [len(c) for c in nx.strongly_connected_components(graph) if len(c) > 1]
+        counts.append((graph.number_of_nodes(), max(cycles, default=0), sum(cycles)))
+        return walk(plans, *args)
+
+    Plans._walk = counted  # type: ignore[method-assign]
+    try:
+        run_case(layout, agvs, hours, rate, "avoiding")
+    finally:
+        Plans._walk = walk  # type: ignore[method-assign]
+    if not counts:
+        return "no walks"
+    on, largest, cycling = (statistics.median(c[i] for c in counts) for i in range(3))
+    return (f"{len(counts)} walks; medians: {on:g} AGVs on the track, {largest:g} in the "
+            f"largest component (at most {max(c[1] for c in counts)}), {cycling:g} in cycles")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cases", nargs="+", default=DEFAULT_CASES,
@@ -78,6 +112,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--profile", action="store_true",
                         help="profile the first case's avoiding run")
+    parser.add_argument("--components", action="store_true",
+                        help="count the claim graph's cycles before each walk")
     args = parser.parse_args()
     cases = []
     for case in args.cases:
@@ -108,9 +144,13 @@ def main() -> None:
         if args.profile and n == 0:
             profile = cProfile.Profile()
             run_case(layout, agvs, args.hours, rate, "avoiding", profile)
-            text = io.StringIO()
-            pstats.Stats(profile, stream=text).sort_stats("tottime").print_stats(14)
-            print("\n".join(text.getvalue().splitlines()[4:]))
+            for order in ("tottime", "cumulative"):
+                text = io.StringIO()
+                pstats.Stats(profile, stream=text).sort_stats(order).print_stats(14)
+                print("\n".join(text.getvalue().splitlines()[4:]))
+        if args.components:
+            print(f"  components ({layout} {agvs}): {components(layout, agvs, args.hours, rate)}",
+                  flush=True)
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
 
 

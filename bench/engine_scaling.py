@@ -24,16 +24,22 @@ compare figures within one run of this script only (the load average is printed)
   The admission table lists only the fleets larger than the limit (the others run as without).
 
 `--policy NAME` runs every model with the override `traffic.policy: NAME` (a traffic policy
-the scenario knows); without it, the scenario's. The script lowers its own CPU priority
-(`--nice`, default 10): the machine is shared.
+the scenario knows); without it, the scenario's. `--profile REGIME` (a ring regime: "150
+orders/h", "every AGV busy", "everything on") profiles one more model run of it after the
+sections and prints the functions by own time (cProfile: slower, shares only). The script
+lowers its own CPU priority (`--nice`, default 10): the machine is shared.
 
     .venv/bin/python bench/engine_scaling.py [--sections ring warehouse dc site] [--repeats 3]
+        [--profile "every AGV busy"]
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
+import io
 import os
+import pstats
 import statistics
 import sys
 import time
@@ -268,6 +274,7 @@ def main() -> None:
     parser.add_argument("--site-repeats", type=int, default=1)
     parser.add_argument("--policy", help="traffic.policy for every model run")
     parser.add_argument("--nice", type=int, default=10, help="added to this process's niceness")
+    parser.add_argument("--profile", choices=list(SHIFTS), help="profile one ring regime's run")
     args = parser.parse_args()
     os.nice(args.nice)
     if args.policy:
@@ -283,7 +290,22 @@ def main() -> None:
     if "site" in args.sections:
         site_section(args.site_fleets, args.site_hours, args.site_load, args.site_max_active,
                      args.site_repeats)
+    if args.profile:
+        profile_shift(args.profile)
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
+
+
+def profile_shift(title: str) -> None:
+    """One model run of a ring regime under cProfile: the functions by own time."""
+    scenario_file, overrides = SHIFTS[title]
+    profile = cProfile.Profile()
+    profile.enable()
+    model_run(scenario_file, overrides)
+    profile.disable()
+    text = io.StringIO()
+    pstats.Stats(profile, stream=text).sort_stats("tottime").print_stats(20)
+    print(f"## profile: {title}")
+    print("\n".join(text.getvalue().splitlines()[2:]))
 
 
 if __name__ == "__main__":

@@ -11,9 +11,11 @@ hop are printed beside the bare ring's (3 events per hop: request, timeout, rele
 load average: compare figures within one run only. Events the engine pushes onto SimPy's queue
 itself, not through `schedule` (the alarm clock's timers, fleet_sim.sim.traffic.waking, and an
 LDS look at a time to the last bit, fleet_sim.sim.agents.lds), are counted where SimPy processes
-them (`step`), in the total and in a row of their own.
+them (`step`), in the total and in a row of their own. `--lds` adds what the LDS watch's
+looks found (fleet_sim.sim.agents.lds.AgvAhead._look): the AGV ahead standing (a pause), driving,
+nobody (waiting for a corridor, a zone or a free node), or a wait already over.
 
-    .venv/bin/python bench/events_per_hop.py [--hours 2]
+    .venv/bin/python bench/events_per_hop.py [--hours 2] [--lds]
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ sys.path.insert(0, str(ROOT / "bench"))
 from engine_scaling import SHIFTS, bare_ring, model_run  # noqa: E402
 
 from fleet_sim.model import records  # noqa: E402
+from fleet_sim.sim.agents.lds import AgvAhead  # noqa: E402
 
 LEAN_PARTS: dict[str, set[str] | None] = {
     "fleet_sim/sim/traffic/locks.py": {"__init__", "_check", "release"}}
@@ -76,6 +79,27 @@ def _counting_step(original: Any) -> Any:
     return step
 
 
+LOOKS: collections.Counter[str] = collections.Counter()
+
+
+def _counting_look(original: Any) -> Any:
+    def look(self: AgvAhead, find: Any, wait_no: int) -> None:
+        if not self.waiting or self._wait_no != wait_no or self.paused_since is not None:
+            LOOKS["the wait already over"] += 1
+        else:
+            found = find()
+            if found is None:
+                LOOKS["nobody (a corridor, a zone or a free node)"] += 1
+            elif found[2] and found[1].standing:
+                LOOKS["the AGV ahead standing (a pause)"] += 1
+            elif not found[1].standing:
+                LOOKS["the AGV ahead driving"] += 1
+            else:
+                LOOKS["the AGV ahead standing elsewhere"] += 1
+        original(self, find, wait_no)
+    return look
+
+
 def _counting_drove(original: Any) -> Any:
     def drove(self: records.Recorder, start_s: float, end_s: float, length_m: float) -> None:
         HOPS[0] += 1
@@ -86,6 +110,7 @@ def _counting_drove(original: Any) -> Any:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=2.0)
+    parser.add_argument("--lds", action="store_true", help="what the LDS watch's looks found")
     args = parser.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} "
           f"{os.getloadavg()[2]:.2f}; {args.hours:g} simulated hours each")
@@ -95,8 +120,11 @@ def main() -> None:
     Environment.schedule = _counting_schedule(Environment.schedule)  # type: ignore[method-assign]
     Environment.step = _counting_step(Environment.step)  # type: ignore[method-assign]
     records.Recorder.drove = _counting_drove(records.Recorder.drove)  # type: ignore[method-assign]
+    if args.lds:
+        AgvAhead._look = _counting_look(AgvAhead._look)  # type: ignore[method-assign]
     for title, (scenario_file, overrides) in SHIFTS.items():
         COUNTS.clear()
+        LOOKS.clear()
         HOPS[0] = STEPS[0] = 0
         start = time.perf_counter()
         _, run = model_run(scenario_file, {**overrides, "duration_h": args.hours})
@@ -116,6 +144,11 @@ def main() -> None:
         for (kind, by), n in COUNTS.most_common():
             if n / hops >= 0.01:
                 print(f"| {kind} | {by} | {n / hops:.2f} | {n / total:.0%} |")
+        if args.lds:
+            looks = sum(LOOKS.values())
+            print()
+            print(f"LDS looks: {looks:,} ({looks / hops:.2f} a hop): " + ", ".join(
+                f"{found} {n / max(looks, 1):.0%}" for found, n in LOOKS.most_common()))
 
 
 if __name__ == "__main__":
