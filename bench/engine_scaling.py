@@ -24,7 +24,9 @@ compare figures within one run of this script only (the load average is printed)
   The admission table lists only the fleets larger than the limit (the others run as without).
 
 `--policy NAME` runs every model with the override `traffic.policy: NAME` (a traffic policy
-the scenario knows); without it, the scenario's. `--profile REGIME` (a ring regime: "150
+the scenario knows); without it, the scenario's. `--set KEY=VALUE` (repeatable) sets any
+other scenario field for every model run (`--set rules.agv_ahead=held_back`: the model
+before issue 33's reading of the AGV ahead). `--profile REGIME` (a ring regime: "150
 orders/h", "every AGV busy", "everything on") profiles one more model run of it after the
 sections and prints the functions by own time (cProfile: slower, shares only). The script
 lowers its own CPU priority (`--nice`, default 10): the machine is shared.
@@ -47,6 +49,7 @@ from pathlib import Path
 from typing import Any
 
 import simpy
+import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -62,7 +65,7 @@ FIXED_ORDERS_PER_HOUR = 150.0
 BUSY_SHARE = 0.7
 EXPERIMENTS = ROOT / "experiments"
 POLICY: dict[str, Any] = {}
-"""`traffic.policy` override of every model run (--policy), empty: the scenario's."""
+"""Overrides of every model run (--policy, --set), empty: the scenarios as they are."""
 
 
 def bare_ring(nodes: int = 400, agvs: int = 50, hours: float = SHIFT_H,
@@ -273,12 +276,22 @@ def main() -> None:
     parser.add_argument("--site-max-active", type=int, default=300)
     parser.add_argument("--site-repeats", type=int, default=1)
     parser.add_argument("--policy", help="traffic.policy for every model run")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="a scenario field for every model run, the value in YAML "
+                        "(--set rules.agv_ahead=held_back); repeat for several")
     parser.add_argument("--nice", type=int, default=10, help="added to this process's niceness")
     parser.add_argument("--profile", choices=list(SHIFTS), help="profile one ring regime's run")
     args = parser.parse_args()
     os.nice(args.nice)
     if args.policy:
         POLICY["traffic.policy"] = args.policy
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            parser.error(f"--set {item!r}: expected KEY=VALUE")
+        POLICY[key] = yaml.safe_load(value)
+    if POLICY:
+        print("every model run with " + ", ".join(f"{k}={v}" for k, v in POLICY.items()))
     print(f"load average at start: {os.getloadavg()[0]:.2f} ({os.cpu_count()} cores)")
     print()
     if "ring" in args.sections:
