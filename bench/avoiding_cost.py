@@ -34,6 +34,7 @@ import sys
 import time
 from pathlib import Path
 from typing import Any
+from unittest import mock
 
 import networkx as nx
 
@@ -91,11 +92,10 @@ def split(layout: str, agvs: int, hours: float, rate: float, admitted: str,
     its wall time went, in seconds a simulated hour."""
     spent = {"walk": 0.0, "walk run": 0.0, "fit": 0.0, "fit run": 0.0}
     inside: list[str] = []
-    originals: dict[tuple[type, str], Any] = {
-        (Plans, "_walk"): Plans._walk, (Plans, "_fit"): Plans._fit, (Walk, "run"): Walk.run}
 
-    def timed(cls: type, name: str, key: str | None) -> None:
-        original = originals[(cls, name)]
+    def timed(original: Any, key: str | None) -> Any:
+        """`original` with its wall time added to `key` (None: to the driving of the walk or
+        fit it runs in)."""
 
         def wrapper(*args: Any, **kwargs: Any) -> Any:
             part = key if key is not None else f"{inside[-1]} run" if inside else None
@@ -110,16 +110,12 @@ def split(layout: str, agvs: int, hours: float, rate: float, admitted: str,
                 if key is not None:
                     inside.pop()
 
-        setattr(cls, name, wrapper)
+        return wrapper
 
-    timed(Plans, "_walk", "walk")
-    timed(Plans, "_fit", "fit")
-    timed(Walk, "run", None)
-    try:
+    with mock.patch.object(Plans, "_walk", timed(Plans._walk, "walk")), \
+            mock.patch.object(Plans, "_fit", timed(Plans._fit, "fit")), \
+            mock.patch.object(Walk, "run", timed(Walk.run, None)):
         total = run_case(layout, agvs, hours, rate, "avoiding", admitted=admitted)["wall_s"]
-    finally:
-        for (cls, name), original in originals.items():
-            setattr(cls, name, original)
     per_h = {part: seconds / hours for part, seconds in spent.items()}
     total /= hours
     rest = total - per_h["walk"] - per_h["fit"]
@@ -130,7 +126,7 @@ def split(layout: str, agvs: int, hours: float, rate: float, admitted: str,
             f"with the driving free {free:.2f} s/h, {free / reactive_s:.1f}x reactive")
 
 
-def components(layout: str, agvs: int, hours: float, rate: float) -> str:
+def components(layout: str, agvs: int, hours: float, rate: float, admitted: str) -> str:
     """One avoiding run, the claim graph's components counted before each walk: medians of
     the AGVs on the track, of the largest component and of those in any cycle."""
     counts: list[tuple[int, int, int]] = []
@@ -145,11 +141,8 @@ def components(layout: str, agvs: int, hours: float, rate: float) -> str:
         counts.append((graph.number_of_nodes(), max(cycles, default=0), sum(cycles)))
         return walk(plans, *args)
 
-    Plans._walk = counted  # type: ignore[method-assign,assignment]
-    try:
-        run_case(layout, agvs, hours, rate, "avoiding")
-    finally:
-        Plans._walk = walk  # type: ignore[method-assign]
+    with mock.patch.object(Plans, "_walk", counted):
+        run_case(layout, agvs, hours, rate, "avoiding", admitted=admitted)
     if not counts:
         return "no walks"
     on, largest, cycling = (statistics.median(c[i] for c in counts) for i in range(3))
@@ -215,8 +208,8 @@ def main() -> None:
             print(f"  split ({layout} {agvs}): "
                   f"{split(layout, agvs, args.hours, rate, args.admitted, r_s)}", flush=True)
         if args.components:
-            print(f"  components ({layout} {agvs}): {components(layout, agvs, args.hours, rate)}",
-                  flush=True)
+            found = components(layout, agvs, args.hours, rate, args.admitted)
+            print(f"  components ({layout} {agvs}): {found}", flush=True)
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
 
 

@@ -58,13 +58,14 @@ from fleet_sim.analysis.kpi_sums import run_kpis  # noqa: E402
 from fleet_sim.config.scenario import load_layout_for, load_scenario  # noqa: E402
 from fleet_sim.sim.engine import RunOutput, collecting_seldom, simulate  # noqa: E402
 from fleet_sim.sim.estimate import analytic_estimate  # noqa: E402
+from userfiles.checking import InputError  # noqa: E402
 
 SHIFT_H = 8.0
 ORDERS_PER_AGV_HOUR = 7.5
 FIXED_ORDERS_PER_HOUR = 150.0
 BUSY_SHARE = 0.7
 EXPERIMENTS = ROOT / "experiments"
-POLICY: dict[str, Any] = {}
+EVERY_RUN: dict[str, Any] = {}
 """Overrides of every model run (--policy, --set), empty: the scenarios as they are."""
 
 
@@ -96,7 +97,7 @@ def bare_ring(nodes: int = 400, agvs: int = 50, hours: float = SHIFT_H,
 
 def model_run(scenario_file: str, overrides: dict[str, Any]) -> tuple[float, RunOutput]:
     path = EXPERIMENTS / scenario_file
-    scenario = load_scenario(path, {**overrides, **POLICY})
+    scenario = load_scenario(path, {**overrides, **EVERY_RUN})
     layout = load_layout_for(scenario, str(path))
     start = time.perf_counter()
     run = simulate(scenario, layout)
@@ -215,10 +216,10 @@ def site_section(fleets: list[int], hours: float, load: float, max_active: int,
     scenario_file = "fulfilment_shift.yaml"
     path = EXPERIMENTS / scenario_file
     base: dict[str, Any] = {"duration_h": hours, "warmup_h": 0.5, "demand.profile": []}
-    scenario = load_scenario(path, {**base, **POLICY})
+    scenario = load_scenario(path, {**base, **EVERY_RUN})
     estimate = analytic_estimate(scenario, load_layout_for(scenario, str(path)))
     per_agv = load * 3600.0 / estimate.cycle_s
-    policy = POLICY.get("traffic.policy", "the scenario's")
+    policy = EVERY_RUN.get("traffic.policy", "the scenario's")
     routes = (f"congestion-aware routes ({scenario.traffic.congestion_cost_s:g} s)"
               if scenario.traffic.congestion_cost_s else "shortest routes")
     print(f"## fulfilment centre (2,059 nodes), {hours:g} h, traffic policy {policy}, {routes}, "
@@ -284,14 +285,18 @@ def main() -> None:
     args = parser.parse_args()
     os.nice(args.nice)
     if args.policy:
-        POLICY["traffic.policy"] = args.policy
+        EVERY_RUN["traffic.policy"] = args.policy
     for item in args.set:
         key, sep, value = item.partition("=")
         if not sep or not key:
             parser.error(f"--set {item!r}: expected KEY=VALUE")
-        POLICY[key] = yaml.safe_load(value)
-    if POLICY:
-        print("every model run with " + ", ".join(f"{k}={v}" for k, v in POLICY.items()))
+        EVERY_RUN[key] = yaml.safe_load(value)
+    try:  # a field or value the scenarios refuse: one line, before any run
+        load_scenario(EXPERIMENTS / "warehouse_shift.yaml", EVERY_RUN)
+    except InputError as exc:
+        parser.error(f"--policy/--set: {exc}")
+    if EVERY_RUN:
+        print("every model run with " + ", ".join(f"{k}={v}" for k, v in EVERY_RUN.items()))
     print(f"load average at start: {os.getloadavg()[0]:.2f} ({os.cpu_count()} cores)")
     print()
     if "ring" in args.sections:
